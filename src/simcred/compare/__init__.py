@@ -1,0 +1,6 @@
+"""Comparison of two sets of runs (Neurohr et al. 2023): Markov chains + MMD tests."""
+
+from simcred.compare.process import compare
+from simcred.compare.result import Comparison
+
+__all__ = ["compare", "Comparison"]

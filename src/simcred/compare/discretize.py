@@ -1,0 +1,81 @@
+"""Equal-frequency binning on pooled values, and the state space it induces.
+
+Neurohr et al. 2023 [1], sec. V-A and Fig. 3: every feature is cut at the quantiles k/B of the
+pooled values of both trace sets; a state is the vector of bin indices of all features.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from simcred.errors import OptionError
+
+#: Largest state space: pair codes ``from * |S| + to`` must fit into int64.
+MAX_STATES = 2**31
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class StateSpace:
+    """The grid of states: per feature, the bin edges (duplicates removed) and the data range.
+
+    A value ``v`` of feature ``j`` falls into bin ``searchsorted(edges[j], v, side="right")``, so
+    feature ``j`` has ``len(edges[j]) + 1`` bins and ``|S| = prod(len(edges[j]) + 1)``.
+    ``bounds`` (pooled minimum and maximum per feature) only serve to draw the outer bins.
+    """
+
+    features: tuple[str, ...]
+    edges: tuple[np.ndarray, ...]
+    bounds: tuple[tuple[float, float], ...]
+
+    @classmethod
+    def equal_frequency(
+        cls, pooled: np.ndarray, bins: Sequence[int], features: Sequence[str]
+    ) -> StateSpace:
+        """Edges ``numpy.quantile(pooled[:, j], k / B)`` for ``k = 1 .. B-1``, duplicates removed.
+
+        >>> s = StateSpace.equal_frequency(np.arange(10.0)[:, None], [2], ["x"])
+        >>> s.edges[0].tolist(), s.shape
+        ([4.5], (2,))
+        """
+        edges, bounds = [], []
+        for j, n_bins in enumerate(bins):
+            column = pooled[:, j]
+            edges.append(np.unique(np.quantile(column, np.arange(1, n_bins) / n_bins)))
+            bounds.append((float(column.min()), float(column.max())))
+        space = cls(tuple(features), tuple(edges), tuple(bounds))
+        if space.n_states > MAX_STATES:
+            raise OptionError(f"state space of {space.n_states} states is too large "
+                              f"(at most {MAX_STATES}); use fewer features or bins")
+        return space
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        """Number of bins per feature."""
+        return tuple(len(e) + 1 for e in self.edges)
+
+    @property
+    def n_states(self) -> int:
+        """``|S|``, the size of the common state space (denominator of [1] eq. (6))."""
+        return int(np.prod(self.shape, dtype=np.int64))
+
+    def bin_indices(self, values: np.ndarray) -> np.ndarray:
+        """``(rows, features)`` bin indices of ``(rows, features)`` values."""
+        return np.stack(
+            [np.searchsorted(e, values[:, j], side="right") for j, e in enumerate(self.edges)],
+            axis=1,
+        )
+
+    def encode(self, values: np.ndarray) -> np.ndarray:
+        """One int64 code per row (``ravel_multi_index`` of the bin indices)."""
+        return np.ravel_multi_index(tuple(self.bin_indices(values).T), self.shape).astype(np.int64)
+
+    def decode(self, codes: np.ndarray) -> np.ndarray:
+        """``(len(codes), features)`` int array of bin indices."""
+        return np.stack(np.unravel_index(np.asarray(codes, dtype=np.int64), self.shape), axis=1)
+
+    def vectors(self, codes: np.ndarray) -> np.ndarray:
+        """States as float vectors of bin indices: the points the MMD kernels act on."""
+        return self.decode(codes).astype(np.float64)

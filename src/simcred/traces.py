@@ -1,0 +1,261 @@
+"""TraceSet: many runs of one model (or one reality), stored columnar.
+
+A run is a table with a time column ``t`` (seconds, strictly increasing) and named float signals.
+All runs' rows are concatenated into one ``(rows, signals)`` array; ``offsets[i]:offsets[i + 1]``
+are the rows of run ``i``. Several objects use dotted signal names (``ego.x``, ``cyclist.y``).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from simcred.errors import TraceSetError
+
+TIME = "t"
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class TraceSet:
+    """A set of runs: columnar storage of concatenated rows plus run offsets.
+
+    Parameters
+    ----------
+    signals : tuple of str
+        Signal names, in column order (the time column ``t`` is kept apart).
+    time : ndarray, shape (rows,)
+        Time stamps of all runs, concatenated.
+    values : ndarray, shape (rows, len(signals))
+        Signal values of all runs, concatenated.
+    offsets : ndarray, shape (runs + 1,)
+        Run ``i`` is ``rows offsets[i]:offsets[i + 1]``.
+    run_ids : tuple of str
+        One unique name per run (CSV file stem, Parquet ``run`` value).
+    metadata : mapping
+        JSON-serialisable provenance: source, model, parameters, seed.
+    source : str
+        Where the set came from (a path), used to name the culprit in errors.
+    run_sources : tuple of str
+        Per run, the file it came from when runs are separate files (CSV directory), else empty.
+
+    Notes
+    -----
+    Construction validates everything a comparison relies on: at least one run, at least two steps
+    per run, finite values, strictly increasing time. Errors are one line naming the file, run,
+    column and row (1-based data row, header excluded). Equality is identity; use
+    :meth:`equals` for content equality.
+    """
+
+    signals: tuple[str, ...]
+    time: np.ndarray
+    values: np.ndarray
+    offsets: np.ndarray
+    run_ids: tuple[str, ...]
+    metadata: Mapping[str, Any] = field(default_factory=dict)
+    source: str = "<memory>"
+    run_sources: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        for name, array, dtype in (
+            ("time", self.time, np.float64),
+            ("values", self.values, np.float64),
+            ("offsets", self.offsets, np.int64),
+        ):
+            array = np.ascontiguousarray(array, dtype=dtype)
+            array.setflags(write=False)
+            object.__setattr__(self, name, array)
+        object.__setattr__(self, "signals", tuple(self.signals))
+        object.__setattr__(self, "run_ids", tuple(str(r) for r in self.run_ids))
+        object.__setattr__(self, "run_sources", tuple(self.run_sources))
+        self._validate()
+
+    # -- construction -------------------------------------------------------------------------
+
+    @classmethod
+    def from_runs(
+        cls,
+        runs: Sequence[Mapping[str, Any]],
+        *,
+        run_ids: Sequence[str] | None = None,
+        metadata: Mapping[str, Any] | None = None,
+        source: str = "<memory>",
+    ) -> TraceSet:
+        """Build from one mapping per run: ``{"t": [...], "x": [...], ...}``.
+
+        Every run must have the same signal names; column order follows the first run.
+
+        >>> ts = TraceSet.from_runs([{"t": [0, 1], "x": [0.0, 1.0]}, {"t": [0, 1], "x": [2, 3]}])
+        >>> ts.n_runs, ts.signals, ts.column("x").tolist()
+        (2, ('x',), [0.0, 1.0, 2.0, 3.0])
+        """
+        if len(runs) == 0:
+            raise TraceSetError(f"{source}: the trace set is empty (no runs)")
+        ids = [str(i) for i in range(len(runs))] if run_ids is None else [str(r) for r in run_ids]
+        first = [k for k in runs[0] if k != TIME]
+        for rid, run in zip(ids, runs, strict=True):
+            if TIME not in run:
+                raise TraceSetError(f"{source}: run '{rid}' has no time column '{TIME}'")
+            _check_same_signals(first, [k for k in run if k != TIME], f"{source}: run '{rid}'")
+        lengths = [len(np.asarray(run[TIME])) for run in runs]
+        offsets = np.concatenate([[0], np.cumsum(lengths)])
+        time = np.concatenate([np.asarray(run[TIME], dtype=np.float64) for run in runs])
+        values = np.empty((len(time), len(first)))
+        for j, name in enumerate(first):
+            values[:, j] = np.concatenate([np.asarray(run[name], dtype=np.float64) for run in runs])
+        return cls(tuple(first), time, values, offsets, tuple(ids), dict(metadata or {}), source)
+
+    # -- access -------------------------------------------------------------------------------
+
+    @property
+    def n_runs(self) -> int:
+        return len(self.offsets) - 1
+
+    @property
+    def n_rows(self) -> int:
+        return len(self.time)
+
+    @property
+    def lengths(self) -> np.ndarray:
+        """Number of steps of every run."""
+        return np.diff(self.offsets)
+
+    def __len__(self) -> int:
+        return self.n_runs
+
+    def __repr__(self) -> str:
+        return (
+            f"TraceSet({self.source!r}, runs={self.n_runs}, rows={self.n_rows}, "
+            f"signals={list(self.signals)})"
+        )
+
+    def column(self, name: str) -> np.ndarray:
+        """All rows of one signal (or of ``t``), concatenated over runs."""
+        if name == TIME:
+            return self.time
+        return self.values[:, self._index(name)]
+
+    def features(self, names: Sequence[str]) -> np.ndarray:
+        """The ``(rows, len(names))`` array of the named signals, in that order."""
+        return self.values[:, [self._index(n) for n in names]]
+
+    def run(self, i: int) -> dict[str, np.ndarray]:
+        """Run ``i`` as a mapping ``{"t": ..., signal: ...}`` of read-only views."""
+        lo, hi = self.offsets[i], self.offsets[i + 1]
+        out = {TIME: self.time[lo:hi]}
+        out.update({s: self.values[lo:hi, j] for j, s in enumerate(self.signals)})
+        return out
+
+    def _index(self, name: str) -> int:
+        try:
+            return self.signals.index(name)
+        except ValueError:
+            known = ", ".join(self.signals)
+            raise TraceSetError(
+                f"{self.source}: unknown signal '{name}' (signals are: {known})"
+            ) from None
+
+    # -- identity -----------------------------------------------------------------------------
+
+    def digest(self) -> str:
+        """SHA-256 of the content (signals, run ids, offsets, time, values), not the metadata."""
+        h = hashlib.sha256()
+        h.update(json.dumps([self.signals, self.run_ids]).encode())
+        for array in (self.offsets, self.time, self.values):
+            h.update(np.ascontiguousarray(array).tobytes())
+        return "sha256:" + h.hexdigest()
+
+    def equals(self, other: TraceSet) -> bool:
+        """Exact content equality (bitwise floats), metadata included."""
+        return (
+            self.signals == other.signals
+            and self.run_ids == other.run_ids
+            and np.array_equal(self.offsets, other.offsets)
+            and np.array_equal(self.time, other.time)
+            and np.array_equal(self.values, other.values)
+            and dict(self.metadata) == dict(other.metadata)
+        )
+
+    # -- files --------------------------------------------------------------------------------
+
+    @classmethod
+    def read(cls, path: str | Path) -> TraceSet:
+        """Read a directory of CSV files (one per run) or one Parquet file with a ``run`` column."""
+        from simcred.io import read_traceset
+
+        return read_traceset(path)
+
+    def write(self, path: str | Path) -> Path:
+        """Write as a CSV directory, or as Parquet when ``path`` ends in ``.parquet``/``.pq``."""
+        from simcred.io import write_traceset
+
+        return write_traceset(self, path)
+
+    # -- validation ---------------------------------------------------------------------------
+
+    def _where(self, run: int) -> str:
+        if self.run_sources:
+            return self.run_sources[run]
+        return f"{self.source}: run '{self.run_ids[run]}'"
+
+    def _validate(self) -> None:
+        src = self.source
+        if self.n_runs < 1 or self.n_rows == 0:
+            raise TraceSetError(f"{src}: the trace set is empty (no runs)")
+        if TIME in self.signals:
+            raise TraceSetError(f"{src}: '{TIME}' is the time column, not a signal")
+        if len(set(self.signals)) != len(self.signals):
+            raise TraceSetError(f"{src}: duplicate signal names {list(self.signals)}")
+        if self.values.shape != (self.n_rows, len(self.signals)):
+            raise TraceSetError(f"{src}: values have shape {self.values.shape}, "
+                                f"expected ({self.n_rows}, {len(self.signals)})")
+        if len(self.run_ids) != self.n_runs or len(set(self.run_ids)) != self.n_runs:
+            raise TraceSetError(f"{src}: run ids must be unique, one per run")
+        if self.offsets[0] != 0 or self.offsets[-1] != self.n_rows:
+            raise TraceSetError(f"{src}: offsets must start at 0 and end at the row count")
+        short = np.flatnonzero(self.lengths < 2)
+        if short.size:
+            i = int(short[0])
+            raise TraceSetError(f"{self._where(i)}: run has {self.lengths[i]} step(s); "
+                                "at least 2 are needed for a transition")
+        self._validate_finite()
+        self._validate_time()
+
+    def _validate_finite(self) -> None:
+        for j, name in enumerate((TIME, *self.signals)):
+            col = self.time if j == 0 else self.values[:, j - 1]
+            bad = np.flatnonzero(~np.isfinite(col))
+            if bad.size:
+                row = int(bad[0])
+                run = int(np.searchsorted(self.offsets, row, side="right") - 1)
+                raise TraceSetError(
+                    f"{self._where(run)}: column '{name}', row {row - self.offsets[run] + 1}: "
+                    f"value is {col[row]} (values must be finite)"
+                )
+
+    def _validate_time(self) -> None:
+        step_ok = np.diff(self.time) > 0
+        step_ok[self.offsets[1:-1] - 1] = True  # a new run may restart its clock
+        bad = np.flatnonzero(~step_ok)
+        if bad.size:
+            row = int(bad[0]) + 1
+            run = int(np.searchsorted(self.offsets, row, side="right") - 1)
+            raise TraceSetError(
+                f"{self._where(run)}: column '{TIME}' is not strictly increasing at row "
+                f"{row - self.offsets[run] + 1} (t={self.time[row]!r} after {self.time[row - 1]!r})"
+            )
+
+
+def _check_same_signals(expected: Sequence[str], got: Sequence[str], where: str) -> None:
+    if set(expected) == set(got) and len(got) == len(expected):
+        return
+    missing = sorted(set(expected) - set(got))
+    extra = sorted(set(got) - set(expected))
+    raise TraceSetError(
+        f"{where}: signal names differ from the first run (missing {missing}, extra {extra})"
+    )

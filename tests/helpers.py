@@ -1,0 +1,38 @@
+import numpy as np
+
+
+from simcred.traces import TraceSet
+
+
+def random_walk_set(rng, runs, drift, min_len=2, max_len=30, source="<test>"):
+    """Runs of a 2-D random walk with per-run lengths in [min_len, max_len]."""
+    lengths = rng.integers(min_len, max_len + 1, size=runs)
+    out = []
+    for length in lengths:
+        steps = rng.normal(drift, 1.0, size=(length, 2))
+        xy = np.cumsum(steps, axis=0) + rng.normal(0, 2, size=2)
+        out.append({"t": np.arange(length) * 0.1, "x": xy[:, 0], "y": xy[:, 1]})
+    return TraceSet.from_runs(out, source=source)
+
+
+def runs_of(traces, features):
+    """The literal oracle's input: one (T, F) array per run."""
+    values = traces.features(features)
+    return [values[lo:hi] for lo, hi in zip(traces.offsets[:-1], traces.offsets[1:], strict=True)]
+
+
+
+
+def ar_set(rng, runs, phi, length=30, source="<test>"):
+    """Runs of a 2-D AR(1) process x' = phi x + noise, started in its stationary law.
+
+    phi and -phi have the same stationary (and start) distribution but opposite transitions.
+    """
+    scale = 1.0 / np.sqrt(1 - phi * phi)
+    xy = np.empty((runs, length, 2))
+    xy[:, 0] = rng.normal(0, scale, size=(runs, 2))
+    for t in range(1, length):
+        xy[:, t] = phi * xy[:, t - 1] + rng.normal(0, 1, size=(runs, 2))
+    return TraceSet.from_runs(
+        [{"t": np.arange(length) * 0.1, "x": r[:, 0], "y": r[:, 1]} for r in xy], source=source
+    )
