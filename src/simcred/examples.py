@@ -15,14 +15,14 @@ def lane_change_runs(
 ) -> TraceSet:
     """Lane changes to the left on a straight road, one per run.
 
-    Speed ~ N(20, 1) m/s, start x ~ N(0, 5) m, lane change starting at t ~ U(1, 0.4·T_end) with a
+    Speed ~ N(20, 1) m/s, start x ~ N(0, 5) m, lane change starting at t ~ U(0.1, 0.4)·T_end with a
     duration ~ N(4, 0.3) s × ``duration_scale`` along a smoothstep, lateral noise N(0, 0.05) m.
     Signals: ``x``, ``y`` (m), ``v`` (m/s), ``heading`` (rad).
     """
     t = np.arange(steps) * dt
     speed = rng.normal(20.0, 1.0, size=(runs, 1))
     x = rng.normal(0.0, 5.0, size=(runs, 1)) + speed * t
-    begin = rng.uniform(1.0, 0.4 * t[-1], size=(runs, 1))
+    begin = rng.uniform(0.1, 0.4, size=(runs, 1)) * t[-1]
     duration = rng.normal(4.0, 0.3, size=(runs, 1)) * duration_scale
     u = np.clip((t - begin) / duration, 0.0, 1.0)
     y = LANE_WIDTH * u * u * (3 - 2 * u) + rng.normal(0.0, 0.05, size=(runs, steps))

@@ -239,7 +239,7 @@ class TraceSet:
                 )
 
     def _validate_time(self) -> None:
-        step_ok = np.diff(self.time) > 0
+        step_ok = self.time[1:] > self.time[:-1]  # not np.diff: t[i+1] - t[i] may overflow
         step_ok[self.offsets[1:-1] - 1] = True  # a new run may restart its clock
         bad = np.flatnonzero(~step_ok)
         if bad.size:

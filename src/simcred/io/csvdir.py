@@ -29,8 +29,18 @@ def _natural_key(path: Path) -> list[object]:
 
 
 def _read_table(path: Path) -> pa.Table:
+    table = _read_csv(path, _READ)
+    # Columns that look like integers are read again as floats: as int64, "-0" would lose its sign.
+    ints = {f.name: pa.float64() for f in table.schema if pa.types.is_integer(f.type)}
+    if ints:
+        table = _read_csv(path, pacsv.ConvertOptions(null_values=[""], strings_can_be_null=True,
+                                                     column_types=ints))
+    return table
+
+
+def _read_csv(path: Path, options: pacsv.ConvertOptions) -> pa.Table:
     try:
-        return pacsv.read_csv(path, convert_options=_READ)
+        return pacsv.read_csv(path, convert_options=options)
     except (pa.ArrowInvalid, OSError, UnicodeDecodeError) as exc:
         reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise TraceSetError(f"{path}: unreadable CSV ({reason})") from None

@@ -65,6 +65,9 @@ def _metadata(table: pa.Table, path: Path) -> dict:
 
 
 def write(traces: TraceSet, path: Path) -> Path:
+    if RUN in traces.signals:
+        raise TraceSetError(f"{path}: a signal is named '{RUN}', which in Parquet is the column "
+                            "naming the run of each row; rename it or write a CSV directory")
     path.parent.mkdir(parents=True, exist_ok=True)
     columns = {
         RUN: pa.array(np.repeat(np.asarray(traces.run_ids, dtype=object), traces.lengths),

@@ -1,0 +1,269 @@
+"""The ``simcred`` command line: thin commands that parse, call one library function, render.
+
+Exit codes: 0 done, 1 negative verdict, 2 bad input or usage (one red line, no traceback),
+3 undecided.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable, Sequence
+from functools import wraps
+from pathlib import Path
+from typing import Annotated, TypeVar
+
+import typer
+from rich.console import Console
+from rich.progress import track
+from rich.table import Table
+
+from simcred import __version__
+from simcred.compare import compare as compare_sets
+from simcred.compare import matrix as matrix_of_sets
+from simcred.compare.kernels import Kernel
+from simcred.compare.mmd import Estimator, Test
+from simcred.errors import OptionError, SimcredError
+
+app = typer.Typer(
+    name="simcred",
+    help="Can I trust this simulation for this test case?",
+    pretty_exceptions_show_locals=False,
+    add_completion=False,
+)
+out_console = Console()
+err_console = Console(stderr=True)
+EXIT_BAD_INPUT = 2
+T = TypeVar("T")
+
+
+class State:
+    quiet = False
+    debug = False
+
+
+@app.callback()
+def main(
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bars or tables.")] = False,
+    debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks of input errors.")] = False,
+    version: Annotated[bool, typer.Option("--version", help="Print the version and exit.",
+                                          is_eager=True)] = False,
+) -> None:
+    """simcred: validity of simulation models for testing automated driving."""
+    if version:
+        out_console.print(f"simcred {__version__}")
+        raise typer.Exit(0)
+    State.quiet, State.debug = quiet, debug
+
+
+def one_line_errors(command: Callable) -> Callable:
+    """Turn a SimcredError into one red line on stderr and exit code 2."""
+
+    @wraps(command)
+    def wrapper(*args, **kwargs):
+        try:
+            return command(*args, **kwargs)
+        except SimcredError as exc:
+            if State.debug:
+                raise
+            err_console.print(f"[red]error:[/red] {exc}", highlight=False, soft_wrap=True)
+            raise typer.Exit(EXIT_BAD_INPUT) from None
+
+    return wrapper
+
+
+def progress(description: str) -> Callable[[Sequence[T]], Sequence[T]] | None:
+    """A rich progress bar on stderr, only on a terminal and without --quiet."""
+    if State.quiet or not sys.stderr.isatty():
+        return None
+    return lambda items: track(items, description=description, console=err_console,
+                               transient=True)
+
+
+def _split(text: str | None) -> list[str] | None:
+    return None if text is None else [part.strip() for part in text.split(",")]
+
+
+def _bins(text: str) -> int | list[int]:
+    try:
+        values = [int(part) for part in text.split(",")]
+    except ValueError:
+        raise OptionError(f"--bins must be an integer or a comma-separated list, got {text!r}"
+                          ) from None
+    return values[0] if len(values) == 1 else values
+
+
+Features = Annotated[str | None, typer.Option(
+    "--features", "-f", help="Comma-separated signals spanning the state space "
+    "(default: all signals, which both sets must share).")]
+Bins = Annotated[str, typer.Option(help="Equal-frequency bins per feature (≥ 2), or one per "
+                                        "feature: 10,8.")]
+KernelOpt = Annotated[Kernel, typer.Option(help="MMD kernel.")]
+EstimatorOpt = Annotated[Estimator, typer.Option(help="MMD estimator: the paper's biased "
+                                                      "MMD_b or the unbiased MMD²_u.")]
+TestOpt = Annotated[Test, typer.Option(help="The paper's bound test or a permutation test.")]
+Alpha = Annotated[float, typer.Option(help="Level of each test, in (0, 1).")]
+Permutations = Annotated[int, typer.Option(help="Resamples of the permutation test.")]
+Seed = Annotated[int | None, typer.Option(help="Seed (default: fresh entropy, stored in the "
+                                               "result).")]
+Continue = Annotated[bool, typer.Option("--continue-on-start-difference",
+                                        help="Test transitions even if the start "
+                                             "distributions differ.")]
+Json = Annotated[bool, typer.Option("--json", help="Print the result JSON to stdout.")]
+
+
+def _options(features, bins, kernel, estimator, test, alpha, permutations, seed,
+             continue_on_start_difference) -> dict:
+    return dict(features=_split(features), bins=_bins(bins), kernel=kernel.value,
+                estimator=estimator.value, test=test.value, alpha=alpha,
+                permutations=permutations, seed=seed,
+                continue_on_start_difference=continue_on_start_difference)
+
+
+@app.command()
+@one_line_errors
+def compare(
+    a: Annotated[Path, typer.Argument(metavar="A", help="Trace set A: a CSV directory or a "
+                                                        "Parquet file.")],
+    b: Annotated[Path, typer.Argument(metavar="B", help="Trace set B: a CSV directory or a "
+                                                        "Parquet file.")],
+    features: Features = None,
+    bins: Bins = "10",
+    kernel: KernelOpt = Kernel.GAUSSIAN,
+    estimator: EstimatorOpt = Estimator.BIASED,
+    test: TestOpt = Test.BOUND,
+    alpha: Alpha = 0.01,
+    permutations: Permutations = 999,
+    seed: Seed = None,
+    continue_on_start_difference: Continue = False,
+    out: Annotated[Path | None, typer.Option(help="Directory for comparison.json and "
+                                                  "state_map.png.")] = None,
+    as_json: Json = False,
+) -> None:
+    """Compare two trace sets: the fraction of distinguishable transitions (Neurohr et al.)."""
+    result = compare_sets(a, b, progress=progress("testing states"),
+                          **_options(features, bins, kernel, estimator, test, alpha,
+                                     permutations, seed, continue_on_start_difference))
+    if out is not None:
+        from simcred.report.figures import state_map
+
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "comparison.json").write_text(result.to_json())
+        state_map(result, out / "state_map.png")
+    if as_json:
+        sys.stdout.write(result.to_json())
+    elif not State.quiet:
+        _print_comparison(result, out)
+
+
+def _print_comparison(result, out: Path | None) -> None:
+    table = Table(title=f"{result.inputs[0].source}  vs  {result.inputs[1].source}")
+    table.add_column("quantity")
+    table.add_column("value", justify="right")
+    start = result.start
+    verdict = "differ" if start.rejected else "equal (H0 kept)"
+    table.add_row("start distributions", f"{verdict}, MMD {start.statistic:.4g}")
+    table.add_row("states |S|", str(result.n_states))
+    table.add_row("tested / rejected / untestable",
+                  f"{len(result.states)} / {len(result.rejected_states)} / "
+                  f"{len(result.untestable)}")
+    distance = "stopped (start distributions differ)" if result.stopped \
+        else f"{100 * result.distance:.2f} %"
+    table.add_row("distance", distance)
+    out_console.print(table)
+    if out is not None:
+        out_console.print(f"wrote {out / 'comparison.json'} and {out / 'state_map.png'}")
+
+
+@app.command()
+@one_line_errors
+def matrix(
+    sets: Annotated[list[Path], typer.Argument(metavar="SETS...", help="Two or more trace "
+                                                                      "sets.")],
+    names: Annotated[str | None, typer.Option(help="Comma-separated labels (default: file "
+                                                   "names).")] = None,
+    features: Features = None,
+    bins: Bins = "10",
+    kernel: KernelOpt = Kernel.GAUSSIAN,
+    estimator: EstimatorOpt = Estimator.BIASED,
+    test: TestOpt = Test.BOUND,
+    alpha: Alpha = 0.01,
+    permutations: Permutations = 999,
+    seed: Seed = None,
+    continue_on_start_difference: Continue = False,
+    out: Annotated[Path | None, typer.Option(help="Directory for matrix.json, matrix.csv and "
+                                                  "matrix.png.")] = None,
+    as_json: Json = False,
+) -> None:
+    """Distance matrix of N trace sets (as Table 3 of Neurohr et al.)."""
+    result = matrix_of_sets(sets, names=_split(names), progress=progress("comparing pairs"),
+                            **_options(features, bins, kernel, estimator, test, alpha,
+                                       permutations, seed, continue_on_start_difference))
+    if out is not None:
+        from simcred.report.figures import distance_heatmap
+
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "matrix.json").write_text(result.to_json())
+        (out / "matrix.csv").write_text(result.to_csv())
+        distance_heatmap(result, out / "matrix.png")
+    if as_json:
+        sys.stdout.write(result.to_json())
+    elif not State.quiet:
+        table = Table(title="distance [%] (distinguishable transitions)")
+        table.add_column("")
+        for name in result.names:
+            table.add_column(name, justify="right")
+        for name, row in zip(result.names, result.distances, strict=True):
+            table.add_row(name, *("start≠" if v != v else f"{100 * v:.2f}" for v in row))
+        out_console.print(table)
+        if out is not None:
+            out_console.print(f"wrote {out}/matrix.json, matrix.csv and matrix.png")
+
+
+@app.command()
+@one_line_errors
+def example(
+    out: Annotated[Path, typer.Option(help="Directory to write baseline/ and variant/ into.")],
+    runs: Annotated[int, typer.Option(help="Runs per set.")] = 300,
+    steps: Annotated[int, typer.Option(help="Steps per run.")] = 100,
+    seed: Annotated[int, typer.Option(help="Seed.")] = 0,
+    duration_scale: Annotated[float, typer.Option(help="Lane-change duration of the variant "
+                                                       "relative to the baseline.")] = 0.8,
+    parquet: Annotated[bool, typer.Option(help="Write Parquet files instead of CSV "
+                                               "directories.")] = False,
+) -> None:
+    """Write the built-in example trace sets (seeded lane changes: baseline and variant)."""
+    from simcred.examples import lane_change_sets
+
+    if runs < 1 or steps < 2:
+        raise OptionError(f"need runs ≥ 1 and steps ≥ 2, got runs={runs}, steps={steps}")
+    suffix = ".parquet" if parquet else ""
+    for traces, name in zip(lane_change_sets(runs, steps, seed=seed,
+                                             duration_scale=duration_scale),
+                            ("baseline", "variant"), strict=True):
+        path = traces.write(out / f"{name}{suffix}")
+        if not State.quiet:
+            out_console.print(f"wrote {path} ({traces.n_runs} runs)")
+
+
+def run(argv: Sequence[str] | None = None) -> int:
+    """Run the CLI and return its exit code; usage errors, too, are one line on stderr."""
+    args = list(sys.argv[1:] if argv is None else argv) or ["--help"]
+    try:
+        code = app(args=args, prog_name="simcred", standalone_mode=False)
+    except typer.TyperException as exc:
+        err_console.print(f"[red]error:[/red] {exc.format_message()}", highlight=False,
+                          soft_wrap=True)
+        return exc.exit_code
+    except typer.Abort:
+        err_console.print("aborted")
+        return 1
+    return code if isinstance(code, int) else 0
+
+
+def entry() -> None:
+    """Console-script entry point."""
+    sys.exit(run())
+
+
+if __name__ == "__main__":  # pragma: no cover
+    entry()
