@@ -1,6 +1,5 @@
 import numpy as np
 
-
 from simcred.traces import TraceSet
 
 

@@ -2,11 +2,11 @@
 
 import numpy as np
 import pytest
-from helpers import ar_set, random_walk_set, runs_of
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from oracle import literal_compare, literal_permutation_statistics
 
+from helpers import ar_set, random_walk_set, runs_of
+from oracle import literal_compare, literal_permutation_statistics
 from simcred.compare import compare
 from simcred.compare.kernels import Kernel, distances, median_bandwidths
 from simcred.compare.mmd import Estimator, batch_statistics

@@ -22,6 +22,7 @@ from simcred.compare import compare as compare_sets
 from simcred.compare import matrix as matrix_of_sets
 from simcred.compare.kernels import Kernel
 from simcred.compare.mmd import Estimator, Test
+from simcred.engine import Progress
 from simcred.errors import OptionError, SimcredError
 
 app = typer.Typer(
@@ -43,8 +44,8 @@ class State:
 
 @app.callback()
 def main(
-    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bars or tables.")] = False,
-    debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks of input errors.")] = False,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress or tables.")] = False,
+    debug: Annotated[bool, typer.Option("--debug", help="Tracebacks for input errors.")] = False,
     version: Annotated[bool, typer.Option("--version", help="Print the version and exit.",
                                           is_eager=True)] = False,
 ) -> None:
@@ -71,12 +72,12 @@ def one_line_errors(command: Callable) -> Callable:
     return wrapper
 
 
-def progress(description: str) -> Callable[[Sequence[T]], Sequence[T]] | None:
+def progress(description: str) -> Progress | None:
     """A rich progress bar on stderr, only on a terminal and without --quiet."""
     if State.quiet or not sys.stderr.isatty():
         return None
-    return lambda items: track(items, description=description, console=err_console,
-                               transient=True)
+    return lambda items, total: track(items, total=total, description=description,
+                                      console=err_console, transient=True)
 
 
 def _split(text: str | None) -> list[str] | None:
@@ -190,12 +191,15 @@ def matrix(
     permutations: Permutations = 999,
     seed: Seed = None,
     continue_on_start_difference: Continue = False,
+    workers: Annotated[int | None, typer.Option(help="Local worker processes (default: run "
+                                                     "in-process).")] = None,
     out: Annotated[Path | None, typer.Option(help="Directory for matrix.json, matrix.csv and "
                                                   "matrix.png.")] = None,
     as_json: Json = False,
 ) -> None:
     """Distance matrix of N trace sets (as Table 3 of Neurohr et al.)."""
-    result = matrix_of_sets(sets, names=_split(names), progress=progress("comparing pairs"),
+    result = matrix_of_sets(sets, names=_split(names), workers=workers,
+                            progress=progress("comparing pairs"),
                             **_options(features, bins, kernel, estimator, test, alpha,
                                        permutations, seed, continue_on_start_difference))
     if out is not None:

@@ -60,6 +60,7 @@ class TraceSet:
     metadata: Mapping[str, Any] = field(default_factory=dict)
     source: str = "<memory>"
     run_sources: tuple[str, ...] = ()
+    _digest: str | None = field(default=None, init=False, repr=False)
 
     def __post_init__(self) -> None:
         for name, array, dtype in (
@@ -164,6 +165,11 @@ class TraceSet:
 
     def digest(self) -> str:
         """SHA-256 of the content (signals, run ids, offsets, time, values), not the metadata."""
+        if self._digest is None:
+            object.__setattr__(self, "_digest", self._compute_digest())
+        return self._digest
+
+    def _compute_digest(self) -> str:
         h = hashlib.sha256()
         h.update(json.dumps([self.signals, self.run_ids]).encode())
         for array in (self.offsets, self.time, self.values):

@@ -13,8 +13,9 @@ from typing import Any
 import numpy as np
 
 from simcred._json import dumps, envelope
-from simcred.compare.process import Progress, compare, resolve_seed
+from simcred.compare.process import Prepared, compare_prepared, comparison_options, load
 from simcred.compare.result import Comparison
+from simcred.engine import Progress, map_tasks, shared
 from simcred.errors import OptionError
 from simcred.traces import TraceSet
 
@@ -77,13 +78,14 @@ def matrix(
     sets: Sequence[TraceSet | str | Path],
     *,
     names: Sequence[str] | None = None,
+    workers: int | None = None,
     progress: Progress | None = None,
     **options: Any,
 ) -> DistanceMatrix:
     """Compare every pair of ``sets`` with :func:`simcred.compare.compare` and ``options``.
 
-    ``seed`` is resolved once, so every pair uses the same entropy (each pair's tests then
-    draw from per-state streams, see :func:`compare`).
+    ``seed`` is resolved once, so every pair uses the same entropy (each pair's tests then draw
+    from per-state streams, see :func:`compare`); the result is the same for any ``workers``.
 
     >>> from simcred.examples import lane_change_sets
     >>> a, b = lane_change_sets(runs=40, steps=30, seed=2)
@@ -91,22 +93,26 @@ def matrix(
     >>> m.distances.shape, float(m.distances[0, 2])
     ((3, 3), 0.0)
     """
-    loaded = [s if isinstance(s, TraceSet) else TraceSet.read(s) for s in sets]
+    loaded = [load(s) for s in sets]
     if len(loaded) < 2:
         raise OptionError(f"a distance matrix needs at least 2 trace sets, got {len(loaded)}")
     labels = tuple(names) if names is not None else tuple(_default_names(loaded))
     if len(labels) != len(loaded) or len(set(labels)) != len(labels):
         raise OptionError(f"names must be {len(loaded)} unique labels, got {list(labels)}")
-    options["seed"] = resolve_seed(options.get("seed"))
+    settings = comparison_options(loaded, **options)
+    prepared = [Prepared.of(s, settings.features) for s in loaded]
     pairs = list(combinations(range(len(loaded)), 2))
-    comparisons = tuple(
-        compare(loaded[i], loaded[j], **options)
-        for i, j in (progress(pairs) if progress else pairs)
-    )
+    comparisons = tuple(map_tasks(_compare_pair, pairs, workers=workers, progress=progress,
+                                  shared_values={"sets": prepared, "options": settings}))
     distances = np.zeros((len(loaded), len(loaded)))
     for (i, j), c in zip(pairs, comparisons, strict=True):
         distances[i, j] = distances[j, i] = np.nan if c.distance is None else c.distance
     return DistanceMatrix(labels, distances, comparisons)
+
+
+def _compare_pair(pair: tuple[int, int]) -> Comparison:
+    sets = shared("sets")
+    return compare_prepared(sets[pair[0]], sets[pair[1]], shared("options"))
 
 
 def _default_names(sets: Sequence[TraceSet]) -> list[str]:

@@ -23,7 +23,8 @@ Nothing is O(number of samples): the cost is O(B · U²) for U distinct states.
 
 References
 ----------
-[1] Neurohr et al., Determining the Validity of Simulation Models for the Verification of ADSs, 2023.
+[1] Neurohr et al., Determining the Validity of Simulation Models for the Verification of
+    ADSs, IEEE Access, 2023.
 [2] Gretton et al., A Kernel Two-Sample Test, JMLR 13, 2012.
 [3] Hoeffding, Probability Inequalities for Sums of Bounded Random Variables, JASA 58, 1963.
 [4] numpy.random.Generator.multivariate_hypergeometric.
@@ -76,8 +77,9 @@ class MMDTestResult:
     """One two-sample test.
 
     ``statistic`` is MMD_b (not squared) for the biased estimator and MMD²_u for the unbiased one.
-    ``threshold`` is set by the bound test, ``pvalue`` by the permutation test. ``bandwidth`` is the
-    median-heuristic σ on the observed samples (None for the linear kernel or a single common state).
+    ``threshold`` is set by the bound test, ``pvalue`` by the permutation test. ``bandwidth`` is
+    the median-heuristic σ on the observed samples (None for the linear kernel or when both
+    samples are one single state).
     """
 
     m: int

@@ -10,16 +10,16 @@ from __future__ import annotations
 
 import math
 import numbers
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
-from typing import TypeVar
 
 import numpy as np
 
 from simcred.compare.chains import ChainCounts, aligned, successor_counts
 from simcred.compare.discretize import StateSpace
 from simcred.compare.kernels import Kernel
-from simcred.compare.mmd import Estimator, MMDTestSpec, Test, mmd_test
+from simcred.compare.mmd import Estimator, Test, mmd_test
 from simcred.compare.result import (
     Comparison,
     ComparisonOptions,
@@ -27,11 +27,10 @@ from simcred.compare.result import (
     StateTest,
     UntestableState,
 )
+from simcred.engine import Progress
 from simcred.errors import OptionError
 from simcred.traces import TraceSet
 
-T = TypeVar("T")
-Progress = Callable[[Sequence[T]], Iterable[T]]
 START_KEY = 0  # seed stream of the start test; state s uses 1 + s
 
 
@@ -96,25 +95,53 @@ def compare(
     >>> result.n_states, result.stopped
     (25, False)
     """
-    a, b = (x if isinstance(x, TraceSet) else TraceSet.read(x) for x in (a, b))
-    options, spec = _compare_iv(a, b, features, bins, kernel, estimator, test, alpha,
-                                permutations, seed, continue_on_start_difference)
-    values_a, values_b = a.features(options.features), b.features(options.features)
-    space = StateSpace.equal_frequency(np.vstack([values_a, values_b]), options.bins,
+    a, b = load(a), load(b)
+    options = comparison_options([a, b], features=features, bins=bins, kernel=kernel,
+                                 estimator=estimator, test=test, alpha=alpha,
+                                 permutations=permutations, seed=seed,
+                                 continue_on_start_difference=continue_on_start_difference)
+    return compare_prepared(Prepared.of(a, options.features), Prepared.of(b, options.features),
+                            options, progress)
+
+
+def load(traces: TraceSet | str | Path) -> TraceSet:
+    return traces if isinstance(traces, TraceSet) else TraceSet.read(traces)
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Prepared:
+    """A trace set reduced to what a comparison needs: feature values, run offsets, identity."""
+
+    values: np.ndarray
+    offsets: np.ndarray
+    info: InputInfo
+
+    @classmethod
+    def of(cls, traces: TraceSet, features: Sequence[str]) -> Prepared:
+        info = InputInfo(traces.source, traces.digest(), traces.n_runs, traces.n_rows)
+        return cls(traces.features(features), traces.offsets, info)
+
+
+def compare_prepared(
+    a: Prepared, b: Prepared, options: ComparisonOptions, progress: Progress | None = None
+) -> Comparison:
+    """The process of [1] sec. V-A on validated options and prepared sets."""
+    spec = options.spec
+    space = StateSpace.equal_frequency(np.vstack([a.values, b.values]), options.bins,
                                        options.features)
-    counts_a = ChainCounts.from_codes(space.encode(values_a), a.offsets, space.n_states)
-    counts_b = ChainCounts.from_codes(space.encode(values_b), b.offsets, space.n_states)
+    counts_a = ChainCounts.from_codes(space.encode(a.values), a.offsets, space.n_states)
+    counts_b = ChainCounts.from_codes(space.encode(b.values), b.offsets, space.n_states)
 
     states, x, y = aligned(counts_a.start_states, counts_a.start_counts,
                            counts_b.start_states, counts_b.start_counts)
     start = mmd_test(space.vectors(states), x, y, spec, space.shape,
                      _stream(options.seed, START_KEY))
-    stopped = start.rejected and not continue_on_start_difference
+    stopped = start.rejected and not options.continue_on_start_difference
     tested: list[StateTest] = []
     untestable: list[UntestableState] = []
     if not stopped:
         groups = list(successor_counts(counts_a, counts_b))
-        for g in progress(groups) if progress else groups:
+        for g in progress(groups, len(groups)) if progress else groups:
             state = tuple(int(i) for i in space.decode([g.state])[0])
             if min(g.m, g.n) < spec.estimator.min_samples:
                 untestable.append(UntestableState(state, g.m, g.n))
@@ -122,8 +149,8 @@ def compare(
             result = mmd_test(space.vectors(g.successors), g.counts_a, g.counts_b, spec,
                               space.shape, _stream(options.seed, 1 + g.state))
             tested.append(StateTest(state, result))
-    inputs = tuple(InputInfo(t.source, t.digest(), t.n_runs, t.n_rows) for t in (a, b))
-    return Comparison(options, inputs, space, start, stopped, tuple(tested), tuple(untestable))
+    return Comparison(options, (a.info, b.info), space, start, stopped, tuple(tested),
+                      tuple(untestable))
 
 
 def _stream(entropy: int, key: int) -> np.random.Generator:
@@ -141,23 +168,25 @@ def resolve_seed(seed: int | np.random.Generator | None) -> int:
     return int(seed)
 
 
-def resolve_features(a: TraceSet, b: TraceSet, features: Sequence[str] | str | None
+def resolve_features(sets: Sequence[TraceSet], features: Sequence[str] | str | None
                      ) -> tuple[str, ...]:
-    """Explicit features (each must exist in both sets), or all signals when both sets agree."""
+    """Explicit features (each must exist in every set), or all signals when the sets agree."""
     if features is None:
-        if set(a.signals) != set(b.signals):
-            raise OptionError(
-                f"trace sets have different signal names ({a.source}: {sorted(a.signals)}; "
-                f"{b.source}: {sorted(b.signals)}); choose the features to compare"
-            )
-        return a.signals
+        for other in sets[1:]:
+            if set(other.signals) != set(sets[0].signals):
+                raise OptionError(
+                    f"trace sets have different signal names ({sets[0].source}: "
+                    f"{sorted(sets[0].signals)}; {other.source}: {sorted(other.signals)}); "
+                    "choose the features to compare"
+                )
+        return sets[0].signals
     names = tuple(f.strip() for f in features.split(",")) if isinstance(features, str) \
         else tuple(features)
     if not names or any(not n for n in names):
         raise OptionError(f"features must be non-empty signal names, got {features!r}")
     if len(set(names)) != len(names):
         raise OptionError(f"features repeat a name: {list(names)}")
-    for traces in (a, b):
+    for traces in sets:
         traces.features(names)  # raises, naming the set and the unknown signal
     return names
 
@@ -180,31 +209,30 @@ def _choice(enum: type, value: str, name: str):
         raise OptionError(f"{name} must be one of {choices}; got {value!r}") from None
 
 
-def _compare_iv(a, b, features, bins, kernel, estimator, test, alpha, permutations, seed,
-                continue_on_start_difference) -> tuple[ComparisonOptions, MMDTestSpec]:
-    names = resolve_features(a, b, features)
-    spec = MMDTestSpec(
-        kernel=_choice(Kernel, kernel, "kernel"),
-        estimator=_choice(Estimator, estimator, "estimator"),
-        test=_choice(Test, test, "test"),
-        alpha=_check_alpha(alpha),
-        permutations=_check_permutations(permutations),
-    )
-    if spec.estimator is Estimator.UNBIASED and min(a.n_runs, b.n_runs) < 2:
-        raise OptionError("the unbiased estimator needs at least 2 runs in each trace set "
-                          f"({a.source}: {a.n_runs}, {b.source}: {b.n_runs})")
-    options = ComparisonOptions(
+def comparison_options(
+    sets: Sequence[TraceSet], *, features=None, bins=10, kernel="gaussian", estimator="biased",
+    test="bound", alpha=0.01, permutations=999, seed=None, continue_on_start_difference=False,
+) -> ComparisonOptions:
+    """Validate every option of :func:`compare` against the trace sets they will be used on."""
+    names = resolve_features(sets, features)
+    estimator = _choice(Estimator, estimator, "estimator")
+    test = _choice(Test, test, "test")
+    small = [s for s in sets if s.n_runs < estimator.min_samples]
+    if small:
+        raise OptionError(f"the {estimator.value} estimator needs at least "
+                          f"{estimator.min_samples} runs per trace set ({small[0].source}: "
+                          f"{small[0].n_runs})")
+    return ComparisonOptions(
         features=names,
         bins=resolve_bins(bins, len(names)),
-        kernel=spec.kernel.value,
-        estimator=spec.estimator.value,
-        test=spec.test.value,
-        alpha=spec.alpha,
-        permutations=spec.permutations if spec.test is Test.PERMUTATION else None,
+        kernel=_choice(Kernel, kernel, "kernel").value,
+        estimator=estimator.value,
+        test=test.value,
+        alpha=_check_alpha(alpha),
+        permutations=_check_permutations(permutations) if test is Test.PERMUTATION else None,
         seed=resolve_seed(seed),
         continue_on_start_difference=bool(continue_on_start_difference),
     )
-    return options, spec
 
 
 def _check_alpha(alpha: float) -> float:

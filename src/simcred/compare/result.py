@@ -9,7 +9,8 @@ import numpy as np
 
 from simcred._json import dumps, envelope
 from simcred.compare.discretize import StateSpace
-from simcred.compare.mmd import MMDTestResult
+from simcred.compare.kernels import Kernel
+from simcred.compare.mmd import Estimator, MMDTestResult, MMDTestSpec, Test
 
 
 @dataclass(frozen=True, slots=True)
@@ -23,6 +24,12 @@ class ComparisonOptions:
     permutations: int | None
     seed: int
     continue_on_start_difference: bool
+
+    @property
+    def spec(self) -> MMDTestSpec:
+        """The per-test settings, as the MMD module takes them."""
+        return MMDTestSpec(Kernel(self.kernel), Estimator(self.estimator), Test(self.test),
+                           self.alpha, self.permutations or 0)
 
 
 @dataclass(frozen=True, slots=True)

@@ -25,7 +25,7 @@ def read_traceset(path: str | Path) -> TraceSet:
 
 
 def write_traceset(traces: TraceSet, path: str | Path) -> Path:
-    """Write ``traces`` to ``path``: Parquet for a ``.parquet``/``.pq`` suffix, else a CSV directory."""
+    """Write ``traces``: Parquet for a ``.parquet``/``.pq`` suffix, else a CSV directory."""
     path = Path(path)
     if path.suffix.lower() in PARQUET_SUFFIXES:
         return parquet.write(traces, path)

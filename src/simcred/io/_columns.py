@@ -9,7 +9,7 @@ from simcred.errors import TraceSetError
 
 
 def float_column(table: pa.Table, name: str, where: str) -> np.ndarray:
-    """Column ``name`` as float64; one-line error naming ``where`` if missing, empty or not numeric."""
+    """Column ``name`` as float64; a one-line error naming ``where`` if missing, empty or text."""
     if name not in table.column_names:
         raise TraceSetError(f"{where}: no column '{name}' (columns are: "
                             f"{', '.join(table.column_names)})")

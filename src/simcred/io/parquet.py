@@ -61,7 +61,8 @@ def _metadata(table: pa.Table, path: Path) -> dict:
     try:
         return json.loads(raw)
     except ValueError:
-        raise TraceSetError(f"{path}: schema metadata '{METADATA_KEY.decode()}' is not JSON") from None
+        key = METADATA_KEY.decode()
+        raise TraceSetError(f"{path}: schema metadata '{key}' is not JSON") from None
 
 
 def write(traces: TraceSet, path: Path) -> Path:

@@ -1,0 +1,162 @@
+"""Benchmarks of the seed-000 comparison: prints a table, writes benchmarks/results/compare.json.
+
+(a) count-based compare vs the literal sample-based oracle (tests/oracle.py), identical results;
+(b) the 9×9 distance matrix, bound and permutation test, serial and on 2 worker processes;
+(c) one per-state permutation test at 2·10⁴, 2·10⁵, 2·10⁶ samples (cost flat in N).
+
+Times are best-of-k wall-clock seconds on this machine; every figure of merit is a ratio against a
+reference measured in the same run. Usage: python benchmarks/compare.py [--quick]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+from rich.console import Console
+from rich.table import Table
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests"))
+
+from oracle import literal_compare  # noqa: E402
+from simcred.compare import compare, matrix  # noqa: E402
+from simcred.compare.kernels import Kernel  # noqa: E402
+from simcred.compare.mmd import Estimator, MMDTestSpec, Test, mmd_test  # noqa: E402
+from simcred.examples import lane_change_runs  # noqa: E402
+
+FEATURES = ["x", "y"]
+
+
+def best_of(fn, repeats: int) -> tuple[float, object]:
+    best, out = float("inf"), None
+    for _ in range(repeats):
+        start = time.perf_counter()
+        out = fn()
+        best = min(best, time.perf_counter() - start)
+    return best, out
+
+
+def runs_of(traces):
+    values = traces.features(FEATURES)
+    return [values[lo:hi] for lo, hi in zip(traces.offsets[:-1], traces.offsets[1:], strict=True)]
+
+
+def same_as_oracle(result, oracle) -> bool:
+    tested = {s.state: s.result for s in result.states}
+    return (
+        all(np.array_equal(e, f) for e, f in zip(result.space.edges, oracle["edges"], strict=True))
+        and set(tested) == set(oracle["states"])
+        and sorted(u.state for u in result.untestable) == oracle["untestable"]
+        and all(tested[s].rejected == o["rejected"]
+                and np.isclose(tested[s].statistic, o["statistic"], rtol=1e-9, atol=1e-7)
+                for s, o in oracle["states"].items())
+        and result.distance == oracle["distance"]
+    )
+
+
+def bench_oracle(runs: int, steps: int) -> dict:
+    a = lane_change_runs(runs, steps, 0.1, 1.0, np.random.default_rng(1), "a")
+    b = lane_change_runs(runs, steps, 0.1, 0.8, np.random.default_rng(2), "b")
+    fast, result = best_of(lambda: compare(a, b, features=FEATURES, bins=10), 3)
+    slow, oracle = best_of(lambda: literal_compare(runs_of(a), runs_of(b), 10, "gaussian"), 1)
+    return {"case": f"(a) compare vs literal oracle, 2 sets × {runs} runs × {steps} steps, "
+                    "2 features, 10 bins, bound test",
+            "count_based_s": fast, "literal_s": slow, "speedup": slow / fast,
+            "identical": same_as_oracle(result, oracle), "target": "speedup ≥ 100"}
+
+
+def nine_sets(runs: int, steps: int):
+    """Three groups of three independent sets (lane-change durations ×1.0, ×0.9, ×0.8)."""
+    return [lane_change_runs(runs, steps, 0.1, scale, np.random.default_rng([g, k]), f"s{g}{k}")
+            for g, scale in enumerate((1.0, 0.9, 0.8)) for k in range(3)]
+
+
+def bench_matrix(runs: int, steps: int, permutations: int) -> list[dict]:
+    sets = nine_sets(runs, steps)
+    for s in sets:
+        s.digest()  # hashing the inputs is I/O-side work, not part of the comparison
+    rows, outputs = [], {}
+    for test in ("bound", "permutation"):
+        for workers in (1, 2):
+            seconds, result = best_of(lambda t=test, w=workers: matrix(
+                sets, features=FEATURES, bins=10, test=t, permutations=permutations, seed=0,
+                workers=w), 2)
+            outputs[test, workers] = result.to_json()
+            rows.append({"case": f"(b) 9×9 matrix, {runs} runs × {steps} steps, {test}"
+                                 + (f" ({permutations} perm.)" if test == "permutation" else "")
+                                 + f", workers={workers}",
+                         "seconds": seconds})
+    reference = rows[0]["seconds"]
+    for row in rows:
+        row["ratio_to_serial_bound"] = row["seconds"] / reference
+    rows[-1]["target"] = "< 3 s on 2 cores"
+    rows[-1]["identical_serial_vs_workers"] = (
+        outputs["permutation", 1] == outputs["permutation", 2]
+        and outputs["bound", 1] == outputs["bound", 2])
+    return rows
+
+
+def bench_flat_in_n(permutations: int) -> list[dict]:
+    spec = MMDTestSpec(Kernel.GAUSSIAN, Estimator.BIASED, Test.PERMUTATION, 0.05, permutations)
+    vectors = np.array([[i, j] for i in range(3) for j in range(3)], dtype=float)
+    probs = np.full(9, 1 / 9)
+    rows = []
+    for total in (20_000, 200_000, 2_000_000):
+        rng = np.random.default_rng(total)
+        codes = rng.choice(9, size=total, p=probs)  # raw successor samples, half A, half B
+        half = total // 2
+        count = lambda c=codes, h=half: (np.bincount(c[:h], minlength=9),  # noqa: E731
+                                         np.bincount(c[h:], minlength=9))
+        count_s, (cx, cy) = best_of(count, 5)
+        test_s, _ = best_of(lambda cx=cx, cy=cy: mmd_test(
+            vectors, cx, cy, spec, (3, 3), np.random.default_rng(0)), 5)
+        rows.append({"case": f"(c) one permutation test ({permutations} perm.), N = {total:,}",
+                     "seconds": test_s, "counting_seconds": count_s})
+    for row in rows:
+        row["ratio_to_smallest_N"] = row["seconds"] / rows[0]["seconds"]
+    return rows
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--quick", action="store_true", help="smaller sizes, for a smoke run")
+    args = parser.parse_args()
+    scale = 10 if args.quick else 1
+    results = {
+        "machine": {"cpus": os.cpu_count(), "python": platform.python_version(),
+                    "numpy": np.__version__},
+        "oracle": bench_oracle(500 // scale, 200),
+        "matrix": bench_matrix(1000 // scale, 200, 999),
+        "flat_in_n": bench_flat_in_n(999),
+    }
+    table = Table(title="simcred compare benchmarks")
+    for column in ("case", "seconds", "ratio", "note"):
+        table.add_column(column)
+    o = results["oracle"]
+    table.add_row(o["case"], f"{o['count_based_s']:.3f} vs {o['literal_s']:.1f}",
+                  f"{o['speedup']:.0f}× faster", f"identical: {o['identical']}; {o['target']}")
+    for row in results["matrix"]:
+        note = row.get("target", "")
+        if "identical_serial_vs_workers" in row:
+            note += f"; serial = workers: {row['identical_serial_vs_workers']}"
+        table.add_row(row["case"], f"{row['seconds']:.2f}",
+                      f"{row['ratio_to_serial_bound']:.2f}× serial bound", note)
+    for row in results["flat_in_n"]:
+        table.add_row(row["case"], f"{row['seconds'] * 1e3:.2f} ms",
+                      f"{row['ratio_to_smallest_N']:.2f}× N=2·10⁴",
+                      f"counting the samples: {row['counting_seconds'] * 1e3:.1f} ms")
+    Console(width=170).print(table)
+    out = ROOT / "benchmarks" / "results" / ("compare-quick.json" if args.quick else "compare.json")
+    out.write_text(json.dumps(results, indent=1) + "\n")
+    print(f"wrote {out}")
+
+
+if __name__ == "__main__":
+    main()
