@@ -57,6 +57,8 @@ class Estimator(StrEnum):
 
 
 class Test(StrEnum):
+    __test__ = False  # not a pytest test class
+
     BOUND = "bound"
     PERMUTATION = "permutation"
 

@@ -12,7 +12,7 @@ import numpy as np  # noqa: E402
 from matplotlib.colors import ListedColormap  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 
-from simcred.compare.matrix import DistanceMatrix  # noqa: E402
+from simcred.compare.pairwise import DistanceMatrix  # noqa: E402
 from simcred.compare.result import Comparison  # noqa: E402
 
 # status codes of Comparison.state_grid(): not a start state, accepted, rejected, untestable
