@@ -4,8 +4,8 @@ import json
 
 import numpy as np
 import pytest
-from helpers import ar_set
 
+from helpers import ar_set
 from simcred.compare import compare, matrix
 from simcred.report.figures import _project, distance_heatmap, state_map
 from simcred.traces import TraceSet

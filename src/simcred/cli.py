@@ -109,15 +109,20 @@ Seed = Annotated[int | None, typer.Option(help="Seed (default: fresh entropy, st
 Continue = Annotated[bool, typer.Option("--continue-on-start-difference",
                                         help="Test transitions even if the start "
                                              "distributions differ.")]
+StopEarly = Annotated[bool, typer.Option(
+    "--stop-early/--all-permutations",
+    help="Permutation test: stop once rejection is impossible (same verdicts; p-values above "
+         "alpha are then sequential estimates), or always draw all permutations.")]
 Json = Annotated[bool, typer.Option("--json", help="Print the result JSON to stdout.")]
 
 
 def _options(features, bins, kernel, estimator, test, alpha, permutations, seed,
-             continue_on_start_difference) -> dict:
+             continue_on_start_difference, stop_early) -> dict:
     return dict(features=_split(features), bins=_bins(bins), kernel=kernel.value,
                 estimator=estimator.value, test=test.value, alpha=alpha,
                 permutations=permutations, seed=seed,
-                continue_on_start_difference=continue_on_start_difference)
+                continue_on_start_difference=continue_on_start_difference,
+                stop_early=stop_early)
 
 
 @app.command()
@@ -136,6 +141,7 @@ def compare(
     permutations: Permutations = 999,
     seed: Seed = None,
     continue_on_start_difference: Continue = False,
+    stop_early: StopEarly = True,
     out: Annotated[Path | None, typer.Option(help="Directory for comparison.json and "
                                                   "state_map.png.")] = None,
     as_json: Json = False,
@@ -143,7 +149,8 @@ def compare(
     """Compare two trace sets: the fraction of distinguishable transitions (Neurohr et al.)."""
     result = compare_sets(a, b, progress=progress("testing states"),
                           **_options(features, bins, kernel, estimator, test, alpha,
-                                     permutations, seed, continue_on_start_difference))
+                                     permutations, seed, continue_on_start_difference,
+                                     stop_early))
     if out is not None:
         from simcred.report.figures import state_map
 
@@ -191,6 +198,7 @@ def matrix(
     permutations: Permutations = 999,
     seed: Seed = None,
     continue_on_start_difference: Continue = False,
+    stop_early: StopEarly = True,
     workers: Annotated[int | None, typer.Option(help="Local worker processes (default: run "
                                                      "in-process).")] = None,
     out: Annotated[Path | None, typer.Option(help="Directory for matrix.json, matrix.csv and "
@@ -201,7 +209,8 @@ def matrix(
     result = matrix_of_sets(sets, names=_split(names), workers=workers,
                             progress=progress("comparing pairs"),
                             **_options(features, bins, kernel, estimator, test, alpha,
-                                       permutations, seed, continue_on_start_difference))
+                                       permutations, seed, continue_on_start_difference,
+                                     stop_early))
     if out is not None:
         from simcred.report.figures import distance_heatmap
 

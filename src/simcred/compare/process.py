@@ -47,6 +47,7 @@ def compare(
     permutations: int = 999,
     seed: int | np.random.Generator | None = None,
     continue_on_start_difference: bool = False,
+    stop_early: bool = True,
     progress: Progress | None = None,
 ) -> Comparison:
     """Compare two trace sets as Markov chains with MMD tests ([1] sec. V-A).
@@ -74,6 +75,10 @@ def compare(
         Seed of the permutation test. None draws fresh entropy, which is stored in the result.
     continue_on_start_difference : bool, default: False
         Test the transitions even when the start distributions differ.
+    stop_early : bool, default: True
+        Permutation test: stop drawing once rejection is impossible (Besag & Clifford 1991).
+        Verdicts are those of the full test; p-values above ``alpha`` become sequential
+        estimates. False always draws all ``permutations``.
     progress : callable, optional
         Wraps the sequence of start states (e.g. a progress bar).
 
@@ -99,7 +104,8 @@ def compare(
     options = comparison_options([a, b], features=features, bins=bins, kernel=kernel,
                                  estimator=estimator, test=test, alpha=alpha,
                                  permutations=permutations, seed=seed,
-                                 continue_on_start_difference=continue_on_start_difference)
+                                 continue_on_start_difference=continue_on_start_difference,
+                                 stop_early=stop_early)
     return compare_prepared(Prepared.of(a, options.features), Prepared.of(b, options.features),
                             options, progress)
 
@@ -212,6 +218,7 @@ def _choice(enum: type, value: str, name: str):
 def comparison_options(
     sets: Sequence[TraceSet], *, features=None, bins=10, kernel="gaussian", estimator="biased",
     test="bound", alpha=0.01, permutations=999, seed=None, continue_on_start_difference=False,
+    stop_early=True,
 ) -> ComparisonOptions:
     """Validate every option of :func:`compare` against the trace sets they will be used on."""
     names = resolve_features(sets, features)
@@ -232,6 +239,7 @@ def comparison_options(
         permutations=_check_permutations(permutations) if test is Test.PERMUTATION else None,
         seed=resolve_seed(seed),
         continue_on_start_difference=bool(continue_on_start_difference),
+        stop_early=bool(stop_early) and test is Test.PERMUTATION,
     )
 
 

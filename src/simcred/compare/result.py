@@ -24,12 +24,13 @@ class ComparisonOptions:
     permutations: int | None
     seed: int
     continue_on_start_difference: bool
+    stop_early: bool
 
     @property
     def spec(self) -> MMDTestSpec:
         """The per-test settings, as the MMD module takes them."""
         return MMDTestSpec(Kernel(self.kernel), Estimator(self.estimator), Test(self.test),
-                           self.alpha, self.permutations or 0)
+                           self.alpha, self.permutations or 0, self.stop_early)
 
 
 @dataclass(frozen=True, slots=True)
@@ -138,4 +139,4 @@ class Comparison:
 def _test_dict(result: MMDTestResult) -> dict[str, Any]:
     return {"m": result.m, "n": result.n, "statistic": result.statistic,
             "threshold": result.threshold, "pvalue": result.pvalue, "rejected": result.rejected,
-            "bandwidth": result.bandwidth}
+            "bandwidth": result.bandwidth, "permutations_used": result.n_resamples}
