@@ -113,6 +113,10 @@ StopEarly = Annotated[bool, typer.Option(
     "--stop-early/--all-permutations",
     help="Permutation test: stop once rejection is impossible (same verdicts; p-values above "
          "alpha are then sequential estimates), or always draw all permutations.")]
+Workers = Annotated[int | None, typer.Option(help="Run on a local Dask cluster of N worker "
+                                                   "processes (default: in-process).")]
+Scheduler = Annotated[str | None, typer.Option(help="Run on the Dask scheduler at this address "
+                                                    "(e.g. tcp://host:8786).")]
 Json = Annotated[bool, typer.Option("--json", help="Print the result JSON to stdout.")]
 
 
@@ -199,14 +203,14 @@ def matrix(
     seed: Seed = None,
     continue_on_start_difference: Continue = False,
     stop_early: StopEarly = True,
-    workers: Annotated[int | None, typer.Option(help="Local worker processes (default: run "
-                                                     "in-process).")] = None,
+    workers: Workers = None,
+    scheduler: Scheduler = None,
     out: Annotated[Path | None, typer.Option(help="Directory for matrix.json, matrix.csv and "
                                                   "matrix.png.")] = None,
     as_json: Json = False,
 ) -> None:
     """Distance matrix of N trace sets (as Table 3 of Neurohr et al.)."""
-    result = matrix_of_sets(sets, names=_split(names), workers=workers,
+    result = matrix_of_sets(sets, names=_split(names), workers=workers, scheduler=scheduler,
                             progress=progress("comparing pairs"),
                             **_options(features, bins, kernel, estimator, test, alpha,
                                        permutations, seed, continue_on_start_difference,
@@ -256,6 +260,35 @@ def example(
         path = traces.write(out / f"{name}{suffix}")
         if not State.quiet:
             out_console.print(f"wrote {path} ({traces.n_runs} runs)")
+
+
+paper_app = typer.Typer(help="Regenerate the papers' experiments and check their claims.")
+app.add_typer(paper_app, name="paper")
+
+
+@paper_app.command("000")
+@one_line_errors
+def paper_000(
+    out: Annotated[Path, typer.Option(help="Directory for figures, tables and claims.json.")],
+    runs: Annotated[int | None, typer.Option(help="Runs per trace set (default: the "
+                                                  "documented full size).")] = None,
+    seed: Annotated[int, typer.Option(help="Seed of every campaign and test.")] = 0,
+    workers: Workers = None,
+    scheduler: Scheduler = None,
+) -> None:
+    """Neurohr et al. sec. VI: SimpleCar λ sweep (Figs. 5-7) and T-junction (Table 3)."""
+    from simcred.engine import engine
+    from simcred.paper import seed000
+    from simcred.paper.claims import claims_table
+
+    if runs is not None and runs < 2:
+        raise OptionError(f"runs must be at least 2, got {runs}")
+    with engine(workers, scheduler) as runner:
+        claims = seed000.run_all(out, runs=runs, seed=seed, runner=runner,
+                                 progress_for=progress)
+    if not State.quiet:
+        out_console.print(claims_table(claims, "seed 000: the paper's claims"))
+        out_console.print(f"wrote figures, tables and claims.json to {out}")
 
 
 def run(argv: Sequence[str] | None = None) -> int:

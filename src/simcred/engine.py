@@ -1,4 +1,4 @@
-"""Where work runs: in-process, or on local worker processes, in a deterministic order.
+"""Where work runs: in-process, or on Dask (a local cluster or an existing scheduler).
 
 Results never depend on where they were computed: every task derives its randomness from its own
 ``SeedSequence`` stream, and results come back in task order.
@@ -6,11 +6,11 @@ Results never depend on where they were computed: every task derives its randomn
 
 from __future__ import annotations
 
-import multiprocessing
-import sys
-from collections.abc import Callable, Iterable, Sequence
-from concurrent.futures import ProcessPoolExecutor
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from contextlib import contextmanager
 from typing import Any, TypeVar
+
+from simcred.errors import OptionError
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -21,35 +21,74 @@ _shared: dict[str, Any] = {}
 
 
 def shared(key: str) -> Any:
-    """A value given to every worker once, through :func:`map_tasks`'s ``shared``."""
+    """A value given to every task of one :meth:`Engine.map` call through ``shared``."""
     return _shared[key]
 
 
-def _install(values: dict[str, Any]) -> None:
-    _shared.clear()
-    _shared.update(values)
+def _run_task(item: Any, task: Callable, values: dict[str, Any]) -> Any:
+    if _shared is not values:
+        _shared.clear()
+        _shared.update(values)
+    return task(item)
 
 
-def map_tasks(
-    task: Callable[[T], R],
-    items: Sequence[T],
-    *,
-    workers: int | None = None,
-    shared_values: dict[str, Any] | None = None,
-    progress: Progress | None = None,
-) -> list[R]:
-    """``[task(item) for item in items]``, serially or on ``workers`` local processes.
+class Engine:
+    """In-process execution; :class:`DaskEngine` distributes the same calls."""
 
-    ``shared_values`` are installed once per worker (inherited without copying where the platform
-    forks) and read by the task with :func:`shared`; large inputs go there, not into ``items``.
+    def map(self, task: Callable[[T], R], items: Sequence[T], *,
+            shared_values: dict[str, Any] | None = None,
+            progress: Progress | None = None) -> list[R]:
+        """``[task(item) for item in items]``; ``shared_values`` are read with :func:`shared`."""
+        values = shared_values or {}
+        results = (_run_task(item, task, values) for item in items)
+        return list(progress(results, len(items)) if progress else results)
+
+    def close(self) -> None:
+        pass
+
+
+class DaskEngine(Engine):
+    """Tasks on Dask: a ``LocalCluster`` of ``workers`` processes, or the scheduler at an address.
+
+    Large shared inputs are scattered once to every worker, not shipped with each task.
     """
-    values = shared_values or {}
-    if not workers or workers <= 1 or len(items) <= 1:
-        _install(values)
-        results: Iterable[R] = map(task, items)
-        return list(progress(results, len(items)) if progress else results)
-    method = "fork" if sys.platform.startswith("linux") else "spawn"
-    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context(method),
-                             initializer=_install, initargs=(values,)) as pool:
-        results = pool.map(task, items)
-        return list(progress(results, len(items)) if progress else results)
+
+    def __init__(self, workers: int | None = None, scheduler: str | None = None) -> None:
+        from dask.distributed import Client, LocalCluster
+
+        self._cluster = None
+        if scheduler is not None:
+            self.client = Client(scheduler)
+        else:
+            self._cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
+                                         processes=True, dashboard_address=None)
+            self.client = Client(self._cluster)
+
+    def map(self, task, items, *, shared_values=None, progress=None):
+        from dask.distributed import as_completed
+
+        values = self.client.scatter(shared_values or {}, broadcast=True)
+        futures = self.client.map(_run_task, items, task=task, values=values, pure=False)
+        done = as_completed(futures)
+        for _ in (progress(done, len(futures)) if progress else done):
+            pass
+        return self.client.gather(futures)
+
+    def close(self) -> None:
+        self.client.close()
+        if self._cluster is not None:
+            self._cluster.close()
+
+
+@contextmanager
+def engine(workers: int | None = None, scheduler: str | None = None) -> Iterator[Engine]:
+    """In-process without ``workers`` or ``scheduler``; else Dask, closed on exit."""
+    if workers is not None and workers < 1:
+        raise OptionError(f"workers must be at least 1, got {workers}")
+    if workers is not None and scheduler is not None:
+        raise OptionError("give either workers (a local Dask cluster) or a scheduler address")
+    runner = Engine() if workers is None and scheduler is None else DaskEngine(workers, scheduler)
+    try:
+        yield runner
+    finally:
+        runner.close()

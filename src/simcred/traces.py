@@ -265,3 +265,26 @@ def _check_same_signals(expected: Sequence[str], got: Sequence[str], where: str)
     raise TraceSetError(
         f"{where}: signal names differ from the first run (missing {missing}, extra {extra})"
     )
+
+
+def concat(parts: Sequence[TraceSet], *, source: str | None = None,
+           metadata: Mapping[str, Any] | None = None) -> TraceSet:
+    """The runs of ``parts`` one after the other (same signals, in the same order; unique ids)."""
+    if not parts:
+        raise TraceSetError("nothing to concatenate: no trace sets")
+    first = parts[0]
+    for part in parts[1:]:
+        if part.signals != first.signals:
+            raise TraceSetError(f"{part.source}: signals {list(part.signals)} differ from "
+                                f"{first.source}: {list(first.signals)}")
+    sizes = np.cumsum([0] + [p.n_rows for p in parts[:-1]])
+    return TraceSet(
+        signals=first.signals,
+        time=np.concatenate([p.time for p in parts]),
+        values=np.concatenate([p.values for p in parts]),
+        offsets=np.concatenate([[0]] + [p.offsets[1:] + s for p, s in zip(parts, sizes,
+                                                                           strict=True)]),
+        run_ids=tuple(r for p in parts for r in p.run_ids),
+        metadata=dict(first.metadata if metadata is None else metadata),
+        source=first.source if source is None else source,
+    )

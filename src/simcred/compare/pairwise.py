@@ -15,7 +15,7 @@ import numpy as np
 from simcred._json import dumps, envelope
 from simcred.compare.process import Prepared, compare_prepared, comparison_options, load
 from simcred.compare.result import Comparison
-from simcred.engine import Progress, map_tasks, shared
+from simcred.engine import Engine, Progress, engine, shared
 from simcred.errors import OptionError
 from simcred.traces import TraceSet
 
@@ -79,13 +79,17 @@ def matrix(
     *,
     names: Sequence[str] | None = None,
     workers: int | None = None,
+    scheduler: str | None = None,
+    runner: Engine | None = None,
     progress: Progress | None = None,
     **options: Any,
 ) -> DistanceMatrix:
     """Compare every pair of ``sets`` with :func:`simcred.compare.compare` and ``options``.
 
-    ``seed`` is resolved once, so every pair uses the same entropy (each pair's tests then draw
-    from per-state streams, see :func:`compare`); the result is the same for any ``workers``.
+    Pairs run in-process, on a local Dask cluster of ``workers`` processes, on the Dask
+    ``scheduler`` at an address, or on an already started ``runner``. ``seed`` is resolved once,
+    so every pair uses the same entropy (each pair's tests then draw from per-state streams, see
+    :func:`compare`); the result is the same wherever the pairs run.
 
     >>> from simcred.examples import lane_change_sets
     >>> a, b = lane_change_sets(runs=40, steps=30, seed=2)
@@ -102,12 +106,18 @@ def matrix(
     settings = comparison_options(loaded, **options)
     prepared = [Prepared.of(s, settings.features) for s in loaded]
     pairs = list(combinations(range(len(loaded)), 2))
-    comparisons = tuple(map_tasks(_compare_pair, pairs, workers=workers, progress=progress,
-                                  shared_values={"sets": prepared, "options": settings}))
+    shared_values = {"sets": prepared, "options": settings}
+    if runner is not None:
+        comparisons = runner.map(_compare_pair, pairs, shared_values=shared_values,
+                                 progress=progress)
+    else:
+        with engine(workers, scheduler) as started:
+            comparisons = started.map(_compare_pair, pairs, shared_values=shared_values,
+                                      progress=progress)
     distances = np.zeros((len(loaded), len(loaded)))
     for (i, j), c in zip(pairs, comparisons, strict=True):
         distances[i, j] = distances[j, i] = np.nan if c.distance is None else c.distance
-    return DistanceMatrix(labels, distances, comparisons)
+    return DistanceMatrix(labels, distances, tuple(comparisons))
 
 
 def _compare_pair(pair: tuple[int, int]) -> Comparison:

@@ -1,0 +1,1 @@
+"""Experiments of Neurohr et al. 2023 regenerated in simcred's simulator."""
