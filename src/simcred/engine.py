@@ -26,9 +26,8 @@ def shared(key: str) -> Any:
 
 
 def _run_task(item: Any, task: Callable, values: dict[str, Any]) -> Any:
-    if _shared is not values:
-        _shared.clear()
-        _shared.update(values)
+    _shared.clear()
+    _shared.update(values)  # references only: the values themselves are not copied
     return task(item)
 
 
@@ -67,7 +66,7 @@ class DaskEngine(Engine):
     def map(self, task, items, *, shared_values=None, progress=None):
         from dask.distributed import as_completed
 
-        values = self.client.scatter(shared_values or {}, broadcast=True)
+        [values] = self.client.scatter([shared_values or {}], broadcast=True, hash=False)
         futures = self.client.map(_run_task, items, task=task, values=values, pure=False)
         done = as_completed(futures)
         for _ in (progress(done, len(futures)) if progress else done):
