@@ -25,6 +25,7 @@ test-fast: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/compare.py
+	$(BIN)/python benchmarks/sim.py
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks

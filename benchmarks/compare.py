@@ -24,23 +24,18 @@ from rich.table import Table
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+from _timing import best_of  # noqa: E402
 
 from oracle import literal_compare  # noqa: E402
 from simcred.compare import compare, matrix  # noqa: E402
 from simcred.compare.kernels import Kernel  # noqa: E402
 from simcred.compare.mmd import Estimator, MMDTestSpec, Test, mmd_test  # noqa: E402
+from simcred.engine import Engine, engine  # noqa: E402
 from simcred.examples import lane_change_runs  # noqa: E402
 
 FEATURES = ["x", "y"]
-
-
-def best_of(fn, repeats: int) -> tuple[float, object]:
-    best, out = float("inf"), None
-    for _ in range(repeats):
-        start = time.perf_counter()
-        out = fn()
-        best = min(best, time.perf_counter() - start)
-    return best, out
 
 
 def runs_of(traces):
@@ -85,16 +80,21 @@ def bench_matrix(runs: int, steps: int, permutations: int) -> list[dict]:
     rows, outputs = [], {}
     cases = [("bound", True, 1), ("bound", True, 2), ("permutation", True, 1),
              ("permutation", True, 2), ("permutation", False, 2)]
-    for test, stop_early, workers in cases:
-        seconds, result = best_of(lambda t=test, s=stop_early, w=workers: matrix(
-            sets, features=FEATURES, bins=10, test=t, permutations=permutations, seed=0,
-            stop_early=s, workers=w), 2)
-        outputs[test, stop_early, workers] = result.to_json()
-        label = test
-        if test == "permutation":
-            label += f" ({permutations} perm., {'early stop' if stop_early else 'all drawn'})"
-        rows.append({"case": f"(b) 9×9 matrix, {runs} runs × {steps} steps, {label}, "
-                             f"workers={workers}", "seconds": seconds})
+    start = time.perf_counter()
+    with engine(workers=2) as cluster:
+        startup = time.perf_counter() - start
+        for test, stop_early, workers in cases:
+            runner = cluster if workers == 2 else Engine()
+            seconds, result = best_of(lambda t=test, s=stop_early, r=runner: matrix(
+                sets, features=FEATURES, bins=10, test=t, permutations=permutations, seed=0,
+                stop_early=s, runner=r), 2)
+            outputs[test, stop_early, workers] = result.to_json()
+            label = test
+            if test == "permutation":
+                label += f" ({permutations} perm., {'early stop' if stop_early else 'all drawn'})"
+            where = "in-process" if workers == 1 else "Dask LocalCluster, 2 workers"
+            rows.append({"case": f"(b) 9×9 matrix, {runs} runs × {steps} steps, {label}, "
+                                 f"{where}", "seconds": seconds})
     reference = rows[0]["seconds"]
     for row in rows:
         row["ratio_to_serial_bound"] = row["seconds"] / reference
@@ -102,6 +102,7 @@ def bench_matrix(runs: int, steps: int, permutations: int) -> list[dict]:
     rows[3]["identical_serial_vs_workers"] = (
         outputs["permutation", True, 1] == outputs["permutation", True, 2]
         and outputs["bound", True, 1] == outputs["bound", True, 2])
+    rows[1]["cluster_startup_seconds"] = startup
     return rows
 
 
@@ -148,6 +149,8 @@ def main() -> None:
                   f"{o['speedup']:.0f}× faster", f"identical: {o['identical']}; {o['target']}")
     for row in results["matrix"]:
         note = row.get("target", "")
+        if "cluster_startup_seconds" in row:
+            note += f"cluster start (not timed): {row['cluster_startup_seconds']:.1f} s"
         if "identical_serial_vs_workers" in row:
             note += f"; serial = workers: {row['identical_serial_vs_workers']}"
         table.add_row(row["case"], f"{row['seconds']:.2f}",

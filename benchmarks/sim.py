@@ -1,12 +1,15 @@
-"""Benchmarks of the vehicle models: prints a table, writes benchmarks/results/sim_vehicles.json.
+"""Benchmarks of the simulator: prints tables, writes benchmarks/results/sim.json.
 
 Cost per simulated second (RK4, fixed dt) of SimpleCar, KS and ST stepped as one batch of runs,
 and of CommonRoad's own per-state functions looped over a single run (the reference the batched
 models reproduce). Every ratio is against batched SimpleCar measured in the same run: per run for
 the cost, so the reference's single run is compared with one run's share of a batch.
 
+Then the T-junction experiment in runs per second per category, as a ratio to the SimpleCar
+sweep's runs per second (both 1000 runs, one process).
+
 Times are best-of-k wall-clock seconds on this machine, one process (numpy is single-threaded
-here). Usage: python benchmarks/sim_vehicles.py [--quick]
+here). Usage: python benchmarks/sim.py [--quick]
 """
 
 from __future__ import annotations
@@ -15,14 +18,15 @@ import argparse
 import json
 import os
 import platform
-import time
+import sys
 from pathlib import Path
 
 import numpy as np
 from rich.console import Console
 from rich.table import Table
 
-from simcred.sim.vehicles import (
+from simcred.sim.experiments import simplecar_sweep, tjunction  # noqa: E402
+from simcred.sim.vehicles import (  # noqa: E402
     KinematicSingleTrack,
     SimpleCar,
     SingleTrack,
@@ -32,17 +36,11 @@ from simcred.sim.vehicles import (
 )
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+from _timing import best_of  # noqa: E402
+
 DT = 0.01
 TARGET = 1e6  # vehicle-steps/s, batched SimpleCar on 2 cores
-
-
-def best_of(fn, repeats: int) -> float:
-    best = float("inf")
-    for _ in range(repeats):
-        start = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - start)
-    return best
 
 
 def drive(model: VehicleModel, runs: int, steps: int, rng: np.random.Generator):
@@ -69,11 +67,27 @@ def simulate(model: VehicleModel, state: np.ndarray, schedule: np.ndarray) -> np
 def measure(model: VehicleModel, runs: int, seconds: float, repeats: int) -> dict:
     steps = round(seconds / DT)
     state, schedule = drive(model, runs, steps, np.random.default_rng(0))
-    wall = best_of(lambda: simulate(model, state, schedule), repeats)
+    wall, _ = best_of(lambda: simulate(model, state, schedule), repeats)
     return {"model": model.name, "runs": runs, "steps": steps, "simulated_s": seconds,
             "wall_s": wall, "s_per_simulated_s": wall / seconds,
             "s_per_simulated_s_per_run": wall / seconds / runs,
             "vehicle_steps_per_s": runs * steps / wall}
+
+
+def experiments(runs: int, repeats: int) -> list[dict]:
+    """Runs per second of the seed-000 experiments at their default settings."""
+    cases = [("simplecar sweep (λ = 1, dt 2 s, 40 s)",
+              lambda: simplecar_sweep.simulate(range(runs), 0, lam=1.0))]
+    cases += [(f"tjunction {c} (dt 0.1 s)",
+               lambda c=c: tjunction.simulate(range(runs), 0, category=c))
+              for c in tjunction.CATEGORIES]
+    rows = []
+    for name, fn in cases:
+        wall, _ = best_of(fn, repeats)
+        rows.append({"experiment": name, "runs": runs, "wall_s": wall, "runs_per_s": runs / wall})
+    for row in rows:
+        row["ratio_to_simplecar_sweep"] = row["runs_per_s"] / rows[0]["runs_per_s"]
+    return rows
 
 
 def main() -> None:
@@ -121,8 +135,15 @@ def main() -> None:
     console.print(f"batched SimpleCar: {results['simplecar_vehicle_steps_per_s']:.3g} "
                   f"vehicle-steps/s; target {results['target']}: "
                   f"{'met' if results['target_met'] else 'NOT met'}")
-    out = ROOT / "benchmarks" / "results" / ("sim_vehicles-quick.json" if args.quick
-                                             else "sim_vehicles.json")
+    results["experiments"] = experiments(100 if args.quick else 1000, repeats)
+    table = Table(title="experiments: runs per second, one process")
+    for column in ("experiment", "runs", "runs/s", "× SimpleCar sweep"):
+        table.add_column(column)
+    for row in results["experiments"]:
+        table.add_row(row["experiment"], f"{row['runs']:,}", f"{row['runs_per_s']:,.0f}",
+                      f"{row['ratio_to_simplecar_sweep']:.3f}")
+    console.print(table)
+    out = ROOT / "benchmarks" / "results" / ("sim-quick.json" if args.quick else "sim.json")
     out.write_text(json.dumps(results, indent=1, ensure_ascii=False) + "\n")
     print(f"wrote {out}")
 
