@@ -22,4 +22,8 @@ echo "== 4. distance matrix: baseline, an independent repeat of it, and the vari
   --names baseline,repeat,variant --features y,heading --test permutation --seed 0 \
   --out "$out/matrix"
 echo
-echo "Outputs in $out/: compare-*/comparison.json, compare-*/state_map.png, matrix/matrix.{json,csv,png}"
+echo "== 5. seed 000, sec. VI at a reduced size (500 runs per set): SimpleCar λ sweep and T-junction"
+"$simcred" paper 000 --out "$out/paper000" --runs 500 --workers 2
+echo
+echo "Outputs in $out/: compare-*/comparison.json, compare-*/state_map.png, matrix/matrix.{json,csv,png},"
+echo "  paper000/ (fig5_inputs.png, fig6_xy.png, fig7_xy_heading.png, table3_*.png, claims.json)"
