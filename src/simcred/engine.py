@@ -46,6 +46,11 @@ class Engine:
         pass
 
 
+#: Environment of local Dask workers: one BLAS thread each, as Dask's default, but without its
+#: MALLOC_TRIM_THRESHOLD_=65536, which makes our many short-lived numpy temporaries 1.5x slower.
+WORKER_ENVIRON = {"OMP_NUM_THREADS": 1, "MKL_NUM_THREADS": 1, "OPENBLAS_NUM_THREADS": 1}
+
+
 class DaskEngine(Engine):
     """Tasks on Dask: a ``LocalCluster`` of ``workers`` processes, or the scheduler at an address.
 
@@ -53,14 +58,16 @@ class DaskEngine(Engine):
     """
 
     def __init__(self, workers: int | None = None, scheduler: str | None = None) -> None:
+        import dask
         from dask.distributed import Client, LocalCluster
 
         self._cluster = None
         if scheduler is not None:
             self.client = Client(scheduler)
         else:
-            self._cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
-                                         processes=True, dashboard_address=None)
+            with dask.config.set({"distributed.nanny.pre-spawn-environ": WORKER_ENVIRON}):
+                self._cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
+                                             processes=True, dashboard_address=None)
             self.client = Client(self._cluster)
 
     def map(self, task, items, *, shared_values=None, progress=None):
