@@ -83,10 +83,10 @@ def _compare_task(task: tuple[int, str, str, str]) -> float:
     return np.nan if result.distance is None else result.distance
 
 
-def run_sweep(config: SweepConfig, runner: Engine, progress: Progress | None = None
-              ) -> SweepResult:
+def run_sweep(config: SweepConfig, runner: Engine, progress: Progress | None = None,
+              simulation_progress: Progress | None = None) -> SweepResult:
     """Figs. 6 and 7: baseline vs every λ, three kernels, (x, y) and (x, y, ψ), both tests."""
-    baseline, sets = simulate_sweep(config, runner)
+    baseline, sets = simulate_sweep(config, runner, simulation_progress)
     tasks = [(i, f, t, k) for f, t, k in product(FEATURE_SETS, TESTS, KERNELS)
              for i in range(len(sets))]
     values = runner.map(_compare_task, tasks, progress=progress,
@@ -217,7 +217,8 @@ def run_all(out: Path, *, runs: int | None, seed: int, runner: Engine,
 
     out.mkdir(parents=True, exist_ok=True)
     config = SweepConfig(seed=seed) if runs is None else SweepConfig(runs=runs, seed=seed)
-    sweep = run_sweep(config, runner, progress_for("SimpleCar sweep: comparisons"))
+    sweep = run_sweep(config, runner, progress_for("SimpleCar sweep: comparing"),
+                      progress_for("SimpleCar sweep: simulating"))
     write_sweep_tables(sweep, out)
     examples = [(f"λ = {lam}", simplecar_sweep.simulate(range(5), seed, lam=lam, dt=0.1,
                                                         duration=config.duration))
