@@ -82,9 +82,9 @@ class Contract:
 
     @classmethod
     def from_strings(cls, assumption: str, guarantee: str, *, name: str = "",
-                     declared: Mapping[str, Any] | None = None) -> Contract:
+                     declared: Mapping[str, Any] | None = None, where: str = "") -> Contract:
         """``Contract.from_strings("0 <= v <= 30", "e <= 0.1")``."""
-        where = name or "contract"
+        where = where or name or "contract"
         return cls(parse(assumption, declared=declared, where=f"{where}: assumption"),
                    parse(guarantee, declared=declared, where=f"{where}: guarantee"), name)
 

@@ -1,0 +1,153 @@
+"""Configuration of the cheapest sufficiently valid simulation setup (seed 003, sec. V-B, V-C).
+
+A setup picks one model per component of the architecture; it is sufficiently valid for a test
+case when the composition of the models' contracts refines the test case's contract.
+
+Search (our design): counterexample-guided, over a propositional encoding of the choice. Boolean
+selectors s[c, m] pick model m for component c (exactly one per component); z3's ``Optimize``
+returns the cheapest selection that satisfies every constraint learned so far. That selection is
+checked exactly with :func:`refines`; if it fails, the counterexample is an operating point p,
+and at p every model's assumption and guarantee evaluate to constants, so "the composition
+refines the test case at p" becomes a propositional constraint on the selectors, which excludes
+every selection that fails at p — not only the one checked. Each learned constraint is necessary
+for validity, so the first selection that passes is the cheapest valid one (optimality proof: the
+optimizer's bound over all selections that pass the learned constraints). No enumeration of the
+product of candidates is needed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from fractions import Fraction
+
+import numpy as np
+
+from simcred.contracts.algebra import (
+    DEFAULT_TIMEOUT_MS,
+    Contract,
+    Status,
+    Verdict,
+    compose_all,
+    refines,
+)
+from simcred.contracts.expr import evaluate
+from simcred.contracts.library import Library, LibraryError
+
+
+@dataclass(frozen=True, slots=True)
+class Configuration:
+    """Outcome: the chosen models (component → model), their total cost, the refinement proof,
+    and the points that ruled out cheaper setups."""
+
+    test_case: str
+    status: Status
+    setup: dict[str, str] | None
+    cost: float | None
+    proof: Verdict | None
+    iterations: int
+    counterexamples: list[dict[str, float]] = field(default_factory=list)
+    reason: str = ""
+
+    def to_dict(self) -> dict:
+        return {"test_case": self.test_case, "status": self.status.value, "setup": self.setup,
+                "cost": self.cost, "proof": None if self.proof is None else self.proof.to_dict(),
+                "iterations": self.iterations, "counterexamples": self.counterexamples,
+                "reason": self.reason}
+
+
+def setup_contract(library: Library, setup: dict[str, str]) -> Contract:
+    return compose_all(library.model_contracts[m] for m in setup.values())
+
+
+def configure(library: Library, test_case: str, *, fixed: dict[str, str] | None = None,
+              timeout_ms: int = DEFAULT_TIMEOUT_MS, max_iterations: int = 1000) -> Configuration:
+    """The cheapest setup whose composed contract refines the test case (see module docs)."""
+    import z3
+
+    target = library.test_case(test_case)
+    components = library.spec.architecture or list(library.spec.components)
+    choices = _choices(library, components, fixed or {})
+    selector = {(c, m): z3.Bool(f"{c}={m}") for c, models in choices.items() for m in models}
+    optimizer = z3.Optimize()
+    for c, models in choices.items():
+        optimizer.add(z3.PbEq([(selector[c, m], 1) for m in models], 1))
+    costs = {m: Fraction(library.spec.models[m].cost).limit_denominator(10**6)
+             for models in choices.values() for m in models}
+    optimizer.minimize(z3.Sum([z3.If(selector[c, m], z3.RealVal(str(costs[m])), 0)
+                               for (c, m) in selector]))
+    points: list[dict[str, float]] = []
+    for iteration in range(1, max_iterations + 1):
+        if optimizer.check() != z3.sat:
+            return Configuration(test_case, Status.FAILS, None, None, None, iteration, points,
+                                 "no setup refines the test case: every candidate fails at one "
+                                 "of the counterexample points")
+        model = optimizer.model()
+        setup = {c: m for (c, m), s in selector.items() if z3.is_true(model.eval(s))}
+        proof = refines(setup_contract(library, setup), target, types=library.types,
+                        timeout_ms=timeout_ms)
+        if proof.status is Status.HOLDS:
+            cost = float(sum(library.spec.models[m].cost for m in setup.values()))
+            return Configuration(test_case, Status.HOLDS, setup, cost, proof, iteration, points)
+        if proof.status is Status.UNKNOWN:
+            return Configuration(test_case, Status.UNKNOWN, setup, None, proof, iteration, points,
+                                 f"the solver could not decide {setup}: {proof.reason}")
+        point = proof.counterexample
+        points.append({k: float(v) for k, v in point.items()})
+        optimizer.add(_valid_at(library, target, choices, selector, point))
+    return Configuration(test_case, Status.UNKNOWN, None, None, None, max_iterations, points,
+                         "iteration limit reached")
+
+
+def _choices(library: Library, components, fixed) -> dict[str, list[str]]:
+    choices = {}
+    for c in components:
+        models = library.candidates(c)
+        if c in fixed:
+            if fixed[c] not in models:
+                raise LibraryError(f"{library.source}: '{fixed[c]}' is not a model of component "
+                                   f"'{c}' (models: {', '.join(models)})")
+            models = [fixed[c]]
+        if not models:
+            raise LibraryError(f"{library.source}: component '{c}' has no model")
+        choices[c] = models
+    return choices
+
+
+def _valid_at(library, target: Contract, choices, selector, point) -> object:
+    """At the operating point ``point``: the propositional condition on the selectors under which
+    the composed setup's contract satisfies both refinement implications there."""
+    import z3
+
+    def holds(expr) -> bool:
+        columns = {k: np.array([v], dtype=object) for k, v in point.items()}
+        for name in library.spec.variables:
+            columns.setdefault(name, np.array([Fraction(0)], dtype=object))
+        return bool(np.asarray(evaluate(expr, columns)).reshape(-1)[0])
+
+    assumption_holds, guarantee_holds = [], []
+    for c, models in choices.items():
+        assumption_holds.append(z3.Or([selector[c, m] for m in models
+                                       if holds(library.model_contracts[m].assumption)] or
+                                      [z3.BoolVal(False)]))
+        guarantee_holds.append(z3.Or([selector[c, m] for m in models
+                                      if holds(library.model_contracts[m].saturated_guarantee)]
+                                     or [z3.BoolVal(False)]))
+    g_setup = z3.And(guarantee_holds)
+    a_setup = z3.Or(z3.And(assumption_holds), z3.Not(g_setup))
+    a_target = z3.BoolVal(holds(target.assumption))
+    g_target = z3.BoolVal(holds(target.saturated_guarantee))
+    return z3.And(z3.Implies(a_target, a_setup), z3.Implies(g_setup, g_target))
+
+
+def missing_model_requirement(library: Library, test_case: str, given: dict[str, str]
+                              ) -> Contract:
+    """What the models not in ``given`` must satisfy together: the quotient C_tc / C_given
+    (seed 003 sec. V-B)."""
+    target = library.test_case(test_case)
+    for component, model in given.items():
+        if library.spec.models.get(model) is None or \
+                library.spec.models[model].implements != component:
+            raise LibraryError(f"{library.source}: '{model}' is not a model of component "
+                               f"'{component}'")
+    residual = setup_contract(library, given)
+    return target.quotient(residual)

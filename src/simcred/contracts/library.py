@@ -1,0 +1,219 @@
+"""The contract library: variables, components, simulation models, architecture, test cases.
+
+A YAML file (read with ``yaml.safe_load``, validated with pydantic) — see
+``examples/contracts/*.yaml``::
+
+    variables:
+      ego.v: {type: real, unit: m/s}
+    components:
+      vehicle: {inputs: [ad.acc], outputs: [ego.v, err.pos]}
+    models:
+      KS: {implements: vehicle, cost: 1.7, contract: {assumption: "...", guarantee: "..."}}
+    architecture: [vehicle, sensor, ad]
+    test_cases:
+      cutin: {assumption: "...", guarantee: "..."}
+    contracts:                      # free-standing, for the algebra alone
+      C1: {assumption: "...", guarantee: "..."}
+
+A port may give its own unit (``outputs: [{ego.v: km/h}]``); every port of a variable must use
+the variable's unit. Each variable is controlled by at most one output port of the architecture.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+from pathlib import Path
+from typing import Literal
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+
+from simcred.contracts.algebra import Contract
+from simcred.errors import SimcredError
+
+
+class LibraryError(SimcredError):
+    """A malformed or inconsistent library; the message names the file and the entry."""
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class VariableSpec(_Strict):
+    type: Literal["real", "int", "bool"] = "real"
+    unit: str = "dimensionless"
+
+
+class ContractSpec(_Strict):
+    assumption: str = "true"
+    guarantee: str = "true"
+
+
+class ComponentSpec(_Strict):
+    inputs: list[str | dict[str, str]] = Field(default_factory=list)
+    outputs: list[str | dict[str, str]] = Field(default_factory=list)
+
+
+class ModelSpec(_Strict):
+    implements: str
+    cost: float = Field(ge=0)
+    contract: ContractSpec = ContractSpec()
+    description: str = ""
+
+
+class LibrarySpec(_Strict):
+    variables: dict[str, VariableSpec] = Field(default_factory=dict)
+    components: dict[str, ComponentSpec] = Field(default_factory=dict)
+    models: dict[str, ModelSpec] = Field(default_factory=dict)
+    architecture: list[str] = Field(default_factory=list)
+    test_cases: dict[str, ContractSpec] = Field(default_factory=dict)
+    contracts: dict[str, ContractSpec] = Field(default_factory=dict)
+
+    @field_validator("variables", mode="before")
+    @classmethod
+    def _short_variables(cls, value):
+        """``x: real`` is short for ``x: {type: real}``."""
+        if isinstance(value, dict):
+            return {k: {"type": v} if isinstance(v, str) else v for k, v in value.items()}
+        return value
+
+
+@dataclass(frozen=True, slots=True)
+class Port:
+    component: str
+    variable: str
+    unit: str
+    direction: Literal["input", "output"]
+
+
+@dataclass(frozen=True)
+class Library:
+    """A validated library; contracts are parsed against the declared variables."""
+
+    spec: LibrarySpec
+    source: str = "<memory>"
+
+    @classmethod
+    def read(cls, path: str | Path) -> Library:
+        path = Path(path)
+        try:
+            data = yaml.safe_load(path.read_text())
+        except OSError as exc:
+            raise LibraryError(f"{path}: cannot read ({exc.strerror})") from None
+        except yaml.YAMLError as exc:
+            mark = getattr(exc, "problem_mark", None)
+            where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
+            problem = getattr(exc, "problem", None) or "malformed YAML"
+            raise LibraryError(f"{path}: {where}{problem}") from None
+        return cls.from_dict(data, source=str(path))
+
+    @classmethod
+    def from_dict(cls, data, *, source: str = "<memory>") -> Library:
+        if not isinstance(data, dict):
+            raise LibraryError(f"{source}: a library is a mapping with variables, components, "
+                               "models, architecture, test_cases, contracts")
+        try:
+            spec = LibrarySpec.model_validate(data)
+        except ValidationError as exc:
+            error = exc.errors()[0]
+            where = ".".join(str(p) for p in error["loc"])
+            raise LibraryError(f"{source}: {where}: {error['msg']}") from None
+        library = cls(spec, source)
+        library.validate()
+        return library
+
+    # -- names -------------------------------------------------------------------------------
+
+    @property
+    def types(self) -> dict[str, str]:
+        return {name: v.type for name, v in self.spec.variables.items()}
+
+    def _contract(self, spec: ContractSpec, where: str, name: str) -> Contract:
+        return Contract.from_strings(spec.assumption, spec.guarantee, name=name,
+                                     declared=self.spec.variables, where=f"{self.source}: {where}")
+
+    @cached_property
+    def model_contracts(self) -> dict[str, Contract]:
+        return {n: self._contract(m.contract, f"models.{n}.contract", n)
+                for n, m in self.spec.models.items()}
+
+    @cached_property
+    def test_case_contracts(self) -> dict[str, Contract]:
+        return {n: self._contract(t, f"test_cases.{n}", n)
+                for n, t in self.spec.test_cases.items()}
+
+    @cached_property
+    def named_contracts(self) -> dict[str, Contract]:
+        return {n: self._contract(c, f"contracts.{n}", n) for n, c in self.spec.contracts.items()}
+
+    def contract(self, name: str) -> Contract:
+        """A free-standing contract, a model's contract or a test case's, by name."""
+        for table in (self.named_contracts, self.model_contracts, self.test_case_contracts):
+            if name in table:
+                return table[name]
+        known = sorted({*self.named_contracts, *self.model_contracts, *self.test_case_contracts})
+        raise LibraryError(f"{self.source}: no contract, model or test case named '{name}' "
+                           f"(known: {', '.join(known)})")
+
+    def test_case(self, name: str) -> Contract:
+        if name not in self.test_case_contracts:
+            raise LibraryError(f"{self.source}: no test case named '{name}' (known: "
+                               f"{', '.join(sorted(self.test_case_contracts))})")
+        return self.test_case_contracts[name]
+
+    def candidates(self, component: str) -> list[str]:
+        """The models implementing ``component``, cheapest first."""
+        return sorted((n for n, m in self.spec.models.items() if m.implements == component),
+                      key=lambda n: (self.spec.models[n].cost, n))
+
+    def ports(self, component: str) -> list[Port]:
+        spec = self.spec.components[component]
+        return [self._port(component, entry, direction)
+                for direction, entries in (("input", spec.inputs), ("output", spec.outputs))
+                for entry in entries]
+
+    def _port(self, component: str, entry, direction) -> Port:
+        variable, unit = (entry, None) if isinstance(entry, str) else next(iter(entry.items()))
+        where = f"{self.source}: components.{component}.{direction}s"
+        if variable not in self.spec.variables:
+            raise LibraryError(f"{where}: undeclared variable '{variable}'")
+        return Port(component, variable, unit or self.spec.variables[variable].unit, direction)
+
+    def controlled(self, component: str) -> set[str]:
+        return {p.variable for p in self.ports(component) if p.direction == "output"}
+
+    def uncontrolled(self, component: str) -> set[str]:
+        return {p.variable for p in self.ports(component) if p.direction == "input"}
+
+    # -- validation ---------------------------------------------------------------------------
+
+    def validate(self) -> None:
+        """Syntax of every assertion, units, composability of the architecture."""
+        from simcred.contracts.units import same_unit, unit
+
+        for name, variable in self.spec.variables.items():
+            unit(variable.unit, where=f"{self.source}: variables.{name}.unit")
+        for name, model in self.spec.models.items():
+            if model.implements not in self.spec.components:
+                raise LibraryError(f"{self.source}: models.{name}.implements: unknown component "
+                                   f"'{model.implements}'")
+        for name in self.spec.architecture:
+            if name not in self.spec.components:
+                raise LibraryError(f"{self.source}: architecture: unknown component '{name}'")
+        self.model_contracts, self.test_case_contracts, self.named_contracts  # noqa: B018
+        drivers: dict[str, str] = {}
+        for component in self.spec.architecture or list(self.spec.components):
+            for port in self.ports(component):
+                declared = self.spec.variables[port.variable].unit
+                if not same_unit(port.unit, declared):
+                    raise LibraryError(
+                        f"{self.source}: components.{component}: port '{port.variable}' in "
+                        f"{port.unit} but the variable is in {declared} (unit mismatch)")
+                if port.direction == "output":
+                    if port.variable in drivers:
+                        raise LibraryError(
+                            f"{self.source}: variable '{port.variable}' is driven by two outputs "
+                            f"({drivers[port.variable]} and {component})")
+                    drivers[port.variable] = component
