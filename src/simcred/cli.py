@@ -457,6 +457,53 @@ def contracts_quotient(
           f"{document['assumption']}\n  guarantee: {document['guarantee']}")
 
 
+@app.command("monitor")
+@one_line_errors
+def monitor_runs(
+    library: LibraryPath,
+    runs: Annotated[Path, typer.Argument(help="Recorded runs: a CSV directory or a Parquet file; "
+                                              "signals named as the library's variables.")],
+    setup: Annotated[str | None, typer.Option(help="COMPONENT=MODEL,... to monitor.")] = None,
+    test_case: Annotated[str | None, typer.Option(help="Configure the cheapest valid setup for "
+                                                       "this test case and monitor it.")] = None,
+    out: Annotated[Path | None, typer.Option(help="Write the report JSON here.")] = None,
+    as_json: Json = False,
+) -> None:
+    """Check recorded runs against the validity domains of a setup's models (exit 1 on a
+    violation)."""
+    from simcred.contracts.configure import configure
+    from simcred.contracts.library import Library
+    from simcred.contracts.monitor import monitor
+    from simcred.traces import TraceSet
+
+    lib = Library.read(library)
+    if (setup is None) == (test_case is None):
+        raise OptionError("give either --setup COMPONENT=MODEL,... or --test-case NAME")
+    if test_case is not None:
+        result = configure(lib, test_case)
+        if result.setup is None:
+            raise OptionError(f"test case '{test_case}' has no valid setup: {result.reason}")
+        models = list(result.setup.values())
+    else:
+        models = [item.partition("=")[2].strip() or item.strip() for item in setup.split(",")]
+    contracts = {m: lib.contract(m) for m in models}
+    report = monitor(TraceSet.read(runs), contracts)
+    if out is not None:
+        out.write_text(report.to_json())
+    if as_json:
+        sys.stdout.write(report.to_json())
+    elif not State.quiet:
+        table = Table(title=f"{runs}: {report.samples} samples, {report.clauses} clauses, "
+                            f"{len(report.violations)} violation(s)")
+        for column in ("model", "kind", "clause", "run", "steps", "t [s]", "margin"):
+            table.add_column(column)
+        for v in report.violations:
+            table.add_row(v.contract, v.kind, v.clause, v.run, f"{v.first_step}–{v.last_step}",
+                          f"{v.t_start:g}–{v.t_end:g}", f"{v.margin:.4g}")
+        out_console.print(table)
+    raise typer.Exit(0 if report.passed else 1)
+
+
 paper_app = typer.Typer(help="Regenerate the papers' experiments and check their claims.")
 app.add_typer(paper_app, name="paper")
 

@@ -1,0 +1,109 @@
+"""Monitors of contracts over recorded runs (seed 003, sec. V-D).
+
+Every clause of a contract is evaluated over all rows of a :class:`TraceSet` at once (numpy):
+assumption clauses say where a model was used outside its validity domain; guarantee clauses are
+checked where the assumption holds (the saturated guarantee A → g). Each violation is reported as
+in ASAM osi-validation style: contract, kind, clause, variables, run, time range (first and last
+step) and margin — the signed distance to satisfaction (negative: by how much it is violated).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from simcred._json import dumps, envelope
+from simcred.contracts.algebra import Contract
+from simcred.contracts.expr import Expr, conjuncts, evaluate, implies, margin, to_text, variables
+from simcred.errors import SimcredError
+from simcred.traces import TraceSet
+
+
+@dataclass(frozen=True, slots=True)
+class Violation:
+    contract: str
+    kind: str  # "assumption" (outside the validity domain) or "guarantee"
+    clause: str
+    variables: tuple[str, ...]
+    run: str
+    first_step: int
+    last_step: int
+    t_start: float
+    t_end: float
+    margin: float  # most negative margin within the range
+
+
+@dataclass(frozen=True, slots=True)
+class MonitorReport:
+    source: str
+    runs: int
+    samples: int
+    clauses: int
+    violations: tuple[Violation, ...]
+
+    @property
+    def passed(self) -> bool:
+        return not self.violations
+
+    def to_json(self) -> str:
+        body = {"source": self.source, "runs": self.runs, "samples": self.samples,
+                "clauses_checked": self.clauses, "passed": self.passed,
+                "violations": [asdict(v) for v in self.violations]}
+        return dumps(envelope("monitor_report", body))
+
+
+def monitor(traces: TraceSet, contracts: Mapping[str, Contract]) -> MonitorReport:
+    """Evaluate every clause of ``contracts`` over ``traces`` (signals named as the variables)."""
+    columns = _columns(traces, contracts)
+    found: list[Violation] = []
+    clauses = 0
+    for name, contract in contracts.items():
+        for kind, clause, checked in _clauses(contract):
+            clauses += 1
+            holds = np.broadcast_to(evaluate(checked, columns), (traces.n_rows,))
+            if holds.all():
+                continue
+            # the margin of the clause itself: how far it is from holding where it is violated
+            found += _segments(traces, name, kind, clause, ~holds,
+                               np.broadcast_to(margin(clause, columns), (traces.n_rows,)))
+    return MonitorReport(traces.source, traces.n_runs, traces.n_rows, clauses, tuple(found))
+
+
+def _clauses(contract: Contract):
+    """(kind, clause, what is checked): assumption clauses as they are, guarantee clauses under
+    the whole assumption."""
+    for clause in conjuncts(contract.assumption):
+        yield "assumption", clause, clause
+    for clause in conjuncts(contract.guarantee):
+        yield "guarantee", clause, implies(contract.assumption, clause)
+
+
+def _columns(traces: TraceSet, contracts: Mapping[str, Contract]) -> dict[str, np.ndarray]:
+    needed = sorted(set().union(*(c.variables for c in contracts.values())))
+    missing = [n for n in needed if n not in traces.signals and n != "t"]
+    if missing:
+        raise SimcredError(f"{traces.source}: no signal '{missing[0]}' for the contracts' "
+                           f"variable (signals are: {', '.join(traces.signals)})")
+    return {n: traces.column(n) for n in needed}
+
+
+def _segments(traces: TraceSet, name: str, kind: str, clause: Expr, violated: np.ndarray,
+              margins: np.ndarray) -> list[Violation]:
+    """Maximal runs of consecutive violated steps within each run."""
+    starts = np.zeros(traces.n_rows, dtype=bool)
+    starts[traces.offsets[:-1]] = True
+    edges = np.diff(violated.astype(np.int8), prepend=0)
+    begin = np.flatnonzero(violated & ((edges == 1) | starts))
+    ends_mask = violated & np.r_[~violated[1:] | starts[1:], True]
+    end = np.flatnonzero(ends_mask)
+    text, names = to_text(clause), tuple(sorted(variables(clause)))
+    out = []
+    for lo, hi in zip(begin, end, strict=True):
+        run = int(np.searchsorted(traces.offsets, lo, side="right") - 1)
+        first = int(traces.offsets[run])
+        out.append(Violation(name, kind, text, names, traces.run_ids[run], int(lo - first),
+                             int(hi - first), float(traces.time[lo]), float(traces.time[hi]),
+                             float(np.min(margins[lo:hi + 1]))))
+    return out

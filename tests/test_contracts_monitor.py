@@ -1,0 +1,78 @@
+"""Monitors find exactly the out-of-domain steps of a run (variable and time step)."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from simcred.cli import run
+from simcred.contracts.algebra import Contract
+from simcred.contracts.monitor import monitor
+from simcred.errors import SimcredError
+from simcred.traces import TraceSet
+
+FIGURE2 = Path(__file__).resolve().parents[1] / "examples" / "contracts" / "figure2.yaml"
+
+
+def runs_with_excursions(rng, n_runs=5, steps=200):
+    """Runs inside M1/M2a's domains, with a known excursion planted in run 3."""
+    out = []
+    for _ in range(n_runs):
+        v = rng.uniform(10, 30, steps)
+        out.append({"t": np.arange(steps) * 0.05, "v": v, "q": v * 1.5, "err": rng.uniform(0, 0.09,
+                                                                                          steps)})
+    out[3]["v"][50:54] = 45.0        # outside M1's validity domain (v <= 40), steps 50..53
+    out[3]["err"][120] = 0.4          # M2a's guarantee violated at step 120 (q inside its domain)
+    return TraceSet.from_runs(out, run_ids=[f"r{i}" for i in range(n_runs)])
+
+
+def test_monitor_finds_the_planted_violations_exactly():
+    traces = runs_with_excursions(np.random.default_rng(0))
+    lib_contracts = {"M1": Contract.from_strings("0 <= v <= 40", "0 <= q <= 50"),
+                     "M2a": Contract.from_strings("0 <= q <= 60", "err <= 0.1")}
+    report = monitor(traces, lib_contracts)
+    found = {(v.contract, v.kind, v.clause, v.run, v.first_step, v.last_step)
+             for v in report.violations}
+    assert ("M1", "assumption", "v <= 40", "r3", 50, 53) in found
+    assert ("M2a", "guarantee", "err <= (1/10)", "r3", 120, 120) in found
+    # at v = 45, q = 67.5 leaves M1's guarantee and M2a's domain: reported, but only there
+    assert all(v.run == "r3" and 50 <= v.first_step <= v.last_step <= 120
+               for v in report.violations)
+    err = next(v for v in report.violations if v.clause == "err <= (1/10)")
+    assert err.margin == pytest.approx(-0.3) and err.t_start == pytest.approx(6.0)
+
+
+def test_monitor_agrees_with_a_literal_loop():
+    rng = np.random.default_rng(4)
+    traces = TraceSet.from_runs([{"t": np.arange(30.0), "a": rng.normal(size=30),
+                                  "b": rng.normal(size=30)} for _ in range(4)])
+    contract = Contract.from_strings("abs(a) <= 1.5", "a + b < 1 or b > 2")
+    report = monitor(traces, {"C": contract})
+    flagged = {(v.run, s) for v in report.violations if v.kind == "guarantee"
+               for s in range(v.first_step, v.last_step + 1)}
+    expected = set()
+    for i in range(traces.n_runs):
+        r = traces.run(i)
+        for s in range(30):
+            a, b = r["a"][s], r["b"][s]
+            if abs(a) <= 1.5 and not (a + b < 1 or b > 2):
+                expected.add((traces.run_ids[i], s))
+    assert flagged == expected
+
+
+def test_missing_signal_is_a_one_line_error():
+    traces = TraceSet.from_runs([{"t": [0, 1], "v": [1, 2]}])
+    with pytest.raises(SimcredError, match="no signal 'err'"):
+        monitor(traces, {"M": Contract.from_strings("v <= 3", "err <= 1")})
+
+
+def test_cli_monitor_with_a_configured_setup(tmp_path, capsys):
+    path = runs_with_excursions(np.random.default_rng(1)).write(tmp_path / "runs.parquet")
+    code = run(["monitor", str(FIGURE2), str(path), "--test-case", "C_tc", "--json"])
+    assert code == 1
+    doc = json.loads(capsys.readouterr().out)
+    assert not doc["passed"]
+    assert {"contract": "M1", "clause": "v <= 40", "run": "r3", "first_step": 50,
+            "last_step": 53}.items() <= next(v for v in doc["violations"]
+                                             if v["clause"] == "v <= 40").items()
