@@ -76,3 +76,45 @@ def test_cli_monitor_with_a_configured_setup(tmp_path, capsys):
     assert {"contract": "M1", "clause": "v <= 40", "run": "r3", "first_step": 50,
             "last_step": 53}.items() <= next(v for v in doc["violations"]
                                              if v["clause"] == "v <= 40").items()
+
+
+VEHICLE = FIGURE2.parent / "vehicle.yaml"
+
+
+def test_vehicle_library_configures_its_test_cases():
+    from simcred.contracts.algebra import Status, refines
+    from simcred.contracts.configure import configure, missing_model_requirement
+    from simcred.contracts.library import Library
+
+    lib = Library.read(VEHICLE)
+    assert configure(lib, "cutin").setup == {"dynamics": "ST", "sensor": "scenario_sensor",
+                                             "ad_function": "ad_v1"}
+    assert configure(lib, "urban_following").setup["dynamics"] == "KS"
+    emergency = configure(lib, "emergency_stop")
+    assert emergency.status is Status.FAILS and emergency.counterexamples
+    need = missing_model_requirement(lib, "emergency_stop",
+                                     {"sensor": "scenario_sensor", "ad_function": "ad_v1"})
+    assert not refines(lib.model_contracts["ST"], need).holds
+    better_st = Contract.from_strings("0 <= ego.v <= 70 and abs(ego.a_lat) <= 8 and "
+                                      "-13 <= ego.a_long <= 6", "dyn.error <= 0.1")
+    assert refines(better_st, need).holds
+
+
+def test_monitor_finds_the_out_of_domain_braking_of_a_cutin_run(tmp_path, capsys):
+    steps = 100
+    t = np.arange(steps) * 0.1
+    a_long = np.where((t >= 4.0) & (t < 5.0), -7.5, -0.5)
+    a_long[43] = -9.4  # harder than ST's validity domain (-9 m/s^2) at step 43 only
+    recording = TraceSet.from_runs([{
+        "t": t, "ego.v": np.linspace(27.8, 20.0, steps), "ego.a_long": a_long,
+        "ego.a_lat": np.zeros(steps), "obj.range": np.linspace(60, 15, steps),
+        "dyn.error": np.full(steps, 0.05), "sen.model_error": np.full(steps, 0.1),
+        "ttc.error": np.full(steps, 0.02)}], run_ids=["cutin_0"])
+    path = recording.write(tmp_path / "cutin.parquet")
+    assert run(["monitor", str(VEHICLE), str(path), "--test-case", "cutin", "--json"]) == 1
+    violations = json.loads(capsys.readouterr().out)["violations"]
+    assert len(violations) == 1
+    v = violations[0]
+    assert (v["contract"], v["kind"], v["clause"], v["variables"]) == (
+        "ST", "assumption", "(-9) <= ego.a_long", ["ego.a_long"])
+    assert (v["first_step"], v["last_step"]) == (43, 43) and v["margin"] == pytest.approx(-0.4)
