@@ -26,6 +26,7 @@ test-fast: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python benchmarks/compare.py
 	$(BIN)/python benchmarks/sim.py
+	$(BIN)/python benchmarks/contracts.py
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks

@@ -28,9 +28,9 @@ from simcred.contracts.algebra import (
     Status,
     Verdict,
     compose_all,
-    refines,
+    valid,
 )
-from simcred.contracts.expr import evaluate
+from simcred.contracts.expr import conjoin, evaluate
 from simcred.contracts.library import Library, LibraryError
 
 
@@ -83,8 +83,7 @@ def configure(library: Library, test_case: str, *, fixed: dict[str, str] | None 
                                  "of the counterexample points")
         model = optimizer.model()
         setup = {c: m for (c, m), s in selector.items() if z3.is_true(model.eval(s))}
-        proof = refines(setup_contract(library, setup), target, types=library.types,
-                        timeout_ms=timeout_ms)
+        proof = setup_refines(library, setup, target, timeout_ms=timeout_ms)
         if proof.status is Status.HOLDS:
             cost = float(sum(library.spec.models[m].cost for m in setup.values()))
             return Configuration(test_case, Status.HOLDS, setup, cost, proof, iteration, points)
@@ -96,6 +95,21 @@ def configure(library: Library, test_case: str, *, fixed: dict[str, str] | None 
         optimizer.add(_valid_at(library, target, choices, selector, point))
     return Configuration(test_case, Status.UNKNOWN, None, None, None, max_iterations, points,
                          "iteration limit reached")
+
+
+def setup_refines(library: Library, setup: dict[str, str], target: Contract, *,
+                  timeout_ms: int = DEFAULT_TIMEOUT_MS) -> Verdict:
+    """``compose(models of setup) ≼ target`` as one flat validity query.
+
+    With G_s = ∧ G_i' and A_s = ∧ A_i ∨ ¬G_s, the two refinement conditions A_tc → A_s and
+    G_s → (A_tc → G_tc) are together equivalent to  A_tc ∧ G_1' ∧ … ∧ G_n' → (∧ A_i) ∧ G_tc:
+    the same verdict as :func:`refines` on the composition, but with the models' guarantees as
+    separate premises (a small unsat core naming the models' clauses that prove it).
+    """
+    contracts = [library.model_contracts[m] for m in setup.values()]
+    premises = [target.assumption, *(c.saturated_guarantee for c in contracts)]
+    claim = conjoin(*(c.assumption for c in contracts), target.guarantee)
+    return valid(premises, claim, types=library.types, timeout_ms=timeout_ms)
 
 
 def _choices(library: Library, components, fixed) -> dict[str, list[str]]:

@@ -436,7 +436,7 @@ def _np_arith(op: str, args, e: Arith):
             out = combine(out, a)
         return out
     if op == "^":
-        out = 1
+        out = args[1] ** 0  # the number 1: a Fraction when the evaluation is exact
         for _ in range(int(e.args[1].value)):
             out = out * args[0]
         return out

@@ -99,11 +99,12 @@ def _segments(traces: TraceSet, name: str, kind: str, clause: Expr, violated: np
     ends_mask = violated & np.r_[~violated[1:] | starts[1:], True]
     end = np.flatnonzero(ends_mask)
     text, names = to_text(clause), tuple(sorted(variables(clause)))
-    out = []
-    for lo, hi in zip(begin, end, strict=True):
-        run = int(np.searchsorted(traces.offsets, lo, side="right") - 1)
-        first = int(traces.offsets[run])
-        out.append(Violation(name, kind, text, names, traces.run_ids[run], int(lo - first),
-                             int(hi - first), float(traces.time[lo]), float(traces.time[hi]),
-                             float(np.min(margins[lo:hi + 1]))))
-    return out
+    runs = np.searchsorted(traces.offsets, begin, side="right") - 1
+    first = traces.offsets[runs]
+    # minimum margin over each segment [lo, hi]: reduceat over the pairs (lo, hi + 1)
+    bounds = np.column_stack([begin, end + 1]).ravel()
+    worst = np.minimum.reduceat(np.append(margins, 0.0), bounds)[::2] if len(begin) else begin
+    return [Violation(name, kind, text, names, traces.run_ids[r], int(lo - f), int(hi - f),
+                      float(traces.time[lo]), float(traces.time[hi]), float(w))
+            for r, f, lo, hi, w in zip(runs.tolist(), first.tolist(), begin.tolist(),
+                                       end.tolist(), worst.tolist(), strict=True)]
