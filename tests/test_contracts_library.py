@@ -131,3 +131,25 @@ def test_cli_configure_and_quotient(capsys):
     assert "err" in json.loads(capsys.readouterr().out)["guarantee"]
     assert run(["contracts", "quotient", str(FIGURE2), "--test-case", "C_tc", "--given",
                 "I1"]) == 2
+
+
+def test_projected_quotient_is_the_requirement_over_the_missing_ports():
+    from simcred.contracts.configure import missing_ports
+    from simcred.contracts.expr import evaluate, variables
+    from simcred.contracts.project import project
+
+    lib = Library.read(FIGURE2)
+    quotient = missing_model_requirement(lib, "C_tc", {"I1": "M1"})
+    projected = project(quotient, missing_ports(lib, {"I1": "M1"}), types=lib.types)
+    assert projected is not None
+    assert variables(projected.assumption) | variables(projected.guarantee) <= {"q", "err"}
+    assert refines(projected, quotient).holds  # sufficient for the quotient
+    assert refines(lib.model_contracts["M1"].compose(projected), lib.test_case("C_tc")).holds
+    assert refines(lib.model_contracts["M2a"], projected).holds
+    assert not refines(lib.model_contracts["M2b"], projected).holds
+    # closed form: assume 0 <= q <= 50, guarantee err <= 0.2 there
+    grid = {"q": np.array([-1.0, 0, 25, 50, 51]), "err": np.array([0.0, 0.2, 0.21, 0.3, 9])}
+    assert evaluate(projected.assumption, grid).tolist() == [False, True, True, True, False]
+    q, e = np.meshgrid(np.linspace(0, 50, 11), np.linspace(0, 0.4, 9))
+    holds = evaluate(projected.saturated_guarantee, {"q": q, "err": e})
+    assert np.array_equal(holds, e <= 0.2)

@@ -439,9 +439,10 @@ def contracts_quotient(
     as_json: Json = False,
 ) -> None:
     """The requirement on the missing model(s): C_tc / (composition of the given models)."""
-    from simcred.contracts.configure import missing_model_requirement
+    from simcred.contracts.configure import missing_model_requirement, missing_ports
     from simcred.contracts.expr import to_text
     from simcred.contracts.library import Library
+    from simcred.contracts.project import project
 
     pairs = {}
     for item in given:
@@ -449,8 +450,13 @@ def contracts_quotient(
         if not sep or not component or not model:
             raise OptionError(f"--given must be COMPONENT=MODEL, got {item!r}")
         pairs[component.strip()] = model.strip()
-    requirement = missing_model_requirement(Library.read(library), test_case, pairs)
+    lib = Library.read(library)
+    requirement = missing_model_requirement(lib, test_case, pairs)
+    projected = project(requirement, missing_ports(lib, pairs), types=lib.types)
+    if projected is not None:
+        requirement = projected
     document = {"test_case": test_case, "given": pairs,
+                "projected_onto_ports": projected is not None,
                 "assumption": to_text(requirement.assumption),
                 "guarantee": to_text(requirement.guarantee)}
     _emit(document, as_json, f"requirement for the missing model(s):\n  assume:    "

@@ -165,3 +165,9 @@ def missing_model_requirement(library: Library, test_case: str, given: dict[str,
                                f"'{component}'")
     residual = setup_contract(library, given)
     return target.quotient(residual)
+
+
+def missing_ports(library: Library, given: dict[str, str]) -> set[str]:
+    """Variables of the ports of the components not in ``given`` (what a missing model sees)."""
+    components = library.spec.architecture or list(library.spec.components)
+    return {p.variable for c in components if c not in given for p in library.ports(c)}

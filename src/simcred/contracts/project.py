@@ -1,0 +1,167 @@
+"""Projection of contracts onto a subset of variables, by z3's quantifier elimination.
+
+A contract over more variables than a component's ports is turned into one over the ports only:
+A' = ∃ hidden. A and G' = ∀ hidden. (A → G). The result refines the original (A → A' and
+G' → (A → G) hold by construction), so a model satisfying it satisfies the original: it is a
+*sufficient* requirement over the ports. Used to state what a missing model must satisfy (the
+quotient, seed 003 sec. V-B). Projection needs quantifier elimination, which z3 does for linear
+real arithmetic; elsewhere it may not, and :func:`project` returns None.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from fractions import Fraction
+
+from simcred.contracts.algebra import Contract
+from simcred.contracts.expr import (
+    Arith,
+    Bool,
+    Compare,
+    Expr,
+    Logic,
+    Num,
+    Var,
+    to_z3,
+    variables,
+    z3_variables,
+)
+
+
+def project(contract: Contract, keep: Iterable[str], *, types: Mapping[str, str] | None = None,
+            timeout_ms: int = 10_000) -> Contract | None:
+    """The contract over ``keep`` that refines ``contract``, or None if z3 cannot eliminate."""
+    import z3
+
+    keep = set(keep)
+    names = contract.variables
+    env = z3_variables(names, types)
+    hidden = [env[n] for n in sorted(names - keep)]
+    assumption = to_z3(contract.assumption, env)
+    saturated = to_z3(contract.saturated_guarantee, env)
+    if hidden:
+        assumption = z3.Exists(hidden, assumption)
+        saturated = z3.ForAll(hidden, saturated)
+    try:
+        a = _eliminate(assumption, timeout_ms)
+        g = _within(_eliminate(saturated, timeout_ms), a, timeout_ms)
+        projected = Contract(from_z3(a), from_z3(g), f"proj({contract.name})")
+    except (z3.Z3Exception, NotImplementedError):
+        return None
+    if (variables(projected.assumption) | variables(projected.guarantee)) - keep:
+        return None
+    return projected
+
+
+def _eliminate(formula, timeout_ms: int):
+    import z3
+
+    tactic = z3.TryFor(z3.Then("qe", "simplify", "ctx-solver-simplify"), timeout_ms)
+    goals = tactic(formula)
+    parts = [z3.And(*g) if len(g) else z3.BoolVal(True) for g in goals]
+    result = parts[0] if len(parts) == 1 else z3.Or(*parts)
+    if z3.is_quantifier(result) or any(z3.is_quantifier(c) for c in _subterms(result)):
+        raise NotImplementedError("quantifiers left after elimination")
+    return result
+
+
+def _within(guarantee, assumption, timeout_ms: int):
+    """``guarantee`` simplified where ``assumption`` holds: the contracts (A, G) and (A, G*) with
+    A ∧ G ≡ A ∧ G* are the same contract (saturation), so the clauses of A can be dropped."""
+    import z3
+
+    both = _eliminate(z3.And(assumption, guarantee), timeout_ms)
+    context = {c.sexpr() for c in _clauses(assumption)}
+    rest = [c for c in _clauses(both) if c.sexpr() not in context]
+    if not rest:
+        return z3.BoolVal(True)
+    return rest[0] if len(rest) == 1 else z3.And(*rest)
+
+
+def _clauses(term):
+    import z3
+
+    return term.children() if z3.is_and(term) else [term]
+
+
+def _subterms(term):
+    stack = [term]
+    while stack:
+        t = stack.pop()
+        yield t
+        if not hasattr(t, "children"):
+            continue
+        stack.extend(t.children())
+
+
+def _comparisons():
+    import z3
+
+    return {z3.Z3_OP_LE, z3.Z3_OP_GE, z3.Z3_OP_LT, z3.Z3_OP_GT, z3.Z3_OP_EQ, z3.Z3_OP_DISTINCT}
+
+
+class _Lazy(frozenset):
+    def __contains__(self, item):
+        return item in _comparisons()
+
+
+_COMPARISONS = _Lazy()
+
+
+def _ite(term):
+    """The first if-then-else inside an arithmetic term, or None."""
+    import z3
+
+    for t in _subterms(term):
+        if z3.is_app_of(t, z3.Z3_OP_ITE):
+            return t
+    return None
+
+
+def _lift_ite(comparison):
+    """``f(If(c, a, b))`` → ``(c and f(a)) or (not c and f(b))``: our language has no if."""
+    import z3
+
+    ite = next(i for i in map(_ite, comparison.children()) if i is not None)
+    condition, then, otherwise = ite.children()
+    return z3.Or(z3.And(condition, z3.substitute(comparison, (ite, then))),
+                 z3.And(z3.Not(condition), z3.substitute(comparison, (ite, otherwise))))
+
+
+def from_z3(term) -> Expr:
+    """Our AST of a quantifier-free z3 term of linear arithmetic and Boolean connectives."""
+    import z3
+
+    if z3.is_true(term):
+        return Bool(True)
+    if z3.is_false(term):
+        return Bool(False)
+    if z3.is_rational_value(term) or z3.is_int_value(term):
+        value = term.as_fraction() if z3.is_rational_value(term) else Fraction(term.as_long())
+        return Num(Fraction(value))
+    if z3.is_const(term) and term.decl().kind() == z3.Z3_OP_UNINTERPRETED:
+        return Var(term.decl().name())
+    kind = term.decl().kind()
+    if kind in _COMPARISONS and any(_ite(c) is not None for c in term.children()):
+        return from_z3(_lift_ite(term))
+    args = [from_z3(c) for c in term.children()]
+    logic = {z3.Z3_OP_AND: "and", z3.Z3_OP_OR: "or", z3.Z3_OP_NOT: "not",
+             z3.Z3_OP_IMPLIES: "implies"}
+    if kind in logic:
+        return Logic(logic[kind], tuple(args))
+    compare = {z3.Z3_OP_LE: "<=", z3.Z3_OP_GE: ">=", z3.Z3_OP_LT: "<", z3.Z3_OP_GT: ">",
+               z3.Z3_OP_EQ: "==", z3.Z3_OP_DISTINCT: "!="}
+    if kind in compare:
+        return Compare(compare[kind], args[0], args[1])
+    if kind == z3.Z3_OP_ITE and z3.is_bool(term):
+        return Logic("or", (Logic("and", (args[0], args[1])),
+                            Logic("and", (Logic("not", (args[0],)), args[2]))))
+    arith = {z3.Z3_OP_ADD: "+", z3.Z3_OP_SUB: "-", z3.Z3_OP_MUL: "*", z3.Z3_OP_DIV: "/"}
+    if kind in arith:
+        out = args[0]
+        for a in args[1:]:
+            out = Arith(arith[kind], (out, a))
+        return out
+    if kind == z3.Z3_OP_UMINUS:
+        return Num(-args[0].value) if isinstance(args[0], Num) else Arith("neg", (args[0],))
+    raise NotImplementedError(f"cannot translate z3 term {term}")
