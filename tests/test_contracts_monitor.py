@@ -90,14 +90,27 @@ def test_vehicle_library_configures_its_test_cases():
     assert configure(lib, "cutin").setup == {"dynamics": "ST", "sensor": "scenario_sensor",
                                              "ad_function": "ad_v1"}
     assert configure(lib, "urban_following").setup["dynamics"] == "KS"
-    emergency = configure(lib, "emergency_stop")
-    assert emergency.status is Status.FAILS and emergency.counterexamples
-    need = missing_model_requirement(lib, "emergency_stop",
+    for name in lib.spec.test_cases:  # every shipped test case has a valid setup
+        assert configure(lib, name).status is Status.HOLDS
+
+
+def test_without_st_the_cutin_needs_a_new_dynamics_model():
+    import yaml
+
+    from simcred.contracts.algebra import Status, refines
+    from simcred.contracts.configure import configure, missing_model_requirement
+    from simcred.contracts.library import Library
+
+    spec = yaml.safe_load(VEHICLE.read_text())
+    st = spec["models"].pop("ST")
+    lib = Library.from_dict(spec)
+    result = configure(lib, "cutin")
+    assert result.status is Status.FAILS and result.counterexamples
+    need = missing_model_requirement(lib, "cutin",
                                      {"sensor": "scenario_sensor", "ad_function": "ad_v1"})
-    assert not refines(lib.model_contracts["ST"], need).holds
-    better_st = Contract.from_strings("0 <= ego.v <= 70 and abs(ego.a_lat) <= 8 and "
-                                      "-13 <= ego.a_long <= 6", "dyn.error <= 0.1")
-    assert refines(better_st, need).holds
+    assert not refines(lib.model_contracts["KS"], need).holds
+    st_contract = Contract.from_strings(st["contract"]["assumption"], st["contract"]["guarantee"])
+    assert refines(st_contract, need).holds
 
 
 def test_monitor_finds_the_out_of_domain_braking_of_a_cutin_run(tmp_path, capsys):
