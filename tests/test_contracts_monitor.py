@@ -82,8 +82,8 @@ VEHICLE = FIGURE2.parent / "vehicle.yaml"
 
 
 def test_vehicle_library_configures_its_test_cases():
-    from simcred.contracts.algebra import Status, refines
-    from simcred.contracts.configure import configure, missing_model_requirement
+    from simcred.contracts.algebra import Status
+    from simcred.contracts.configure import configure
     from simcred.contracts.library import Library
 
     lib = Library.read(VEHICLE)

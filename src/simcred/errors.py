@@ -12,7 +12,7 @@ class SimcredError(ValueError):
     """Bad input: the message is one line that names the culprit."""
 
     def __init__(self, message: str) -> None:
-        super().__init__(" ".join(message.split("\n")))
+        super().__init__(" ".join(message.splitlines()))
 
 
 class TraceSetError(SimcredError):

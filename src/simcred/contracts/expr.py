@@ -12,6 +12,7 @@ robustness: positive where an assertion holds, negative where it is violated).
 
 from __future__ import annotations
 
+import operator
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from fractions import Fraction
@@ -381,7 +382,11 @@ def _z3_arith(op: str, args, e: Arith):
             out = out * args[0]
         return out
     a, b = args
-    return {"+": a + b, "-": a - b, "*": a * b, "/": a / b}[op]
+    return _Z3_BINARY[op](a, b)  # only the one term asked for (building all four was 4x slower)
+
+
+_Z3_BINARY: dict[str, Callable] = {"+": operator.add, "-": operator.sub, "*": operator.mul,
+                                   "/": operator.truediv}
 
 
 # -- numpy back end -----------------------------------------------------------------------------
