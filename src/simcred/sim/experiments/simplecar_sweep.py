@@ -51,8 +51,8 @@ def simulate(
     seed: int,
     *,
     lam: float,
-    dt: float = 0.5,
-    duration: float = 20.0,
+    dt: float = 2.0,
+    duration: float = 40.0,
     substeps: int = 10,
     wheelbase: float = 2.5,
 ) -> TraceSet:
