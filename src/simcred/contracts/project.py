@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
 from fractions import Fraction
+from functools import cache
 
 from simcred.contracts.algebra import Contract
 from simcred.contracts.expr import (
@@ -94,18 +95,13 @@ def _subterms(term):
         stack.extend(t.children())
 
 
-def _comparisons():
+@cache
+def _comparison_ops() -> dict[int, str]:
+    """z3 comparison kinds and our operators (built on first use: z3 is imported lazily)."""
     import z3
 
-    return {z3.Z3_OP_LE, z3.Z3_OP_GE, z3.Z3_OP_LT, z3.Z3_OP_GT, z3.Z3_OP_EQ, z3.Z3_OP_DISTINCT}
-
-
-class _Lazy(frozenset):
-    def __contains__(self, item):
-        return item in _comparisons()
-
-
-_COMPARISONS = _Lazy()
+    return {z3.Z3_OP_LE: "<=", z3.Z3_OP_GE: ">=", z3.Z3_OP_LT: "<", z3.Z3_OP_GT: ">",
+            z3.Z3_OP_EQ: "==", z3.Z3_OP_DISTINCT: "!="}
 
 
 def _ite(term):
@@ -142,15 +138,14 @@ def from_z3(term) -> Expr:
     if z3.is_const(term) and term.decl().kind() == z3.Z3_OP_UNINTERPRETED:
         return Var(term.decl().name())
     kind = term.decl().kind()
-    if kind in _COMPARISONS and any(_ite(c) is not None for c in term.children()):
+    compare = _comparison_ops()
+    if kind in compare and any(_ite(c) is not None for c in term.children()):
         return from_z3(_lift_ite(term))
     args = [from_z3(c) for c in term.children()]
     logic = {z3.Z3_OP_AND: "and", z3.Z3_OP_OR: "or", z3.Z3_OP_NOT: "not",
              z3.Z3_OP_IMPLIES: "implies"}
     if kind in logic:
         return Logic(logic[kind], tuple(args))
-    compare = {z3.Z3_OP_LE: "<=", z3.Z3_OP_GE: ">=", z3.Z3_OP_LT: "<", z3.Z3_OP_GT: ">",
-               z3.Z3_OP_EQ: "==", z3.Z3_OP_DISTINCT: "!="}
     if kind in compare:
         return Compare(compare[kind], args[0], args[1])
     if kind == z3.Z3_OP_ITE and z3.is_bool(term):
