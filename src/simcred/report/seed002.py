@@ -1,0 +1,172 @@
+"""Figures of the reprocessing pipeline (seed 002, [1] Figs. 3-7).
+
+Colours follow [1]: EGO blue, TO green; GT solid, resimulations dashed.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from simcred.report.figures import _save, plt
+from simcred.reprocess.errors import QUANTITIES, STEPS
+from simcred.reprocess.pipeline import SB, Reprocessed, log_risk
+
+EGO_COLOR, TO_COLOR = "#1f4e9c", "#2ca02c"
+TRACE_STYLES = {  # representation -> (label, colour, line style)
+    "GT": ("GT", "#222222", "-"),
+    "rGT": ("rGT (ideal sensor)", "#1f77b4", "--"),
+    "rSD": ("rSD (ideal sensor)", "#17becf", "--"),
+    f"rGT{SB}": ("rGT (scenario-based sensor)", "#d62728", "-."),
+    f"rSD{SB}": ("rSD (scenario-based sensor)", "#ff7f0e", ":"),
+}
+UNITS = {"d": "Δd [m]", "v": "Δv [m/s]", "heading": "Δθ [rad]"}
+
+
+def fig3_fit(result: Reprocessed, path: str | Path, source: str = "GT") -> Path:
+    """Fig. 3: the scenario description fitted to ``source`` (thin) over the data (thick)."""
+    ego, to = result.config.ego, result.config.objects[0]
+    t, raw, fit = result.times, result.states[source], result.states[f"fit({source})"]
+    fig = plt.figure(figsize=(12, 7), constrained_layout=True)
+    grid = fig.add_gridspec(2, 2)
+    xy, speed, heading = fig.add_subplot(grid[0, :]), fig.add_subplot(grid[1, 0]), \
+        fig.add_subplot(grid[1, 1])
+    for name, color in ((ego, EGO_COLOR), (to, TO_COLOR)):
+        xy.plot(raw[name][:, 0], raw[name][:, 1], color=color, lw=4, alpha=0.35,
+                label=f"{name} {source}")
+        xy.plot(fit[name][:, 0], fit[name][:, 1], color=color, lw=1, label=f"{name} fit")
+        speed.plot(t, raw[name][:, 2], color=color, lw=4, alpha=0.35)
+        speed.plot(t, fit[name][:, 2], color=color, lw=1)
+        heading.plot(t, np.unwrap(raw[name][:, 3]), color=color, lw=4, alpha=0.35)
+        heading.plot(t, fit[name][:, 3], color=color, lw=1)
+    xy.set(xlabel="x [m]", ylabel="y [m]",
+           title=f"scenario description fitted to {source} positions (thin) over {source} "
+                 "(thick)")
+    xy.legend(fontsize=8, ncols=4)
+    speed.set(xlabel="t [s]", ylabel="v [m/s]", title="speed (not fitted: follows from x, y)")
+    heading.set(xlabel="t [s]", ylabel="θ [rad]", title="heading")
+    for ax in (xy, speed, heading):
+        ax.grid(alpha=0.3)
+    return _save(fig, Path(path))
+
+
+def fig4_errors(result: Reprocessed, path: str | Path, sensor: str = "ideal") -> Path:
+    """Fig. 4: error boxes per pipeline step (columns) and quantity (rows), EGO and TO."""
+    table = result.errors[sensor]
+    steps = [s for s in STEPS if s in table]
+    names = (result.config.ego, result.config.objects[0])
+    fig, axes = plt.subplots(len(QUANTITIES), 1, figsize=(13, 8.5), constrained_layout=True,
+                             sharex=True)
+    for ax, quantity in zip(axes, QUANTITIES, strict=True):
+        for k, name in enumerate(names):
+            boxes = [_box(table[s][name][quantity]) for s in steps]
+            positions = np.arange(len(steps)) + (k - 0.5) * 0.36
+            color = (EGO_COLOR, TO_COLOR)[k]
+            ax.bxp(boxes, positions=positions, widths=0.3, showmeans=False, patch_artist=True,
+                   boxprops={"facecolor": color, "alpha": 0.45},
+                   medianprops={"color": "black"}, whiskerprops={"color": color},
+                   capprops={"color": color}, showfliers=False)
+            means = [table[s][name][quantity].mean for s in steps]
+            stds = [table[s][name][quantity].std for s in steps]
+            ax.errorbar(positions, means, yerr=stds, fmt="D", ms=4, color="black", lw=0.8,
+                        label=f"{name}: mean ± std" if quantity == "d" else None)
+        ax.set_ylabel(UNITS[quantity])
+        ax.set_yscale("symlog", linthresh={"d": 0.01, "v": 0.01, "heading": 0.001}[quantity])
+        ax.grid(alpha=0.3, axis="y")
+    axes[0].set_ylim(bottom=0)  # Δd is a distance
+    axes[0].legend(fontsize=8, loc="upper left")
+    axes[-1].set_xticks(range(len(steps)), [f"Δ{s}" for s in steps])
+    title = "errors of the reprocessing pipeline (boxes: quartiles, whiskers: full extent)"
+    axes[0].set_title(f"{title} — {sensor} sensor in the resimulation; EGO blue, TO green")
+    return _save(fig, Path(path))
+
+
+def _box(stats) -> dict[str, float]:
+    return {"med": stats.median, "q1": stats.q25, "q3": stats.q75, "whislo": stats.low,
+            "whishi": stats.high}
+
+
+def fig5_sd_velocity(result: Reprocessed, path: str | Path) -> Path:
+    """Fig. 5: the TO's SD speed, its fit, and GT: the fit removes the sensor's delay."""
+    to = result.config.objects[0]
+    t = result.times
+    fig, ax = plt.subplots(figsize=(10, 4.5), constrained_layout=True)
+    ax.plot(t, result.states["SD"][to][:, 2], color="#d62728", lw=1, label="SD (object list)")
+    ax.plot(t, result.states["fit(SD)"][to][:, 2], color="#ff7f0e", lw=2, ls="--",
+            label="fit(SD) (from SD positions)")
+    if "GT" in result.states:
+        ax.plot(t, result.states["GT"][to][:, 2], color="black", lw=1.2, label="GT")
+    ax.set(xlabel="t [s]", ylabel="TO speed [m/s]",
+           title="TO speed: the fit of SD positions converges towards GT")
+    ax.legend(fontsize=9)
+    ax.grid(alpha=0.3)
+    return _save(fig, Path(path))
+
+
+def fig6_traces(result: Reprocessed, path: str | Path, last: float = 3.0) -> Path:
+    """Fig. 6: EGO and TO paths of GT and the resimulations in the last ``last`` seconds."""
+    ego, to = result.config.ego, result.config.objects[0]
+    t = result.times
+    window = t >= t[-1] - last
+    fig, ax = plt.subplots(figsize=(12, 4), constrained_layout=True)
+    for key, (label, color, style) in TRACE_STYLES.items():
+        source = key if key in ("GT", "SD") else f"fit({key})"
+        if source not in result.states:
+            continue
+        states = result.states[source]
+        ax.plot(states[ego][window, 0], states[ego][window, 1], color=color, ls=style, lw=1.8,
+                label=f"EGO {label}")
+        ax.plot(states[to][window, 0], states[to][window, 1], color=color, ls=style, lw=0.8,
+                alpha=0.7)
+    ax.set(xlabel="x [m]", ylabel="y [m]",
+           title=f"paths in the last {last:g} s (thick: EGO, thin: TO)")
+    ax.legend(fontsize=8, ncols=2)
+    ax.grid(alpha=0.3)
+    return _save(fig, Path(path))
+
+
+def fig7_velocity_risk(result: Reprocessed, path: str | Path) -> Path:
+    """Fig. 7: EGO speeds of GT and the resimulations (TO for reference) and their risk."""
+    ego, to = result.config.ego, result.config.objects[0]
+    fig, (speed, risk) = plt.subplots(2, 1, figsize=(10, 7.5), constrained_layout=True,
+                                      sharex=True)
+    t = result.times
+    for key, (label, color, style) in TRACE_STYLES.items():
+        source = key if key == "GT" else f"fit({key})"
+        if source not in result.states:
+            continue
+        speed.plot(t, result.states[source][ego][:, 2], color=color, ls=style,
+                   label=f"EGO {label}")
+        r = result.risk[key]
+        risk.plot(r["t"], log_risk(r["risk"]), color=color, ls=style, label=label)
+    if "GT" in result.states:
+        speed.plot(t, result.states["GT"][to][:, 2], color=TO_COLOR, lw=0.8, label="TO (GT)")
+    speed.set(ylabel="v [m/s]", title="EGO speed: reactions to the braking TO")
+    risk.set(xlabel="t [s]", ylabel="log10 risk", title="TTR risk per scene (log scale)")
+    for ax in (speed, risk):
+        ax.legend(fontsize=8)
+        ax.grid(alpha=0.3)
+    return _save(fig, Path(path))
+
+
+FIGURES = {"fig3_fit.png": fig3_fit, "fig4_errors.png": fig4_errors,
+           "fig5_sd_velocity.png": fig5_sd_velocity, "fig6_traces.png": fig6_traces,
+           "fig7_velocity_risk.png": fig7_velocity_risk}
+
+
+def write_figures(result: Reprocessed, directory: str | Path) -> list[Path]:
+    """Every figure that the measurement allows, into ``directory``."""
+    directory = Path(directory)
+    written = []
+    for name, draw in FIGURES.items():
+        if "GT" not in result.states and name in ("fig3_fit.png", "fig4_errors.png"):
+            source = "SD"
+            if name == "fig3_fit.png":
+                written.append(fig3_fit(result, directory / name, source))
+            continue
+        written.append(draw(result, directory / name))
+    if "scenario-based" in result.errors:
+        written.append(fig4_errors(result, directory / "fig4_errors_scenario_based.png",
+                                   "scenario-based"))
+    return written

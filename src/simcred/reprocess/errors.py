@@ -1,0 +1,93 @@
+"""Error decomposition of the reprocessing pipeline ([1] §III, Fig. 4, eqs. (2)-(3)).
+
+After every step of the pipeline there is a representation of the traces; comparing a step's
+output with its input on the same time samples isolates that step's error. For each object:
+
+* Δd — Euclidean distance of the positions (m, ≥ 0);
+* Δv — speed difference, output minus input (m/s, signed: [1] reports biased or unbiased);
+* Δθ — heading difference wrapped to (-π, π] (rad, signed).
+
+Each error series is summarised as in Fig. 4: quartiles, whiskers at the full extent, mean and
+standard deviation.
+
+References
+----------
+[1] Wagner, Groh et al., Towards Cross-Verification and Use of Simulation in the Assessment of
+    Automated Driving, IEEE IV 2019.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+QUANTITIES = ("d", "v", "heading")
+
+#: The steps of Fig. 4: name -> (output, input), both keys of the pipeline's representations.
+STEPS: dict[str, tuple[str, str]] = {
+    "S": ("SD", "GT"),
+    "FIT_GT": ("fit(GT)", "GT"),
+    "FIT_SD": ("fit(SD)", "SD"),
+    "SIM_GT": ("rGT", "fit(GT)"),
+    "SIM_SD": ("rSD", "fit(SD)"),
+    "FIT_rGT": ("fit(rGT)", "rGT"),
+    "FIT_rSD": ("fit(rSD)", "rSD"),
+    "RP_GT": ("fit(rGT)", "GT"),
+    "RP_SD": ("fit(rSD)", "GT"),
+}
+
+
+@dataclass(frozen=True, slots=True)
+class ErrorStats:
+    """Summary of one error series (Fig. 4's box, whiskers and diamond)."""
+
+    q25: float
+    median: float
+    q75: float
+    low: float
+    high: float
+    mean: float
+    std: float
+    n: int
+
+    @classmethod
+    def of(cls, values: np.ndarray) -> ErrorStats:
+        values = np.asarray(values, dtype=float)
+        q25, median, q75 = np.quantile(values, [0.25, 0.5, 0.75])
+        return cls(float(q25), float(median), float(q75), float(values.min()),
+                   float(values.max()), float(values.mean()), float(values.std()), len(values))
+
+    def to_json(self) -> dict[str, float]:
+        return asdict(self)
+
+
+def wrap(angle: np.ndarray) -> np.ndarray:
+    """Angles wrapped to (-π, π]."""
+    return -np.remainder(-np.asarray(angle) + np.pi, 2 * np.pi) + np.pi
+
+
+def state_errors(output: np.ndarray, reference: np.ndarray) -> dict[str, np.ndarray]:
+    """Δd, Δv, Δθ between two state arrays ``(n, 4)`` (x, y, v, heading) on the same times."""
+    return {"d": np.hypot(*(output[:, :2] - reference[:, :2]).T),
+            "v": output[:, 2] - reference[:, 2],
+            "heading": wrap(output[:, 3] - reference[:, 3])}
+
+
+def decompose(representations: dict[str, dict[str, np.ndarray]], objects: tuple[str, ...]
+              ) -> dict[str, dict[str, dict[str, ErrorStats]]]:
+    """Fig. 4's table: ``step -> object -> quantity -> ErrorStats``.
+
+    ``representations`` maps the names used in :data:`STEPS` (``"GT"``, ``"fit(SD)"``, ...) to
+    ``object -> (n, 4)`` states on common times; steps whose inputs are missing are skipped
+    (a real recording without GT has only the SD pipeline's fit).
+    """
+    table: dict[str, dict[str, dict[str, ErrorStats]]] = {}
+    for step, (out, ref) in STEPS.items():
+        if out not in representations or ref not in representations:
+            continue
+        table[step] = {
+            name: {q: ErrorStats.of(e) for q, e in state_errors(
+                representations[out][name], representations[ref][name]).items()}
+            for name in objects}
+    return table

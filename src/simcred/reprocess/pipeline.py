@@ -1,0 +1,224 @@
+"""The reprocessing pipeline of [1] Fig. 1: measurement → description → resimulation → refit →
+assessment, for GT and for SD, with the ideal and the scenario-based sensor model.
+
+Names of the representations (as in [1]): ``GT``, ``SD`` (the measurement); ``fit(GT)``,
+``fit(SD)`` (their scenario descriptions); ``rGT``, ``rSD`` (resimulations of those descriptions
+with the *ideal* sensor, as in [1] §III); ``fit(rGT)``, ``fit(rSD)``. With a scenario-based
+sensor model ([1] §IV, estimated from the measurement's GT/SD pair) the resimulations are
+``rGT[sb]`` (full model: the GT description lacks the sensor's offset) and ``rSD[sb]`` (dynamic
+part only: the SD description already holds the offset) and their fits ``fit(rGT[sb])``, ...
+
+All representations are compared on the measurement's sample times; resimulated traces (100 Hz)
+are interpolated linearly onto them, headings unwrapped first.
+
+References
+----------
+[1] Wagner, Groh et al., Towards Cross-Verification and Use of Simulation in the Assessment of
+    Automated Driving, IEEE IV 2019.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from simcred.errors import SimcredError
+from simcred.io.measurement import Measurement
+from simcred.reprocess.errors import ErrorStats, decompose
+from simcred.reprocess.reaction import Reaction, ReactionCriteria, reaction, reaction_analysis
+from simcred.risk import VehicleStates, risk_series, time_headway, time_to_collision
+from simcred.scenario.description import ScenarioDescription
+from simcred.scenario.fit import ScenarioFit, fit_scenario
+from simcred.sim.driver import DriverConfig
+from simcred.sim.experiments.cutin import OBJECT_SIGNALS
+from simcred.sim.resimulation import resimulate
+from simcred.sim.sensors import IdealSensor, OffsetDelaySensor, Sensor, estimate_sensor
+from simcred.traces import TIME, TraceSet
+
+SENSORS = ("ideal", "scenario-based")
+SB = "[sb]"
+LOG_RISK_FLOOR = 1e-9  # risk below this counts as this on the log scale
+
+Progress = Callable[[str], None]
+_KINEMATICS = ("x", "y", "v", "heading", "acceleration", "yaw_rate")
+
+
+@dataclass(frozen=True, slots=True)
+class ReprocessConfig:
+    """Options of :func:`reprocess` (defaults: [1]'s pipeline on the cut-in)."""
+
+    vehicle: str = "ks"
+    dt: float = 0.01
+    risk_dt: float = 0.1
+    seed: int = 0
+    threshold: float = 0.02  # m, fit RMSE target: above DGPS noise (1.4 cm), far below SD's
+    ego: str = "ego"
+    objects: tuple[str, ...] = ("to",)
+    driver: DriverConfig = field(default_factory=DriverConfig)
+    scenario_based: bool = True
+    criteria: ReactionCriteria = field(default_factory=ReactionCriteria)
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Reprocessed:
+    """Everything the pipeline produced."""
+
+    config: ReprocessConfig
+    times: np.ndarray
+    states: dict[str, dict[str, np.ndarray]]
+    descriptions: dict[str, ScenarioDescription]
+    fits: dict[str, ScenarioFit]
+    resimulations: dict[str, TraceSet]
+    errors: dict[str, dict[str, dict[str, dict[str, ErrorStats]]]]
+    reactions: dict[str, Reaction]
+    analysis: dict[str, float | None]
+    risk: dict[str, dict[str, np.ndarray]]
+    sensor_model: OffsetDelaySensor | None
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(self.states)
+
+
+def reprocess(measurement: Measurement, config: ReprocessConfig | None = None,
+              progress: Progress | None = None) -> Reprocessed:
+    """Run the whole pipeline on ``measurement`` (GT optional: without it only SD's part)."""
+    c = ReprocessConfig() if config is None else config
+    say = progress or (lambda _: None)
+    objects = (c.ego, *c.objects)
+    raw = {"SD": measurement.sd} | ({"GT": measurement.gt} if measurement.gt else {})
+    times = raw["SD"].run(0)[TIME]
+    states = {name: _raw_states(traces, objects) for name, traces in raw.items()}
+    fits, resims = {}, {}
+    for name, traces in raw.items():
+        say(f"fit {name}")
+        fits[f"fit({name})"] = fit_scenario(traces, objects=list(objects),
+                                             threshold=c.threshold)
+    sensor_model = _sensor_model(measurement, c) if c.scenario_based and "GT" in raw else None
+    for name in raw:
+        for label, sensor in _sensors(name, sensor_model):
+            say(f"resimulate {name} ({sensor.name} sensor)")
+            key = f"r{name}{label}"
+            resims[key] = resimulate(fits[f"fit({name})"].description, sensor=sensor,
+                                     vehicle=c.vehicle, driver=c.driver, dt=c.dt, seed=c.seed,
+                                     ego=c.ego)
+            states[key] = _interpolated_states(resims[key], times, objects)
+            say(f"refit {key}")
+            fits[f"fit({key})"] = fit_scenario(resims[key], objects=list(objects),
+                                                threshold=c.threshold)
+    descriptions = {k: f.description for k, f in fits.items()}
+    for key, description in descriptions.items():
+        states[key] = _description_states(description, times, objects)
+    say("assess")
+    assessed = {_assessed_name(k): d for k, d in descriptions.items()}
+    reactions = {k: _reaction(d, c) for k, d in assessed.items()}
+    risk = {k: _risk(d, c) for k, d in assessed.items()}
+    errors = {"ideal": decompose(states, objects)}
+    if sensor_model is not None:
+        errors["scenario-based"] = decompose(_as_ideal(states), objects)
+    return Reprocessed(c, times, states, descriptions, fits, resims, errors, reactions,
+                       _analysis(states, reactions, c), risk, sensor_model)
+
+
+def _sensors(name: str, model: OffsetDelaySensor | None) -> list[tuple[str, Sensor]]:
+    chosen: list[tuple[str, Sensor]] = [("", IdealSensor())]
+    if model is not None:
+        chosen.append((SB, model if name == "GT" else model.dynamic_only()))
+    return chosen
+
+
+def _sensor_model(measurement: Measurement, c: ReprocessConfig) -> OffsetDelaySensor:
+    """The scenario-based sensor model from the measurement's own GT/SD pair of the first TO."""
+    gt, sd = (_raw_states(m, (c.ego, c.objects[0])) for m in (measurement.gt, measurement.sd))
+    t = measurement.gt.run(0)[TIME]
+    return estimate_sensor(t, gt[c.ego][:, :2], gt[c.objects[0]], sd[c.objects[0]])
+
+
+def _assessed_name(key: str) -> str:
+    """``fit(rGT)`` → ``rGT``: the risk and reaction of a trace are taken on its description."""
+    return key[4:-1]
+
+
+def _raw_states(traces: TraceSet, objects: tuple[str, ...]) -> dict[str, np.ndarray]:
+    run = traces.run(0)
+    missing = [f"{o}.{s}" for o in objects for s in OBJECT_SIGNALS if f"{o}.{s}" not in run]
+    if missing:
+        raise SimcredError(f"{traces.source}: missing signal(s) {', '.join(missing)}")
+    return {o: np.column_stack([run[f"{o}.{s}"] for s in OBJECT_SIGNALS]) for o in objects}
+
+
+def _interpolated_states(traces: TraceSet, times: np.ndarray, objects: tuple[str, ...]
+                         ) -> dict[str, np.ndarray]:
+    run = traces.run(0)
+    t = run[TIME]
+    out = {}
+    for o in objects:
+        columns = [run[f"{o}.{s}"] for s in OBJECT_SIGNALS]
+        columns[3] = np.unwrap(columns[3])
+        out[o] = np.column_stack([np.interp(times, t, col) for col in columns])
+    return out
+
+
+def _description_states(description: ScenarioDescription, times: np.ndarray,
+                        objects: tuple[str, ...]) -> dict[str, np.ndarray]:
+    inside = np.clip(times, description.t0, description.t1)
+    sampled = description.sample(inside)
+    return {o: np.column_stack([sampled[f"{o}.{s}"] for s in OBJECT_SIGNALS]) for o in objects}
+
+
+def _as_ideal(states: dict[str, dict[str, np.ndarray]]) -> dict[str, dict[str, np.ndarray]]:
+    """Representations renamed so that the ``[sb]`` ones take the place of the ideal ones."""
+    renamed = {k: v for k, v in states.items() if SB not in k}
+    renamed.update({k.replace(SB, ""): v for k, v in states.items() if SB in k})
+    return renamed
+
+
+def _reaction(description: ScenarioDescription, c: ReprocessConfig) -> Reaction:
+    s = description.objects[c.ego].states(description.times(c.dt))
+    return reaction(s.t, s.y, s.v, s.heading, s.acceleration, c.criteria)
+
+
+def _risk(description: ScenarioDescription, c: ReprocessConfig) -> dict[str, np.ndarray]:
+    """Risk, TTC and THW per scene every ``risk_dt`` on the description ([1] §II-D)."""
+    t = description.times(c.risk_dt)
+    states = {name: description.objects[name].states(t) for name in (c.ego, *c.objects)}
+    columns = {f"{name}.{field}": getattr(s, field) for name, s in states.items()
+               for field in ("x", "y", "v", "heading", "acceleration", "yaw_rate")}
+    result = risk_series(columns, ego=c.ego, objects=c.objects)
+    ego = VehicleStates(**{f: getattr(states[c.ego], f) for f in _KINEMATICS})
+    others = VehicleStates(**{f: np.stack([getattr(states[o], f) for o in c.objects], axis=1)
+                              for f in _KINEMATICS})
+    return {"t": t, "risk": result.risk, "ttr_min": result.ttr_min,
+            "ttc": time_to_collision(ego, others), "thw": time_headway(ego, others)}
+
+
+def log_risk(risk: np.ndarray) -> np.ndarray:
+    return np.log10(np.maximum(risk, LOG_RISK_FLOOR))
+
+
+def log_risk_rmse(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> float:
+    """RMSE of log10 risk over the common sample times of two risk series."""
+    n = min(len(a["risk"]), len(b["risk"]))
+    return float(np.sqrt(np.mean((log_risk(a["risk"][:n]) - log_risk(b["risk"][:n])) ** 2)))
+
+
+def _analysis(states: dict[str, dict[str, np.ndarray]], reactions: dict[str, Reaction],
+              c: ReprocessConfig) -> dict[str, float | None]:
+    """Eqs. (4)-(7) for the ideal sensor, and the same for the scenario-based model."""
+    if "GT" not in states:
+        return {}
+    to = c.objects[0]
+    offset = float(np.mean(np.hypot(*(states["SD"][to][:, :2] - states["GT"][to][:, :2]).T)))
+    gt = reactions["GT"]
+    speed = gt.speed_at_reaction if not math.isnan(gt.speed_at_reaction) else float(
+        np.mean(states["GT"][c.ego][:, 2]))
+    result = {"sensor_offset_d": offset, "ego_speed": speed,
+              **reaction_analysis(reactions, offset, speed)}
+    sb = {k.replace(SB, ""): v for k, v in reactions.items() if SB in k}
+    if sb:
+        sb["GT"] = gt
+        result.update({f"{k}{SB}": v for k, v in reaction_analysis(sb, offset, speed).items()})
+    return result

@@ -1,0 +1,83 @@
+"""The EGO's reaction: when it reacts and how ([1] §IV, eqs. (4)-(7)).
+
+Computed on the physically consistent scenario description of each trace (as [1] does for the
+risk), so measurement noise does not trigger it. The EGO **reacts** at the first time its
+acceleration falls below ``-decel`` or its lateral speed (v sin θ) exceeds ``lateral_speed``.
+Its **manoeuvre** is ``evade`` when it gets more than half a lane away from its start lateral
+position, ``brake`` when it reacted otherwise, ``none`` when it never reacted.
+
+References
+----------
+[1] Wagner, Groh et al., Towards Cross-Verification and Use of Simulation in the Assessment of
+    Automated Driving, IEEE IV 2019.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True, slots=True)
+class ReactionCriteria:
+    """Thresholds of a reaction (defaults sit above the AD function's comfort braking, 2 m/s²)."""
+
+    decel: float = 2.5  # m/s²
+    lateral_speed: float = 0.3  # m/s
+    lane_width: float = 3.5  # m
+
+
+@dataclass(frozen=True, slots=True)
+class Reaction:
+    """When and how the EGO reacted in one trace (``time`` NaN: never)."""
+
+    time: float
+    manoeuvre: str
+    speed_at_reaction: float
+    min_acceleration: float
+    max_lateral: float
+
+    def to_json(self) -> dict[str, float | str | None]:
+        return {k: (None if isinstance(v, float) and math.isnan(v) else v)
+                for k, v in asdict(self).items()}
+
+
+def reaction(t: np.ndarray, y: np.ndarray, v: np.ndarray, heading: np.ndarray,
+             acceleration: np.ndarray, criteria: ReactionCriteria | None = None) -> Reaction:
+    """The EGO's reaction in one trace given its lateral position, speed, heading (road along
+    +x) and acceleration."""
+    c = ReactionCriteria() if criteria is None else criteria
+    lateral = np.abs(y - y[0])
+    reacting = (acceleration < -c.decel) | (np.abs(v * np.sin(heading)) > c.lateral_speed)
+    if not reacting.any():
+        return Reaction(math.nan, "none", math.nan, float(acceleration.min()),
+                        float(lateral.max()))
+    k = int(np.argmax(reacting))
+    manoeuvre = "evade" if lateral.max() > c.lane_width / 2 else "brake"
+    return Reaction(float(t[k]), manoeuvre, float(v[k]), float(acceleration.min()),
+                    float(lateral.max()))
+
+
+def reaction_analysis(reactions: dict[str, Reaction], sensor_offset: float, ego_speed: float
+                      ) -> dict[str, float | None]:
+    """Eqs. (4)-(7) of [1] from the reactions in ``GT``, ``rGT`` and ``rSD``.
+
+    ``sensor_offset`` is ΔS,d (mean TO position error of SD against GT), ``ego_speed`` the EGO's
+    speed before the reaction; the result holds Δt_react(GT, rGT) (eq. 4, positive: the
+    resimulation reacts earlier), t_ΔS,d = ΔS,d / v_EGO (eq. 5), their ratio (eq. 6) and
+    Δt_react(rGT, rSD) = t_rSD − t_rGT (eq. 7).
+    """
+    def time(name: str) -> float:
+        return reactions[name].time if name in reactions else math.nan
+
+    gt_vs_rgt = time("GT") - time("rGT")
+    offset_time = sensor_offset / ego_speed
+    result = {
+        "dt_react_GT_rGT": gt_vs_rgt,
+        "t_offset": offset_time,
+        "ratio_eq6": gt_vs_rgt / offset_time if offset_time > 0 else math.nan,
+        "dt_react_rGT_rSD": time("rSD") - time("rGT"),
+    }
+    return {k: (None if math.isnan(v) else v) for k, v in result.items()}
