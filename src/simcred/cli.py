@@ -330,6 +330,24 @@ def simulate_tjunction(
               workers, scheduler)
 
 
+@simulate_app.command("cutin")
+@one_line_errors
+def simulate_cutin(
+    out: Annotated[Path, typer.Option(help="Measurement directory to write (gt.parquet, "
+                                           "sd.parquet, measurement.json).")],
+    seed: Annotated[int, typer.Option(help="Seed of the sensor and DGPS noise.")] = 0,
+    ego_model: Annotated[str, typer.Option(help="EGO vehicle model of 'reality': st or ks.")
+                         ] = "st",
+) -> None:
+    """Cut-in and brake, the manufactured universe of Wagner, Groh et al. (GT and SD)."""
+    from simcred.sim.experiments import cutin
+
+    measurement = cutin.simulate(seed, cutin.CutInConfig(ego_model=ego_model))
+    measurement.write(out)
+    if not State.quiet:
+        out_console.print(f"wrote {out}: GT and SD, {measurement.sd.n_rows} samples each")
+
+
 contracts_app = typer.Typer(help="Contracts of simulation models (Braun et al.): check, refine, "
                                  "configure, quotient.")
 app.add_typer(contracts_app, name="contracts")
@@ -537,6 +555,75 @@ def paper_000(
     if not State.quiet:
         out_console.print(claims_table(claims, "seed 000: the paper's claims"))
         out_console.print(f"wrote figures, tables and claims.json to {out}")
+
+
+@paper_app.command("002")
+@one_line_errors
+def paper_002(
+    out: Annotated[Path, typer.Option(help="Directory for the measurement, the reprocessing "
+                                           "results, figures and claims.json.")],
+    seed: Annotated[int, typer.Option(help="Seed of the manufactured universe.")] = 0,
+) -> None:
+    """Wagner, Groh et al.: reprocessing the cut-in (Figs. 3-7, eqs. 2-7) and its claims."""
+    from simcred.paper import seed002
+    from simcred.paper.claims import claims_table
+
+    claims = seed002.run_all(out, seed=seed, progress=_steps("paper 002"))
+    if not State.quiet:
+        out_console.print(claims_table(claims, "seed 002: the paper's claims"))
+        out_console.print(f"wrote measurement, results, figures and claims.json to {out}")
+
+
+@app.command()
+@one_line_errors
+def reprocess(
+    measurement: Annotated[Path, typer.Argument(help="A measurement directory (simcred simulate "
+                                                     "cutin) or an A9 sensor-data CSV file.")],
+    out: Annotated[Path, typer.Option(help="Directory for the results.")],
+    vehicle: Annotated[str, typer.Option(help="EGO model of the resimulation: ks or st.")
+                       ] = "ks",
+    object_id: Annotated[int | None, typer.Option(
+        "--object", help="A9 CSV: the object to reprocess (default: the lane changer).")] = None,
+    seed: Annotated[int, typer.Option(help="Seed of the resimulations' sensor noise.")] = 0,
+    threshold: Annotated[float, typer.Option(help="Position RMSE [m] at which the fit stops "
+                                                  "adding sections.")] = 0.02,
+    scenario_based: Annotated[bool, typer.Option(
+        help="Also resimulate with the scenario-based sensor model (needs GT).")] = True,
+) -> None:
+    """Reprocess a drive: fit, resimulate, refit, assess; errors per step (Wagner, Groh et al.)."""
+    from simcred.reprocess import output
+    from simcred.reprocess.inputs import read_measurement
+    from simcred.reprocess.pipeline import ReprocessConfig
+    from simcred.reprocess.pipeline import reprocess as run_pipeline
+    from simcred.sim.experiments.cutin import vehicle_model
+
+    vehicle_model(vehicle)  # validates the name before any work
+    config = ReprocessConfig(vehicle=vehicle, seed=seed, threshold=threshold,
+                             scenario_based=scenario_based)
+    result = run_pipeline(read_measurement(measurement, object_id), config,
+                          _steps("reprocessing"))
+    output.write(result, out)
+    if not State.quiet:
+        _print_reactions(result)
+        out_console.print(f"wrote errors.json, reaction.json, descriptions, scenario.xosc and "
+                          f"figures to {out}")
+
+
+def _steps(description: str) -> Callable[[str], None] | None:
+    """Prints each pipeline step on stderr (on a terminal, without --quiet)."""
+    if State.quiet or not sys.stderr.isatty():
+        return None
+    return lambda step: err_console.print(f"[dim]{description}: {step}[/dim]")
+
+
+def _print_reactions(result) -> None:
+    table = Table(title="EGO reaction per representation")
+    for column in ("trace", "manoeuvre", "reaction time [s]", "max risk"):
+        table.add_column(column)
+    for name, r in result.reactions.items():
+        time = "—" if r.time != r.time else f"{r.time:.2f}"
+        table.add_row(name, r.manoeuvre, time, f"{result.risk[name]['risk'].max():.3g}")
+    out_console.print(table)
 
 
 def run(argv: Sequence[str] | None = None) -> int:
