@@ -27,6 +27,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/compare.py
 	$(BIN)/python benchmarks/sim.py
 	$(BIN)/python benchmarks/contracts.py
+	$(BIN)/python benchmarks/reprocess.py
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks

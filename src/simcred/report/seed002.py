@@ -104,23 +104,31 @@ def fig5_sd_velocity(result: Reprocessed, path: str | Path) -> Path:
     return _save(fig, Path(path))
 
 
-def fig6_traces(result: Reprocessed, path: str | Path, last: float = 3.0) -> Path:
-    """Fig. 6: EGO and TO paths of GT and the resimulations in the last ``last`` seconds."""
+def fig6_traces(result: Reprocessed, path: str | Path, before: float = 0.5,
+                after: float = 3.5) -> Path:
+    """Fig. 6: EGO paths of GT and the resimulations around the first reaction, with the TO.
+
+    [1] shows the last 3 s of its drive; here the window runs from ``before`` seconds before
+    the earliest reaction to ``after`` seconds after it (the whole drive if nobody reacts).
+    Every path is its scenario description (GT's too), so noise does not hide the difference.
+    """
     ego, to = result.config.ego, result.config.objects[0]
     t = result.times
-    window = t >= t[-1] - last
-    fig, ax = plt.subplots(figsize=(12, 4), constrained_layout=True)
+    reacted = [r.time for r in result.reactions.values() if r.time == r.time]
+    start = min(reacted) - before if reacted else t[0]
+    window = (t >= start) & (t <= start + before + after)
+    fig, ax = plt.subplots(figsize=(12, 4.5), constrained_layout=True)
     for key, (label, color, style) in TRACE_STYLES.items():
-        source = key if key in ("GT", "SD") else f"fit({key})"
-        if source not in result.states:
+        states = result.states.get(f"fit({key})")
+        if states is None:
             continue
-        states = result.states[source]
-        ax.plot(states[ego][window, 0], states[ego][window, 1], color=color, ls=style, lw=1.8,
+        ax.plot(states[ego][window, 0], states[ego][window, 1], color=color, ls=style, lw=2,
                 label=f"EGO {label}")
-        ax.plot(states[to][window, 0], states[to][window, 1], color=color, ls=style, lw=0.8,
-                alpha=0.7)
+    truth = result.states["fit(GT)" if "fit(GT)" in result.states else "fit(SD)"][to]
+    ax.plot(truth[window, 0], truth[window, 1], color=TO_COLOR, lw=6, alpha=0.35, label="TO")
     ax.set(xlabel="x [m]", ylabel="y [m]",
-           title=f"paths in the last {last:g} s (thick: EGO, thin: TO)")
+           title=f"paths from {start:.1f} s to {start + before + after:.1f} s: who brakes, "
+                 "who evades")
     ax.legend(fontsize=8, ncols=2)
     ax.grid(alpha=0.3)
     return _save(fig, Path(path))

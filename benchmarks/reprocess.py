@@ -1,0 +1,130 @@
+"""Benchmarks of seed 002's reprocessing: prints a table, writes benchmarks/results/reprocess.json.
+
+* **fit** — one 20 s trace at 100 Hz (the cut-in TO from 0 to 20 s, 1 cm noise), the whole
+  section search (target < 0.2 s). Reference in the same run: the final least-squares solve with
+  scipy's finite-difference Jacobian instead of the analytic one (same start, same sections).
+* **TTR risk** — time per scene of a batch of 2000 cut-in scenes (target < 5 ms; commonroad-crime
+  takes 8-28 s per scene on a 100 km/h cut-in). Reference: the same scenes one call each.
+* **pipeline** — ``reprocess`` of the default cut-in measurement: two fits, four resimulations,
+  four refits, six risk series (target < 15 s). Reference: one closed-loop drive of the universe.
+
+Usage: python benchmarks/reprocess.py [--quick]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import sys
+from pathlib import Path
+
+import numpy as np
+from rich.console import Console
+from rich.table import Table
+from scipy.optimize import least_squares
+
+from simcred.reprocess.pipeline import reprocess
+from simcred.risk import VehicleStates, risk
+from simcred.scenario.fit import _Problem, fit_track
+from simcred.sim.experiments import cutin
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+from _timing import best_of  # noqa: E402
+
+TARGETS = {"fit": 0.2, "ttr per scene": 5e-3, "pipeline": 15.0}
+
+
+def trace_20s() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    t = np.linspace(0.0, 20.0, 2001)
+    truth = cutin.scripted_object(cutin.CutInScript(), t)
+    rng = np.random.default_rng(0)
+    return t, truth[:, 0] + 0.01 * rng.standard_normal(t.size), \
+        truth[:, 1] + 0.01 * rng.standard_normal(t.size)
+
+
+def bench_fit(repeats: int) -> dict:
+    t, x, y = trace_20s()
+    seconds, fit = best_of(lambda: fit_track(t, x, y), repeats)
+    problem = _Problem(t, x, y, fit.sections)
+    start = problem.initial_guess()
+    analytic, _ = best_of(lambda: least_squares(problem.residuals, start, jac=problem.jacobian,
+                                                method="lm", x_scale="jac"), repeats)
+    numeric, _ = best_of(lambda: least_squares(problem.residuals, start, jac="2-point",
+                                               method="lm", x_scale="jac"), repeats)
+    return {"seconds": seconds, "sections": fit.sections, "rmse": fit.rmse,
+            "final_solve_analytic_s": analytic, "final_solve_finite_difference_s": numeric,
+            "speedup_of_analytic_jacobian": numeric / analytic}
+
+
+def cutin_scenes(n: int) -> tuple[VehicleStates, VehicleStates]:
+    rng = np.random.default_rng(1)
+    zeros = np.zeros(n)
+    ego = VehicleStates(x=zeros, y=zeros, v=np.full(n, 27.8), heading=zeros)
+    to = VehicleStates(x=rng.uniform(20, 40, n), y=rng.uniform(0.0, 2.5, n),
+                       v=rng.uniform(18, 26, n), heading=-rng.uniform(0.0, 0.08, n),
+                       acceleration=-rng.uniform(0.0, 6.0, n))
+    return ego, to
+
+
+def bench_ttr(scenes: int, single: int, repeats: int) -> dict:
+    ego, to = cutin_scenes(scenes)
+    batched, result = best_of(lambda: risk(ego, to), repeats)
+    fields = ("x", "y", "v", "heading", "acceleration")
+
+    def one_by_one() -> None:
+        for i in range(single):
+            risk(VehicleStates(**{f: getattr(ego, f)[i:i + 1] for f in fields}),
+                 VehicleStates(**{f: getattr(to, f)[i:i + 1] for f in fields}))
+
+    looped, _ = best_of(one_by_one, 1)
+    return {"scenes": scenes, "seconds": batched, "per_scene_s": batched / scenes,
+            "colliding_predictions_per_scene": float(np.isfinite(result.ttr).sum() / scenes),
+            "one_call_per_scene_s": looped / single,
+            "speedup_of_batching": (looped / single) / (batched / scenes)}
+
+
+def bench_pipeline(repeats: int) -> dict:
+    measurement = cutin.simulate(0)
+    seconds, _ = best_of(lambda: reprocess(measurement), repeats)
+    drive, _ = best_of(lambda: cutin.drive(cutin.CutInConfig(), 0), repeats)
+    return {"seconds": seconds, "one_closed_loop_drive_s": drive,
+            "pipeline_in_drives": seconds / drive}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="fewer repeats and scenes")
+    quick = parser.parse_args().quick
+    repeats = 2 if quick else 5
+    results = {"fit": bench_fit(repeats),
+               "ttr per scene": bench_ttr(500 if quick else 2000, 20 if quick else 100, repeats),
+               "pipeline": bench_pipeline(1 if quick else 3)}
+    table = Table(title="seed 002 reprocessing (best of k, one process)")
+    for column in ("what", "time", "target", "met", "reference", "ratio"):
+        table.add_column(column)
+    fit, ttr, pipe = results["fit"], results["ttr per scene"], results["pipeline"]
+    rows = [("fit 20 s @ 100 Hz", fit["seconds"], "fit", "finite-difference Jacobian",
+             fit["speedup_of_analytic_jacobian"]),
+            ("TTR risk per scene", ttr["per_scene_s"], "ttr per scene", "one call per scene",
+             ttr["speedup_of_batching"]),
+            ("whole pipeline", pipe["seconds"], "pipeline", "one closed-loop drive",
+             pipe["pipeline_in_drives"])]
+    for label, seconds, key, reference, ratio in rows:
+        met = seconds < TARGETS[key]
+        table.add_row(label, f"{seconds * 1e3:.1f} ms", f"< {TARGETS[key] * 1e3:g} ms",
+                      "[green]yes[/green]" if met else "[red]no[/red]", reference, f"{ratio:.1f}×")
+        results[key]["target_s"], results[key]["met"] = TARGETS[key], met
+    Console().print(table)
+    out = ROOT / "benchmarks" / "results" / "reprocess.json"
+    out.parent.mkdir(exist_ok=True)
+    machine = {"python": platform.python_version(), "cpus": os.cpu_count(),
+               "machine": platform.machine()}
+    out.write_text(json.dumps({"machine": machine, "results": results}, indent=1) + "\n")
+    print(f"wrote {out}")
+
+
+if __name__ == "__main__":
+    main()
