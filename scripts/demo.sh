@@ -25,5 +25,17 @@ echo
 echo "== 5. seed 000, sec. VI at a reduced size (500 runs per set): SimpleCar λ sweep and T-junction"
 "$simcred" paper 000 --out "$out/paper000" --runs 500 --workers 2
 echo
+echo "== 6. seed 002: the cut-in measurement reprocessed (fit, resimulation, risk, errors, claims)"
+"$simcred" paper 002 --out "$out/paper002"
+echo
+echo "== 7. a real A9 recording (sensor data only), reprocessed"
+a9="$(dirname "$0")/../../shared/data/real/osc-generator-a9/trajectories_file.csv"
+if [ -f "$a9" ]; then
+  "$simcred" reprocess "$a9" --out "$out/a9" --threshold 0.1
+else
+  echo "(skipped: $a9 not found)"
+fi
+echo
 echo "Outputs in $out/: compare-*/comparison.json, compare-*/state_map.png, matrix/matrix.{json,csv,png},"
-echo "  paper000/ (fig5_inputs.png, fig6_xy.png, fig7_xy_heading.png, table3_*.png, claims.json)"
+echo "  paper000/ (fig5_inputs.png, fig6_xy.png, fig7_xy_heading.png, table3_*.png, claims.json),"
+echo "  paper002/ (figures/fig3..fig7, errors.json, reaction.json, scenario.xosc, claims.json), a9/"
