@@ -30,6 +30,7 @@ from simcred.traces import TraceSet
 
 INDEX = "measurement.json"
 KINDS = ("gt", "sd")
+_ENVELOPE = ("schema_version", "kind", "simcred_version")
 
 
 @dataclass(frozen=True, slots=True)
@@ -71,4 +72,5 @@ class Measurement:
         gt_path = directory / "gt.parquet"
         return cls(sd=parquet.read(directory / "sd.parquet"),
                    gt=parquet.read(gt_path) if gt_path.is_file() else None,
-                   metadata=metadata if isinstance(metadata, dict) else {})
+                   metadata={k: v for k, v in metadata.items() if k not in _ENVELOPE}
+                   if isinstance(metadata, dict) else {})

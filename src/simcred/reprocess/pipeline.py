@@ -91,6 +91,9 @@ def reprocess(measurement: Measurement, config: ReprocessConfig | None = None,
     objects = (c.ego, *c.objects)
     raw = {"SD": measurement.sd} | ({"GT": measurement.gt} if measurement.gt else {})
     times = raw["SD"].run(0)[TIME]
+    if "GT" in raw and not np.array_equal(raw["GT"].run(0)[TIME], times):
+        raise SimcredError(f"{raw['GT'].source}: GT and SD must share their sample times "
+                           f"({raw['GT'].n_rows} vs {raw['SD'].n_rows} samples)")
     states = {name: _raw_states(traces, objects) for name, traces in raw.items()}
     fits, resims = {}, {}
     for name, traces in raw.items():

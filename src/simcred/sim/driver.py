@@ -12,7 +12,8 @@ the rightmost), width ``lane_width``. Every step it
    ``v² / (2 (gap − min_gap + v_obj² / (2 b)))`` (gap bumper to bumper, b its deceleration);
 4. **decides** when ``a_req`` exceeds ``react_decel`` while cruising: evade to the left lane if
    ``a_req > evade_decel`` and the left lane is free, otherwise brake. The decision is kept:
-   an evasion to its end, braking until ``a_req`` falls below ``release_decel``;
+   an evasion until the EGO is within ``arrived`` of the target lane's centre, braking until
+   ``a_req`` falls below ``release_decel``; then it cruises (and may decide again);
 5. **acts**: ACC (speed and gap control, comfort limits) while cruising; braking with
    ``brake_gain · a_req`` (at least ``react_decel``, at most ``max_decel``); or a lane change
    to the left with a light deceleration;
@@ -61,6 +62,7 @@ class DriverConfig:
     brake_gain: float = 1.2
     max_decel: float = 9.0
     release_decel: float = 1.0  # braking ends when a_req falls below this
+    arrived: float = 0.2  # m, an evasion ends this close to the target lane's centre
     evade_brake: float = 1.0
     free_behind: float = 20.0  # m, left lane must be free this far behind ...
     free_ahead: float = 60.0  # m, ... and this far ahead
@@ -150,7 +152,9 @@ class ADFunction:
                 required: np.ndarray) -> None:
         c = self.config
         released = (memory.mode == BRAKE) & (required < c.release_decel)
-        memory.mode = np.where(released, CRUISE, memory.mode)
+        arrived = (memory.mode == EVADE) & (np.abs(ego[:, Y] - np.asarray(c.lane_centres)[
+            memory.target_lane]) < c.arrived)
+        memory.mode = np.where(released | arrived, CRUISE, memory.mode)
         fresh = (memory.mode == CRUISE) & (required > c.react_decel)
         can_evade = memory.target_lane + 1 < len(c.lane_centres)
         left = np.minimum(memory.target_lane + 1, len(c.lane_centres) - 1)

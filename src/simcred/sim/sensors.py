@@ -247,7 +247,7 @@ def _velocity_delay(dt: float, gt: np.ndarray, sd: np.ndarray, max_delay: float
                     ) -> tuple[float, float]:
     """Delay (s) of SD's velocity vector against GT's and the RMS mismatch at that delay."""
     truth, seen = _velocity_vector(gt), _velocity_vector(sd)
-    shifts = np.arange(0, min(int(max_delay / dt), len(gt) // 2) + 1)
+    shifts = np.arange(0, min(int(round(max_delay / dt)), len(gt) // 2) + 1)
     cost = np.array([np.mean((seen[k:] - truth[:len(truth) - k]) ** 2) for k in shifts])
     best = int(np.argmin(cost))
     refined = float(best)
@@ -256,4 +256,4 @@ def _velocity_delay(dt: float, gt: np.ndarray, sd: np.ndarray, max_delay: float
         curvature = left - 2 * mid + right
         if curvature > 0:
             refined = best + 0.5 * (left - right) / curvature
-    return refined * dt, math.sqrt(float(cost[best]))
+    return float(refined * dt), math.sqrt(float(cost[best]))

@@ -30,6 +30,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from simcred._json import plain
 from simcred.errors import OptionError
 from simcred.io.measurement import Measurement
 from simcred.sim.campaign import run_rng
@@ -145,7 +146,7 @@ def simulate(seed: int = 0, config: CutInConfig | None = None) -> Measurement:
           **_columns("to", _dgps(to, chosen.dgps, rng))}
     sd = {"t": record.t, **_columns("ego", _dgps(ego, chosen.dgps, rng)),
           **_columns("to", record.perceived[0, :, 0]), "ad.mode": record.mode[0].astype(float)}
-    metadata = {"experiment": "cutin", "seed": seed, "config": asdict(chosen)}
+    metadata = {"experiment": "cutin", "seed": seed, "config": plain(asdict(chosen))}
     return Measurement(
         gt=TraceSet.from_runs([gt], run_ids=["gt"], metadata={**metadata, "kind": "GT"},
                               source="cutin:GT"),
