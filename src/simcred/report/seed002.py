@@ -16,11 +16,20 @@ from simcred.reprocess.pipeline import SB, Reprocessed, log_risk
 EGO_COLOR, TO_COLOR = "#1f4e9c", "#2ca02c"
 TRACE_STYLES = {  # representation -> (label, colour, line style)
     "GT": ("GT", "#222222", "-"),
+    "SD": ("SD (no GT recorded)", "#222222", "-"),
     "rGT": ("rGT (ideal sensor)", "#1f77b4", "--"),
     "rSD": ("rSD (ideal sensor)", "#17becf", "--"),
     f"rGT{SB}": ("rGT (scenario-based sensor)", "#d62728", "-."),
     f"rSD{SB}": ("rSD (scenario-based sensor)", "#ff7f0e", ":"),
 }
+def _styles(result: Reprocessed) -> list[tuple[str, tuple[str, str, str]]]:
+    """The representations to draw: the measurement (GT, or SD when there is no GT) and every
+    resimulation that was run."""
+    reference = "GT" if "GT" in result.states else "SD"
+    return [(key, style) for key, style in TRACE_STYLES.items()
+            if f"fit({key})" in result.states and (key == reference or key[0] == "r")]
+
+
 UNITS = {"d": "Δd [m]", "v": "Δv [m/s]", "heading": "Δθ [rad]"}
 
 
@@ -75,7 +84,7 @@ def fig4_errors(result: Reprocessed, path: str | Path, sensor: str = "ideal") ->
         ax.set_yscale("symlog", linthresh={"d": 0.01, "v": 0.01, "heading": 0.001}[quantity])
         ax.grid(alpha=0.3, axis="y")
     axes[0].set_ylim(bottom=0)  # Δd is a distance
-    axes[0].legend(fontsize=8, loc="upper left")
+    axes[0].legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.0, 1.0))
     axes[-1].set_xticks(range(len(steps)), [f"Δ{s}" for s in steps])
     title = "errors of the reprocessing pipeline (boxes: quartiles, whiskers: full extent)"
     axes[0].set_title(f"{title} — {sensor} sensor in the resimulation; EGO blue, TO green")
@@ -118,10 +127,8 @@ def fig6_traces(result: Reprocessed, path: str | Path, before: float = 0.5,
     start = min(reacted) - before if reacted else t[0]
     window = (t >= start) & (t <= start + before + after)
     fig, ax = plt.subplots(figsize=(12, 4.5), constrained_layout=True)
-    for key, (label, color, style) in TRACE_STYLES.items():
-        states = result.states.get(f"fit({key})")
-        if states is None:
-            continue
+    for key, (label, color, style) in _styles(result):
+        states = result.states[f"fit({key})"]
         ax.plot(states[ego][window, 0], states[ego][window, 1], color=color, ls=style, lw=2,
                 label=f"EGO {label}")
     truth = result.states["fit(GT)" if "fit(GT)" in result.states else "fit(SD)"][to]
@@ -140,17 +147,15 @@ def fig7_velocity_risk(result: Reprocessed, path: str | Path) -> Path:
     fig, (speed, risk) = plt.subplots(2, 1, figsize=(10, 7.5), constrained_layout=True,
                                       sharex=True)
     t = result.times
-    for key, (label, color, style) in TRACE_STYLES.items():
-        source = key if key == "GT" else f"fit({key})"
-        if source not in result.states:
-            continue
+    for key, (label, color, style) in _styles(result):
+        source = key if key in ("GT", "SD") else f"fit({key})"
         speed.plot(t, result.states[source][ego][:, 2], color=color, ls=style,
                    label=f"EGO {label}")
         r = result.risk[key]
         risk.plot(r["t"], log_risk(r["risk"]), color=color, ls=style, label=label)
     if "GT" in result.states:
         speed.plot(t, result.states["GT"][to][:, 2], color=TO_COLOR, lw=0.8, label="TO (GT)")
-    speed.set(ylabel="v [m/s]", title="EGO speed: reactions to the braking TO")
+    speed.set(ylabel="v [m/s]", title="EGO speed: the measurement and its resimulations")
     risk.set(xlabel="t [s]", ylabel="log10 risk", title="TTR risk per scene (log scale)")
     for ax in (speed, risk):
         ax.legend(fontsize=8)
