@@ -13,6 +13,16 @@ reason.
 Variation ``i`` draws only from ``run_rng(seed, i)``. It is therefore the same whether it is made
 alone (:func:`vary_one`), within any ``n`` (:func:`generate_variations`) or on any Dask worker.
 
+Deviations from [1], which leaves these open:
+
+* The samples are the description's positions plus the *change* of the Bézier path,
+  B(P + D) − B(P), not B(P + D) itself (``keep_residual``; see :func:`vary_one`).
+* The offsets (truncated normal, road frame), the window (2 fix points each side of the crossing)
+  and the section length (1 s) are simcred's choices (:class:`VariationOptions`).
+* Plausibility limits and rejection by reason are simcred's; [1] keeps every variation and notes
+  "a few outliers".
+* The refit starts its section search at the original track's sections (``warm_sections``).
+
 References
 ----------
 [1] Wagner, Groh, Kühbeck, Knoll, Towards Cross-Verification and Use of Simulation in the
@@ -158,7 +168,7 @@ class BezierPath:
         p = _array_iv(points, (len(tau), 2), "points")
         v0 = _array_iv(start_velocity, (2,), "start_velocity")
         v1 = _array_iv(end_velocity, (2,), "end_velocity")
-        m = _clamped_slopes(tau, p, v0, v1)
+        m = _clamped_slopes(tau, p, v0, v1)  # [1] sec. V: C² joints plus four end conditions
         h = np.diff(tau)[:, None]
         control = np.stack([p[:-1], p[:-1] + h * m[:-1] / 3, p[1:] - h * m[1:] / 3, p[1:]],
                            axis=1)
@@ -355,47 +365,47 @@ def check_plausibility(states: TrackStates | ObjectTrack,
     >>> check_plausibility(track), check_plausibility(track, rmse=0.5)
     ([], [<Reason.REFIT_RMSE: 'refit_rmse'>])
     """
-    s = _states_iv(states, t)
+    t, v, heading, a, omega = _rates_iv(states, t)
     lim = limits
     a_bound = max(-lim.min_acceleration, lim.max_acceleration)
-    dt = np.diff(s.t)
-    moving = np.abs(s.v) > lim.curvature_min_speed
+    dt = np.diff(t)
+    moving = np.abs(v) > lim.curvature_min_speed
     checks = {
-        Reason.LONGITUDINAL_ACCELERATION: (s.acceleration >= lim.min_acceleration)
-        & (s.acceleration <= lim.max_acceleration),
-        Reason.LATERAL_ACCELERATION: np.abs(s.v * s.yaw_rate) <= lim.max_lateral_acceleration,
-        Reason.YAW_RATE: np.abs(s.yaw_rate) <= lim.max_yaw_rate,
-        Reason.CURVATURE: ~moving | (np.abs(s.yaw_rate / np.where(moving, s.v, 1.0))
-                                     <= lim.max_curvature),
-        Reason.SPEED_JUMP: np.abs(np.diff(s.v)) <= lim.jump_factor * a_bound * dt,
-        Reason.HEADING_JUMP: np.abs(np.diff(s.heading)) <= lim.jump_factor * lim.max_yaw_rate * dt,
+        Reason.LONGITUDINAL_ACCELERATION: (a >= lim.min_acceleration) & (a <= lim.max_acceleration),
+        Reason.LATERAL_ACCELERATION: np.abs(v * omega) <= lim.max_lateral_acceleration,
+        Reason.YAW_RATE: np.abs(omega) <= lim.max_yaw_rate,
+        Reason.CURVATURE: ~moving | (np.abs(omega / np.where(moving, v, 1.0)) <= lim.max_curvature),
+        Reason.SPEED_JUMP: np.abs(np.diff(v)) <= lim.jump_factor * a_bound * dt,
+        Reason.HEADING_JUMP: np.abs(np.diff(heading)) <= lim.jump_factor * lim.max_yaw_rate * dt,
         Reason.REFIT_RMSE: np.array([rmse is None or float(rmse) <= lim.max_rmse]),
     }
+    # Written as "within the limit", so that NaN fails every check it enters.
     return [reason for reason, ok in checks.items() if not np.all(ok)]
 
 
-def _states_iv(states: TrackStates | ObjectTrack, t: ArrayLike | None) -> TrackStates:
+def _rates_iv(states: TrackStates | ObjectTrack, t: ArrayLike | None
+              ) -> tuple[np.ndarray, ...]:
+    """t, v, θ, v̇, θ̇ of states, or of a track at ``t`` (its splines only: no quadrature)."""
     if isinstance(states, ObjectTrack):
         track = states
         times = sample_times(track.t0, track.t1, PLAUSIBILITY_DT) if t is None else t
         times = np.asarray(times, dtype=np.float64)
-        if times.ndim != 1:
-            raise SimcredError(f"times must be 1-D, got shape {times.shape}")
-        # Only the splines are needed: positions (eq. (1)'s quadrature) are skipped.
-        return TrackStates(t=times, x=times, y=times, v=track.speed(times),
-                           heading=track.heading(times), acceleration=track.speed.derivative(times),
-                           yaw_rate=track.heading.derivative(times))
+        if times.ndim != 1 or len(times) < 1:
+            raise SimcredError(f"times must be 1-D and not empty, got shape {times.shape}")
+        return (times, track.speed(times), track.heading(times), track.speed.derivative(times),
+                track.heading.derivative(times))
     if not isinstance(states, TrackStates):
         raise SimcredError(f"states must be TrackStates or an ObjectTrack, got "
                            f"{type(states).__name__}")
     if t is not None:
         raise SimcredError("t is only for an ObjectTrack: TrackStates carry their own times")
-    n = len(np.asarray(states.t))
-    for name in ("v", "heading", "acceleration", "yaw_rate"):
-        if np.shape(getattr(states, name)) != (n,):
-            raise SimcredError(f"states.{name} must have shape ({n},) like states.t, got "
-                               f"{np.shape(getattr(states, name))}")
-    return states
+    names = ("t", "v", "heading", "acceleration", "yaw_rate")
+    arrays = tuple(np.asarray(getattr(states, name), dtype=np.float64) for name in names)
+    for name, array in zip(names, arrays, strict=True):
+        if array.shape != arrays[0].shape or array.ndim != 1:
+            raise SimcredError(f"states.{name} must be 1-D like states.t {arrays[0].shape}, got "
+                               f"shape {array.shape}")
+    return arrays
 
 
 # -- options --------------------------------------------------------------------------------------
@@ -409,14 +419,18 @@ class VariationOptions:
     ----------
     section : float, default: 1.0
         Target section length (s). The TO's span T gets n = max(1, round(T / section)) equal
-        sections. 1 s puts 3–4 fix points into a 3 s lane change: fine enough to reshape it, and
-        a 0.3 m lateral offset of one fix point then adds about 1–2 m/s² of lateral acceleration.
+        sections. 1 s puts 3–4 fix points into a 3 s lane change, fine enough to reshape it. An
+        offset δ of one fix point changes the acceleration there by about 4.4 δ / section²
+        (1.3 m/s² for 0.3 m), so halving the section quadruples it.
     window : int, default: 2
         Fix points varied on each side of the lane crossing: the ``window`` last fix points at or
         before it and the ``window`` first after it; never the first or last fix point, which
         carry the end conditions.
-    sigma_lon, sigma_lat : float, default: 0.5, 0.3
-        Standard deviations (m) of the longitudinal (x) and lateral (y) offsets of a fix point.
+    sigma_lon, sigma_lat : float, default: 0.3, 0.3
+        Standard deviations (m) of the longitudinal (x) and lateral (y) offsets of a fix point,
+        in the road frame (the road runs along +x, as in simcred's scenarios). On the reference
+        cut-in (braking at −6.6 m/s²) these keep 95 % of the variations; σ_lon = 1 m keeps a
+        third (docs/variation.md).
     truncation : float or None, default: 2.0
         Offsets are normal, truncated at ± truncation · σ (None: not truncated). Truncation keeps
         single draws from dominating the rejections.
@@ -424,7 +438,8 @@ class VariationOptions:
         Lateral position (m) of the EGO's lane boundary; default ``metadata["road"]["boundary_y"]``
         of the description, else 1.75 m.
     crossing_time : float, optional
-        Time (s) of the lane crossing; default the first time the TO's y crosses ``boundary_y``.
+        Time (s) of the lane crossing; default the first time the TO's y crosses ``boundary_y``
+        (sampled every 0.01 s, interpolated linearly).
     sample_dt : float, optional
         Step (s) at which the varied path is sampled and refitted; default the description's
         ``dt``.
@@ -530,7 +545,8 @@ class Variation:
     """One variation: its record, the varied description and the varied Bézier path.
 
     ``description`` is the original with the TO's track replaced by the refit (EGO and every
-    other object unchanged); it is there for rejected variations too, to inspect them.
+    other object unchanged); it is there for rejected variations too, to inspect them (the
+    original itself if the refit failed). ``path`` is the varied Bézier path B(P + D).
     """
 
     record: VariationRecord
@@ -745,16 +761,15 @@ def _plan(description: ScenarioDescription, to: str, ego: str, options: Variatio
     x, y = track.positions(t)
     ends = track.states(np.array([track.t0, track.t1]))
     velocity = np.column_stack([ends.v * np.cos(ends.heading), ends.v * np.sin(ends.heading)])
-    crossing, boundary = _crossing(track, t, y, description, options, to)
+    crossing, boundary = _crossing(track, description, options, to)
     return _Plan(description, to, options, limits, tau, np.column_stack(track.positions(tau)),
                  velocity[0], velocity[1], _varied(tau, crossing, options.window, to),
                  crossing, boundary, _threshold(description, options), t, x, y)
 
 
-def _crossing(track: ObjectTrack, t: np.ndarray, y: np.ndarray,
-              description: ScenarioDescription, options: VariationOptions, to: str
-              ) -> tuple[float, float | None]:
-    """The first time the TO's y crosses the boundary (linear between samples)."""
+def _crossing(track: ObjectTrack, description: ScenarioDescription, options: VariationOptions,
+              to: str) -> tuple[float, float | None]:
+    """The first time the TO's y crosses the boundary (linear between samples 0.01 s apart)."""
     if options.crossing_time is not None:
         c = float(options.crossing_time)
         if not track.t0 <= c <= track.t1:
@@ -766,6 +781,8 @@ def _crossing(track: ObjectTrack, t: np.ndarray, y: np.ndarray,
         road = description.metadata.get("road")
         given = road.get("boundary_y") if isinstance(road, Mapping) else None
         boundary = float(given) if _is_real(given) and math.isfinite(given) else BOUNDARY_Y
+    t = sample_times(track.t0, track.t1, PLAUSIBILITY_DT)
+    y = track.positions(t)[1]
     s = y - boundary
     change = np.flatnonzero((s[:-1] * s[1:] <= 0) & (s[:-1] != s[1:]))
     if change.size == 0:
@@ -807,6 +824,8 @@ def draw_displacements(seed: int, index: int, count: int,
     (z = Φ⁻¹(Φ(−c) + (Φ(c) − Φ(−c)) U)), then scaled by (σ_lon, σ_lat); without truncation,
     ``standard_normal((count, 2))``. One draw per offset, no rejection loop.
     """
+    _index_iv(index, seed)
+    _count_iv(count, "count")
     rng = run_rng(seed, index)
     if options.truncation is None:
         z = rng.standard_normal((count, 2))
@@ -864,11 +883,12 @@ def vary_one(
     4. :func:`check_plausibility` on the refit (every 0.01 s) decides kept or rejected.
 
     Deviation from [1]: by default (``keep_residual``) the samples are the description's own
-    positions plus B(P + D) − B(P), which by linearity of step 1's linear system is the path
-    through the offsets D with zero end velocities. [1] samples B(P + D) itself; its residual
-    against the description (5 cm RMSE, 12 cm max for 1 s sections on a braking cut-in) would
-    enter every variation and even the unvaried one. With ``keep_residual=False`` that is what
-    happens. The locality of the change (:func:`influence`) is the same in both.
+    positions plus B(P + D) − B(P), which by linearity of :meth:`BezierPath.through` is the
+    path through the offsets D with zero end velocities. [1] samples B(P + D) itself; its
+    residual against the description (5 cm RMSE, 16 cm max for 1 s sections on the reference
+    cut-in, which brakes abruptly) would enter every variation, even the unvaried one. With
+    ``keep_residual=False`` that is what happens. The change has the same locality
+    (:func:`influence`) in both.
     """
     _index_iv(index, seed)
     plan = _plan(description, to, ego, options, limits)
@@ -887,12 +907,13 @@ def _vary(plan: _Plan, index: int, seed: int, displacements: ArrayLike | None) -
                               plan.end_velocity)
     if plan.options.keep_residual:
         # B(P + D) − B(P) = B(D) with zero end velocities (the system is linear in P, v0, v1).
+        # Deviation from [1] sec. V, which samples B(P + D): see the Notes of vary_one.
         shift = BezierPath.through(plan.fix_times, moved, np.zeros(2), np.zeros(2))(plan.t)
         xy = np.column_stack([plan.x, plan.y]) + shift
     else:
         xy = path(plan.t)
     original = plan.description.objects[plan.to]
-    try:
+    try:  # [1] sec. V: "applying again the fitting algorithm explained in section II-B"
         fit = fit_track(plan.t, xy[:, 0], xy[:, 1], threshold=plan.threshold,
                         initial_sections=original.sections if plan.options.warm_sections
                         else None, length=original.length, width=original.width, name=plan.to)
