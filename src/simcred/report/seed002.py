@@ -183,3 +183,45 @@ def write_figures(result: Reprocessed, directory: str | Path) -> list[Path]:
         written.append(fig4_errors(result, directory / "fig4_errors_scenario_based.png",
                                    "scenario-based"))
     return written
+
+
+VARIATION_TO, VARIATION_EGO, REFERENCE_COLOR = "#7b3294", "#1f4e9c", "#1a9641"
+
+
+def fig8_variations(campaign, path: str | Path) -> Path:
+    """Fig. 8: TO (purple) and EGO (blue) of every variation against the unvaried resimulation
+    (green): paths, speeds, and the distribution of the maximum risk."""
+    c, runs = campaign.config, campaign.runs
+    fig = plt.figure(figsize=(12, 10), constrained_layout=True)
+    grid = fig.add_gridspec(3, 1, height_ratios=[1.1, 1, 1])
+    paths, speeds, risks = (fig.add_subplot(grid[i]) for i in range(3))
+    for i in range(runs.n_runs):
+        run = runs.run(i)
+        paths.plot(run[f"{c.to}.x"], run[f"{c.to}.y"], color=VARIATION_TO, lw=0.6, alpha=0.12)
+        paths.plot(run[f"{c.ego}.x"], run[f"{c.ego}.y"], color=VARIATION_EGO, lw=0.6, alpha=0.12)
+        speeds.plot(run["t"], run[f"{c.to}.v"], color=VARIATION_TO, lw=0.6, alpha=0.12)
+        speeds.plot(run["t"], run[f"{c.ego}.v"], color=VARIATION_EGO, lw=0.6, alpha=0.12)
+    reference = campaign.reference_runs.run(0)
+    for name in (c.to, c.ego):
+        paths.plot(reference[f"{name}.x"], reference[f"{name}.y"], color=REFERENCE_COLOR, lw=2)
+        speeds.plot(reference["t"], reference[f"{name}.v"], color=REFERENCE_COLOR, lw=2)
+    paths.plot([], [], color=VARIATION_TO, label="TO, variations")
+    paths.plot([], [], color=VARIATION_EGO, label="EGO, variations")
+    paths.plot([], [], color=REFERENCE_COLOR, lw=2, label="unvaried resimulation (rGT)")
+    paths.set(xlabel="x [m]", ylabel="y [m]",
+              title=f"{runs.n_runs} kept variations of {campaign.variations.generated}: paths")
+    paths.legend(fontsize=8, ncols=3)
+    speeds.set(xlabel="t [s]", ylabel="v [m/s]", title="speeds (TO purple, EGO blue)")
+    values = np.log10(np.maximum(campaign.max_risks, 1e-9))
+    risks.hist(values, bins=30, color=VARIATION_TO, alpha=0.7, label="variations")
+    p5, p95 = np.percentile(values, [5, 95])
+    for q, label in ((p5, "5th / 95th percentile"), (p95, None)):
+        risks.axvline(q, color="black", ls="--", lw=1, label=label)
+    risks.axvline(np.log10(max(campaign.reference.max_risk, 1e-9)), color=REFERENCE_COLOR, lw=3,
+                  label="rGT")
+    risks.set(xlabel="log10 maximum risk", ylabel="variations",
+              title="distribution of the maximum TTR risk")
+    risks.legend(fontsize=8)
+    for ax in (paths, speeds, risks):
+        ax.grid(alpha=0.3)
+    return _save(fig, Path(path))

@@ -1,0 +1,248 @@
+"""The variation campaign of [1] §V (``simcred vary``): vary, resimulate, assess, judge validity.
+
+1. :func:`~simcred.scenario.variation.generate_variations` makes ``n`` locally varied TO
+   trajectories around the lane change (C2 Bézier, refitted, plausibility-checked).
+2. The kept ones are resimulated in batches (in-process or on Dask), with the same AD function,
+   vehicle model and sensor model as the reprocessing; so is the unvaried description, the
+   reference ("rGT" when the description is fit(GT)).
+3. Each resimulated run is assessed on its trace — the simulator's output is smooth and
+   consistent, so it needs no refit: the maximum TTR risk (every ``risk_dt``), the EGO's reaction
+   and manoeuvre, and whether the TO still cuts in (its centre enters the EGO's lane).
+4. Validity (beyond [1], which leaves it open): the varied TO trajectories are compared with the
+   original's by the seed-000 comparison (Markov chains over the TO's (x, y), permutation test),
+   and every variation whose TO path leaves a corridor of ``max_deviation`` around the original,
+   or that changes the scenario's category, is flagged.
+
+References
+----------
+[1] Wagner, Groh et al., Towards Cross-Verification and Use of Simulation in the Assessment of
+    Automated Driving, IEEE IV 2019.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from simcred.compare import compare
+from simcred.compare.result import Comparison
+from simcred.engine import Engine, shared
+from simcred.reprocess.reaction import Reaction, ReactionCriteria, reaction
+from simcred.risk import risk_series
+from simcred.scenario.description import ScenarioDescription
+from simcred.scenario.variation import (
+    PlausibilityLimits,
+    VariationOptions,
+    VariationSet,
+    generate_variations,
+)
+from simcred.sim.driver import DriverConfig
+from simcred.sim.experiments.cutin import OBJECT_SIGNALS
+from simcred.sim.resimulation import resimulate
+from simcred.sim.sensors import Sensor
+from simcred.traces import TIME, TraceSet, concat
+
+REFERENCE = "original"
+
+
+@dataclass(frozen=True, slots=True)
+class VaryConfig:
+    """Options of the campaign (defaults: [1] Fig. 8's 300 variations)."""
+
+    n: int = 300
+    seed: int = 1
+    vehicle: str = "ks"
+    dt: float = 0.01
+    risk_dt: float = 0.1
+    ego: str = "ego"
+    to: str = "to"
+    chunk_size: int = 50
+    max_deviation: float = 1.0  # m: corridor around the original TO path (≈ 3 σ of the offsets)
+    lane_width: float = 3.5
+    compare_bins: int = 8
+    options: VariationOptions = field(default_factory=lambda: VariationOptions(sample_dt=0.1))
+    limits: PlausibilityLimits = field(default_factory=PlausibilityLimits)
+    driver: DriverConfig = field(default_factory=DriverConfig)
+    criteria: ReactionCriteria = field(default_factory=ReactionCriteria)
+
+
+@dataclass(frozen=True, slots=True)
+class Outcome:
+    """How one resimulated run went."""
+
+    index: int
+    max_risk: float
+    reaction: Reaction
+    cuts_in: bool
+    max_deviation: float
+
+    def same_category(self, reference: Outcome) -> bool:
+        """The original's scenario category: the TO cuts in (or not) and the EGO reacts (or
+        not) as in the reference."""
+        return (self.cuts_in == reference.cuts_in
+                and (self.reaction.manoeuvre == "none") == (reference.reaction.manoeuvre == "none"))
+
+    def valid(self, config: VaryConfig, reference: Outcome) -> bool:
+        """Inside the corridor around the original TO path and in the original's category."""
+        return self.max_deviation <= config.max_deviation and self.same_category(reference)
+
+    def to_json(self) -> dict[str, Any]:
+        return {"index": self.index, "max_risk": self.max_risk, "cuts_in": self.cuts_in,
+                "max_deviation": self.max_deviation, **{
+                    f"reaction_{k}": v for k, v in self.reaction.to_json().items()}}
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Campaign:
+    """Everything :func:`run_campaign` produced."""
+
+    config: VaryConfig
+    variations: VariationSet
+    reference: Outcome
+    outcomes: tuple[Outcome, ...]
+    runs: TraceSet
+    reference_runs: TraceSet
+    comparison: Comparison
+
+    @property
+    def max_risks(self) -> np.ndarray:
+        return np.array([o.max_risk for o in self.outcomes])
+
+    def summary(self) -> dict[str, Any]:
+        c, v = self.config, self.variations
+        risks = self.max_risks
+        valid = [o.valid(c, self.reference) for o in self.outcomes]
+        manoeuvres = [o.reaction.manoeuvre for o in self.outcomes]
+        return {
+            "generated": v.generated, "kept": v.kept, "rejected": v.rejected,
+            "rejections": v.rejections, "seed": v.seed,
+            "reference": self.reference.to_json(),
+            "max_risk_percentiles": dict(zip(("p5", "p25", "p50", "p75", "p95"),
+                                             np.percentile(risks, [5, 25, 50, 75, 95]).tolist(),
+                                             strict=True)),
+            "reference_risk_percentile": float(np.mean(risks < self.reference.max_risk) * 100),
+            "manoeuvres": {m: manoeuvres.count(m) for m in sorted(set(manoeuvres))},
+            "same_category": float(np.mean([o.same_category(self.reference)
+                                            for o in self.outcomes])),
+            "validity": {"max_deviation": c.max_deviation,
+                         "outside": [o.index for o, ok in zip(self.outcomes, valid, strict=True)
+                                     if not ok],
+                         "to_distance_vs_original": self.comparison.distance,
+                         "start_differs": self.comparison.start.rejected},
+            "variations": [o.to_json() for o in self.outcomes],
+        }
+
+
+def run_campaign(description: ScenarioDescription, config: VaryConfig | None = None, *,
+                 sensor: Sensor | None = None, runner: Engine | None = None,
+                 progress_for=lambda description: None) -> Campaign:
+    """Generate, resimulate and assess the variations of ``description`` (see the module)."""
+    c = VaryConfig() if config is None else config
+    runner = runner or Engine()
+    variations = generate_variations(description, c.n, c.seed, to=c.to, ego=c.ego,
+                                     options=c.options, limits=c.limits, runner=runner,
+                                     chunk_size=c.chunk_size,
+                                     progress=progress_for("generating variations"))
+    jobs = [(-1, [description])] + [
+        (k, [v.description for v in variations.variations[k:k + c.chunk_size]])
+        for k in range(0, len(variations.variations), c.chunk_size)]
+    indices = [v.index for v in variations.variations]
+    parts = runner.map(_resimulate_chunk, jobs, shared_values={
+        "config": c, "sensor": sensor, "indices": indices, "original": description},
+        progress=progress_for("resimulating variations"))
+    reference_runs, reference = parts[0]
+    outcomes = tuple(o for _, chunk in parts[1:] for o in chunk)
+    runs = concat([p[0] for p in parts[1:]]) if len(parts) > 1 else reference_runs
+    comparison = _compare_to_original(runs, reference_runs, c)
+    return Campaign(c, variations, reference[0], outcomes, runs, reference_runs, comparison)
+
+
+def _resimulate_chunk(job: tuple[int, list[ScenarioDescription]]
+                      ) -> tuple[TraceSet, list[Outcome]]:
+    start, descriptions = job
+    c: VaryConfig = shared("config")
+    original: ScenarioDescription = shared("original")
+    indices = [-1] if start < 0 else shared("indices")[start:start + len(descriptions)]
+    runs = resimulate(descriptions, sensor=shared("sensor"), vehicle=c.vehicle,
+                      driver=c.driver, dt=c.dt, seed=c.seed, ego=c.ego,
+                      indices=[max(i, 0) for i in indices])
+    if start < 0:
+        runs = TraceSet(runs.signals, runs.time, runs.values, runs.offsets, (REFERENCE,),
+                        runs.metadata, runs.source)
+    path = original.objects[c.to].positions(runs.run(0)[TIME])
+    return runs, [_assess(runs.run(k), i, path, c) for k, i in enumerate(indices)]
+
+
+def _assess(run: dict[str, np.ndarray], index: int, original: tuple[np.ndarray, np.ndarray],
+            c: VaryConfig) -> Outcome:
+    t = run[TIME]
+    step = max(1, int(round(c.risk_dt / (t[1] - t[0]))))
+    rates = {f"{name}.{rate}": np.gradient(run[f"{name}.{signal}"], t)
+             for name in (c.ego, c.to)
+             for rate, signal in (("acceleration", "v"), ("yaw_rate", "heading"))}
+    scenes = {k: v[::step] for k, v in (run | rates).items()}
+    risk = risk_series(scenes, ego=c.ego, objects=(c.to,)).risk
+    v = run[f"{c.ego}.v"]
+    ego_reaction = reaction(t, run[f"{c.ego}.y"], v, run[f"{c.ego}.heading"],
+                            np.gradient(v, t), c.criteria)
+    lateral = np.abs(run[f"{c.to}.y"] - run[f"{c.ego}.y"][0])
+    deviation = np.hypot(run[f"{c.to}.x"] - original[0], run[f"{c.to}.y"] - original[1])
+    return Outcome(index, float(risk.max()), ego_reaction,
+                   bool((lateral < c.lane_width / 2).any() and lateral[0] >= c.lane_width / 2),
+                   float(deviation.max()))
+
+
+def _compare_to_original(runs: TraceSet, reference: TraceSet, c: VaryConfig) -> Comparison:
+    """Seed-000 distance between the varied TO trajectories and as many copies of the original's
+    (the original is one deterministic trajectory)."""
+    features = [f"{c.to}.{s}" for s in OBJECT_SIGNALS[:2]]
+    step = max(1, int(round(c.risk_dt / c.dt)))
+    varied = _subsample(runs, features, step)
+    one = _subsample(reference, features, step)
+    copies = TraceSet(one.signals, np.tile(one.time, runs.n_runs),
+                      np.tile(one.values, (runs.n_runs, 1)),
+                      np.arange(runs.n_runs + 1) * one.n_rows,
+                      tuple(f"original_{i}" for i in range(runs.n_runs)), {}, "original")
+    return compare(varied, copies, features=features, bins=c.compare_bins,
+                   test="permutation", seed=c.seed)
+
+
+def _subsample(traces: TraceSet, features: list[str], step: int) -> TraceSet:
+    runs = []
+    for i in range(traces.n_runs):
+        run = traces.run(i)
+        runs.append({TIME: run[TIME][::step], **{f: run[f][::step] for f in features}})
+    return TraceSet.from_runs(runs, run_ids=traces.run_ids, source=traces.source)
+
+
+def risk_percentile_claim_values(campaign: Campaign) -> tuple[float, float, float]:
+    """(p5, reference max risk, p95) of the variations' maximum risks."""
+    p5, p95 = np.percentile(campaign.max_risks, [5, 95])
+    return float(p5), campaign.reference.max_risk, float(p95)
+
+
+
+def write_campaign(campaign: Campaign, directory) -> dict[str, Any]:
+    """``variations.json`` (summary), ``variation_set.json`` (every variation: records and kept
+    TO tracks), ``runs.parquet`` (resimulated runs), ``reference.parquet``, ``comparison.json``
+    and ``figures/fig8_variations.png``."""
+    from pathlib import Path
+
+    from simcred._json import dumps, envelope
+    from simcred.io import parquet
+    from simcred.report.seed002 import fig8_variations
+
+    out = Path(directory)
+    out.mkdir(parents=True, exist_ok=True)
+    files = {"summary": out / "variations.json", "variations": out / "variation_set.json",
+             "runs": out / "runs.parquet", "reference": out / "reference.parquet",
+             "comparison": out / "comparison.json"}
+    files["summary"].write_text(dumps(envelope("variation_campaign", campaign.summary())))
+    campaign.variations.write(files["variations"])
+    parquet.write(campaign.runs, files["runs"])
+    parquet.write(campaign.reference_runs, files["reference"])
+    files["comparison"].write_text(campaign.comparison.to_json())
+    files["figure"] = fig8_variations(campaign, out / "figures" / "fig8_variations.png")
+    return files
