@@ -609,6 +609,60 @@ def reprocess(
                           f"figures to {out}")
 
 
+@app.command()
+@one_line_errors
+def vary(
+    description: Annotated[Path, typer.Argument(help="Scenario description JSON (e.g. "
+                                                     "descriptions/fit_GT.json of reprocess).")],
+    out: Annotated[Path, typer.Option(help="Directory for variations, runs and figures.")],
+    n: Annotated[int, typer.Option("-n", "--n", help="Variations to generate.")] = 300,
+    seed: Annotated[int, typer.Option(help="Seed: variation i uses SeedSequence(seed, "
+                                           "spawn_key=(i,)).")] = 1,
+    vehicle: Annotated[str, typer.Option(help="EGO model of the resimulation: ks or st.")
+                       ] = "ks",
+    workers: Workers = None,
+    scheduler: Scheduler = None,
+) -> None:
+    """Local variations of the TO's cut-in (Wagner, Groh et al. sec. V): vary, resimulate, risk."""
+    from simcred.engine import engine
+    from simcred.reprocess.vary import VaryConfig, run_campaign, write_campaign
+    from simcred.scenario.description import ScenarioDescription
+    from simcred.sim.experiments.cutin import vehicle_model
+
+    if n < 1:
+        raise OptionError(f"n must be at least 1, got {n}")
+    vehicle_model(vehicle)
+    original = ScenarioDescription.read(description)
+    with engine(workers, scheduler) as runner:
+        campaign = run_campaign(original, VaryConfig(n=n, seed=seed, vehicle=vehicle),
+                                runner=runner, progress_for=progress)
+    write_campaign(campaign, out)
+    if not State.quiet:
+        _print_campaign(campaign.summary())
+        out_console.print(f"wrote variations.json, variation_set.json, runs.parquet and "
+                          f"figures/fig8_variations.png to {out}")
+
+
+def _print_campaign(summary: dict) -> None:
+    table = Table(title="variation campaign")
+    table.add_column("what")
+    table.add_column("value")
+    p = summary["max_risk_percentiles"]
+    rows = [("generated / kept / rejected",
+             f"{summary['generated']} / {summary['kept']} / {summary['rejected']}"),
+            ("rejected because", ", ".join(f"{k}: {v}" for k, v in summary["rejections"].items())
+             or "—"),
+            ("manoeuvres", ", ".join(f"{k}: {v}" for k, v in summary["manoeuvres"].items())),
+            ("same category", f"{summary['same_category']:.1%}"),
+            ("max risk p5 / p50 / p95", f"{p['p5']:.3g} / {p['p50']:.3g} / {p['p95']:.3g}"),
+            ("unvaried (rGT) max risk", f"{summary['reference']['max_risk']:.3g} "
+                                        f"(percentile {summary['reference_risk_percentile']:.0f})"),
+            ("outside the validity range", str(len(summary["validity"]["outside"])))]
+    for row in rows:
+        table.add_row(*row)
+    out_console.print(table)
+
+
 def _steps(description: str) -> Callable[[str], None] | None:
     """Prints each pipeline step on stderr (on a terminal, without --quiet)."""
     if State.quiet or not sys.stderr.isatty():
