@@ -562,13 +562,23 @@ def paper_000(
 def paper_002(
     out: Annotated[Path, typer.Option(help="Directory for the measurement, the reprocessing "
                                            "results, figures and claims.json.")],
-    seed: Annotated[int, typer.Option(help="Seed of the manufactured universe.")] = 0,
+    seed: Annotated[int, typer.Option(help="Seed of the manufactured universe (the variations "
+                                           "use seed + 1).")] = 0,
+    variations: Annotated[int, typer.Option(help="Variations of the cut-in (sec. V).")] = 300,
+    workers: Workers = None,
+    scheduler: Scheduler = None,
 ) -> None:
-    """Wagner, Groh et al.: reprocessing the cut-in (Figs. 3-7, eqs. 2-7) and its claims."""
+    """Wagner, Groh et al.: reprocessing the cut-in (Figs. 3-8, eqs. 2-7) and its claims."""
+    from simcred.engine import engine
     from simcred.paper import seed002
     from simcred.paper.claims import claims_table
 
-    claims = seed002.run_all(out, seed=seed, progress=_steps("paper 002"))
+    if variations < 20:
+        raise OptionError(f"variations must be at least 20 (for the 5th/95th percentiles), "
+                          f"got {variations}")
+    with engine(workers, scheduler) as runner:
+        claims = seed002.run_all(out, seed=seed, variations=variations, runner=runner,
+                                 progress=_steps("paper 002"), progress_for=progress)
     if not State.quiet:
         out_console.print(claims_table(claims, "seed 002: the paper's claims"))
         out_console.print(f"wrote measurement, results, figures and claims.json to {out}")

@@ -11,10 +11,18 @@ from pathlib import Path
 
 import numpy as np
 
-from simcred.paper.claims import Claim, below, write_claims
+from simcred.engine import Engine
+from simcred.paper.claims import Claim, at_least, below, write_claims
 from simcred.reprocess import output
 from simcred.reprocess.errors import ErrorStats
 from simcred.reprocess.pipeline import SB, ReprocessConfig, Reprocessed, log_risk_rmse, reprocess
+from simcred.reprocess.vary import (
+    Campaign,
+    VaryConfig,
+    risk_percentile_claim_values,
+    run_campaign,
+    write_campaign,
+)
 from simcred.sim.experiments import cutin
 
 
@@ -97,13 +105,48 @@ def run_reprocessing(out: Path, *, seed: int = 0, config: cutin.CutInConfig | No
     return result, reprocess_claims(result, universe.sensor.offset)
 
 
-def run_all(out: Path, *, seed: int = 0, progress=None) -> list[Claim]:
-    """``simcred paper 002``: everything above, plus ``claims.json``."""
+def variation_claims(campaign: Campaign) -> list[Claim]:
+    """[1] §V's findings on the variations of fit(GT), resimulated like rGT."""
+    summary = campaign.summary()
+    p5, reference, p95 = risk_percentile_claim_values(campaign)
+    manoeuvres = ", ".join(f"{k} {v}" for k, v in summary["manoeuvres"].items())
+    return [
+        at_least("variations_same_category",
+                 "the variations stay in the scenario's category: the TO still cuts in, the EGO "
+                 "still reacts (fraction of kept variations)", summary["same_category"], 0.95,
+                 f"{summary['kept']} of {summary['generated']} kept; manoeuvres: {manoeuvres}"),
+        Claim("variations_risk_surround_rgt",
+              "the variations' maximum risks surround rGT's: it lies between their 5th and 95th "
+              "percentile", reference, None, bool(p5 <= reference <= p95),
+              f"p5 = {p5:.3g}, rGT = {reference:.3g}, p95 = {p95:.3g} (percentile "
+              f"{summary['reference_risk_percentile']:.0f})"),
+    ]
+
+
+def run_variations(out: Path, result: Reprocessed, *, n: int = 300, seed: int = 1,
+                   runner: Engine | None = None, progress_for=lambda _: None
+                   ) -> tuple[Campaign, list[Claim]]:
+    """Vary fit(GT) ``n`` times, resimulate as rGT (ideal sensor, KS), write into ``out``."""
+    config = VaryConfig(n=n, seed=seed, vehicle=result.config.vehicle, dt=result.config.dt,
+                        driver=result.config.driver)
+    campaign = run_campaign(result.descriptions["fit(GT)"], config, runner=runner,
+                            progress_for=progress_for)
+    write_campaign(campaign, out)
+    return campaign, variation_claims(campaign)
+
+
+def run_all(out: Path, *, seed: int = 0, variations: int = 300, runner: Engine | None = None,
+            progress=None, progress_for=lambda _: None) -> list[Claim]:
+    """``simcred paper 002``: reprocessing and variations, plus ``claims.json``."""
     out.mkdir(parents=True, exist_ok=True)
     universe = cutin.CutInConfig()
-    _, claims = run_reprocessing(out, seed=seed, config=universe, progress=progress)
-    write_claims(claims, out / "claims.json",
+    result, claims = run_reprocessing(out, seed=seed, config=universe, progress=progress)
+    campaign, more = run_variations(out / "variations", result, n=variations, seed=seed + 1,
+                                    runner=runner, progress_for=progress_for)
+    write_claims(claims + more, out / "claims.json",
                  {"cutin": {"experiment": "cutin", "seed": seed, **asdict(universe)},
-                  "reprocess": asdict(ReprocessConfig(seed=seed))})
-    return claims
+                  "reprocess": asdict(ReprocessConfig(seed=seed)),
+                  "variations": {"n": variations, "seed": campaign.variations.seed,
+                                 **asdict(campaign.config)}})
+    return claims + more
 

@@ -101,6 +101,11 @@ class Spline:
         knots = spline_knots(t0, t1, len(c) - DEGREE)
         object.__setattr__(self, "_bspline", BSpline(knots, c, DEGREE, extrapolate=False))
 
+    def __reduce__(self) -> tuple:
+        # Rebuilt through __init__, which copies the coefficients: Dask's out-of-band pickle
+        # buffers can arrive unaligned, and scipy's spline evaluation refuses those.
+        return (Spline, (self.t0, self.t1, self.coefficients))
+
     @property
     def sections(self) -> int:
         return len(self.coefficients) - DEGREE
