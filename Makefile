@@ -28,6 +28,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/sim.py
 	$(BIN)/python benchmarks/contracts.py
 	$(BIN)/python benchmarks/reprocess.py
+	$(BIN)/python benchmarks/vary.py
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks

@@ -1,0 +1,116 @@
+"""The variation campaign (seed 002 sec. V): determinism serial vs Dask, assessment, CLI."""
+
+from __future__ import annotations
+
+import json
+import pickle
+
+import numpy as np
+import pytest
+
+from simcred.cli import run
+from simcred.engine import engine
+from simcred.reprocess.pipeline import ReprocessConfig, reprocess
+from simcred.reprocess.vary import VaryConfig, run_campaign, write_campaign
+from simcred.scenario.description import Spline
+from simcred.sim.experiments import cutin
+
+N = 8
+
+
+@pytest.fixture(scope="module")
+def description():
+    config = ReprocessConfig(scenario_based=False)
+    return reprocess(cutin.simulate(0, cutin.CutInConfig(duration=8.0)), config
+                     ).descriptions["fit(GT)"]
+
+
+@pytest.fixture(scope="module")
+def serial(description):
+    return run_campaign(description, VaryConfig(n=N, seed=3, chunk_size=3))
+
+
+def test_serial_and_dask_give_byte_identical_results(description, serial, tmp_path):
+    with engine(2, None) as runner:
+        distributed = run_campaign(description, VaryConfig(n=N, seed=3, chunk_size=3),
+                                   runner=runner)
+    assert distributed.runs.equals(serial.runs)
+    a = write_campaign(serial, tmp_path / "serial")
+    b = write_campaign(distributed, tmp_path / "dask")
+    for key in ("summary", "variations", "comparison"):
+        assert a[key].read_bytes() == b[key].read_bytes(), key
+
+
+def test_every_kept_variation_is_resimulated_and_assessed(serial):
+    kept = [v.index for v in serial.variations.variations]
+    assert [o.index for o in serial.outcomes] == kept
+    assert serial.runs.run_ids == tuple(f"run_{i:05d}" for i in kept)
+    summary = serial.summary()
+    assert summary["generated"] == N and summary["kept"] + summary["rejected"] == N
+    assert sum(summary["manoeuvres"].values()) == len(kept)
+
+
+def test_reference_is_the_unvaried_description(serial, description):
+    run = serial.reference_runs.run(0)
+    x, y = description.objects["to"].positions(run["t"])
+    np.testing.assert_allclose(run["to.x"], x, atol=1e-9)
+    np.testing.assert_allclose(run["to.y"], y, atol=1e-9)
+    assert serial.reference.max_deviation == 0.0
+    assert serial.reference.cuts_in  # the TO enters the EGO's lane
+
+
+def test_deviation_is_the_largest_distance_to_the_original_path(serial, description):
+    for outcome, k in zip(serial.outcomes, range(serial.runs.n_runs), strict=True):
+        run = serial.runs.run(k)
+        x, y = description.objects["to"].positions(run["t"])
+        expected = np.max(np.hypot(run["to.x"] - x, run["to.y"] - y))
+        assert outcome.max_deviation == pytest.approx(expected, abs=1e-12)
+
+
+def test_validity_flags_variations_outside_the_corridor(serial):
+    tight = VaryConfig(max_deviation=0.0)
+    assert not any(o.valid(tight, serial.reference) for o in serial.outcomes if
+                   o.max_deviation > 0)
+    loose = VaryConfig(max_deviation=1e9)
+    assert all(o.valid(loose, serial.reference) == o.same_category(serial.reference)
+               for o in serial.outcomes)
+
+
+def test_spline_survives_unaligned_buffers():
+    """Dask may hand over arrays in unaligned buffers; scipy refuses to evaluate those."""
+    unaligned = np.zeros(5 * 8 + 1, dtype=np.uint8)[1:].view(np.float64)
+    unaligned[:] = [1.0, 2.0, 3.0, 4.0, 5.0]
+    assert not unaligned.flags.aligned
+    spline = Spline(0.0, 2.0, unaligned)
+    assert spline.coefficients.flags.aligned
+    back = pickle.loads(pickle.dumps(spline, protocol=5))
+    np.testing.assert_array_equal(back.coefficients, unaligned)
+    assert float(back(1.0)) == float(spline(1.0))
+
+
+def test_cli_vary_writes_the_campaign(description, tmp_path):
+    path = description.write(tmp_path / "fit_GT.json")
+    out = tmp_path / "vary"
+    assert run(["--quiet", "vary", str(path), "-n", "4", "--seed", "2", "--out", str(out)]) == 0
+    summary = json.loads((out / "variations.json").read_text())
+    assert summary["generated"] == 4 and (out / "figures" / "fig8_variations.png").is_file()
+    assert (out / "runs.parquet").is_file()
+
+
+@pytest.mark.parametrize("args, message", [
+    (["-n", "0"], "n must be at least 1"),
+    (["--vehicle", "bicycle"], "unknown vehicle model 'bicycle'"),
+])
+def test_cli_vary_rejects_bad_options(description, tmp_path, capsys, args, message):
+    path = description.write(tmp_path / "fit_GT.json")
+    assert run(["vary", str(path), "--out", str(tmp_path / "o"), *args]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err
+
+
+def test_cli_vary_rejects_a_malformed_description(tmp_path, capsys):
+    bad = tmp_path / "bad.json"
+    bad.write_text("{not json")
+    assert run(["vary", str(bad), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "bad.json" in err and len(err.splitlines()) == 1
