@@ -25,8 +25,8 @@ echo
 echo "== 5. seed 000, sec. VI at a reduced size (500 runs per set): SimpleCar λ sweep and T-junction"
 "$simcred" paper 000 --out "$out/paper000" --runs 500 --workers 2
 echo
-echo "== 6. seed 002: the cut-in measurement reprocessed (fit, resimulation, risk, errors, claims)"
-"$simcred" paper 002 --out "$out/paper002"
+echo "== 6. seed 002: the cut-in reprocessed (fit, resimulation, risk, errors) and varied 300 times"
+"$simcred" paper 002 --out "$out/paper002" --workers 2
 echo
 echo "== 7. a real A9 recording (sensor data only), reprocessed"
 a9="$(dirname "$0")/../../shared/data/real/osc-generator-a9/trajectories_file.csv"
