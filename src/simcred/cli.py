@@ -584,14 +584,16 @@ def paper_002(
         out_console.print(f"wrote measurement, results, figures and claims.json to {out}")
 
 
+ResimVehicle = Annotated[str, typer.Option(help="EGO vehicle model of the resimulation: ks or st.")]
+
+
 @app.command()
 @one_line_errors
 def reprocess(
     measurement: Annotated[Path, typer.Argument(help="A measurement directory (simcred simulate "
                                                      "cutin) or an A9 sensor-data CSV file.")],
     out: Annotated[Path, typer.Option(help="Directory for the results.")],
-    vehicle: Annotated[str, typer.Option(help="EGO model of the resimulation: ks or st.")
-                       ] = "ks",
+    vehicle: ResimVehicle = "ks",
     object_id: Annotated[int | None, typer.Option(
         "--object", help="A9 CSV: the object to reprocess (default: the lane changer).")] = None,
     seed: Annotated[int, typer.Option(help="Seed of the resimulations' sensor noise.")] = 0,
@@ -628,8 +630,7 @@ def vary(
     n: Annotated[int, typer.Option("-n", "--n", help="Variations to generate.")] = 300,
     seed: Annotated[int, typer.Option(help="Seed: variation i uses SeedSequence(seed, "
                                            "spawn_key=(i,)).")] = 1,
-    vehicle: Annotated[str, typer.Option(help="EGO model of the resimulation: ks or st.")
-                       ] = "ks",
+    vehicle: ResimVehicle = "ks",
     workers: Workers = None,
     scheduler: Scheduler = None,
 ) -> None:

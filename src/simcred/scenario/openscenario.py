@@ -42,29 +42,13 @@ MINOR_VERSION = 2
 """Default OpenSCENARIO minor version (1.2)."""
 
 
-def to_openscenario(
-    description: ScenarioDescription,
-    path: str | Path,
-    *,
-    ego: str = "ego",
-    road_file: str | None = None,
-    step: float = STEP,
-    ego_trajectory: bool = False,
-    osc_minor_version: int = MINOR_VERSION,
-    name: str = "simcred scenario",
-    author: str = "simcred",
-    creation_date: dt.datetime | None = None,
-) -> Path:
+def to_openscenario(description: ScenarioDescription, path: str | Path, **options: Any) -> Path:
     """Write :func:`build_openscenario` of ``description`` to ``path`` (``.xosc``); return it.
 
-    The keyword options are those of :func:`build_openscenario`.
+    ``options`` are the keyword options of :func:`build_openscenario`.
     """
-    scenario = build_openscenario(description, ego=ego, road_file=road_file, step=step,
-                                  ego_trajectory=ego_trajectory,
-                                  osc_minor_version=osc_minor_version, name=name, author=author,
-                                  creation_date=creation_date)
     path = Path(path)
-    scenario.write_xml(str(path))
+    build_openscenario(description, **options).write_xml(str(path))
     return path
 
 
