@@ -131,3 +131,17 @@ def test_monitor_finds_the_out_of_domain_braking_of_a_cutin_run(tmp_path, capsys
     assert (v["contract"], v["kind"], v["clause"], v["variables"]) == (
         "ST", "assumption", "(-9) <= ego.a_long", ["ego.a_long"])
     assert (v["first_step"], v["last_step"]) == (43, 43) and v["margin"] == pytest.approx(-0.4)
+
+
+def test_tolerance_absorbs_rounding_on_a_domain_boundary():
+    from simcred.contracts.algebra import Contract
+    from simcred.contracts.monitor import monitor
+    from simcred.traces import TraceSet
+
+    a = np.array([-8.0, -9.0 - 1e-12, -9.0, -9.5])
+    traces = TraceSet.from_runs([{"t": np.arange(4.0), "a": a}])
+    domain = {"ST": Contract.from_strings("-9 <= a", "true", declared={"a": "real"})}
+    exact = monitor(traces, domain)
+    assert [(v.first_step, v.last_step) for v in exact.violations] == [(1, 1), (3, 3)]
+    tolerant = monitor(traces, domain, tolerance=1e-9)
+    assert [(v.first_step, v.last_step) for v in tolerant.violations] == [(3, 3)]

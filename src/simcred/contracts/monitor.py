@@ -54,8 +54,14 @@ class MonitorReport:
         return dumps(envelope("monitor_report", body))
 
 
-def monitor(traces: TraceSet, contracts: Mapping[str, Contract]) -> MonitorReport:
-    """Evaluate every clause of ``contracts`` over ``traces`` (signals named as the variables)."""
+def monitor(traces: TraceSet, contracts: Mapping[str, Contract], *, tolerance: float = 0.0
+            ) -> MonitorReport:
+    """Evaluate every clause of ``contracts`` over ``traces`` (signals named as the variables).
+
+    A sample violates a clause where the clause is false and its margin is below
+    ``-tolerance`` (default 0: every violation counts; a small tolerance absorbs rounding in
+    signals that sit exactly on a domain's boundary, e.g. accelerations by differentiation).
+    """
     columns = _columns(traces, contracts)
     found: list[Violation] = []
     clauses = 0
@@ -66,8 +72,10 @@ def monitor(traces: TraceSet, contracts: Mapping[str, Contract]) -> MonitorRepor
             if holds.all():
                 continue
             # the margin of the clause itself: how far it is from holding where it is violated
-            found += _segments(traces, name, kind, clause, ~holds,
-                               np.broadcast_to(margin(clause, columns), (traces.n_rows,)))
+            margins = np.broadcast_to(margin(clause, columns), (traces.n_rows,))
+            violated = ~holds & ~(margins >= -tolerance) if tolerance > 0 else ~holds
+            if violated.any():
+                found += _segments(traces, name, kind, clause, violated, margins)
     return MonitorReport(traces.source, traces.n_runs, traces.n_rows, clauses, tuple(found))
 
 

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -105,9 +105,9 @@ def reprocess(measurement: Measurement, config: ReprocessConfig | None = None,
         for label, sensor in _sensors(name, sensor_model):
             say(f"resimulate {name} ({sensor.name} sensor)")
             key = f"r{name}{label}"
-            resims[key] = resimulate(fits[f"fit({name})"].description, sensor=sensor,
-                                     vehicle=c.vehicle, driver=c.driver, dt=c.dt, seed=c.seed,
-                                     ego=c.ego)
+            resims[key] = replace(resimulate(
+                fits[f"fit({name})"].description, sensor=sensor, vehicle=c.vehicle,
+                driver=c.driver, dt=c.dt, seed=c.seed, ego=c.ego), run_ids=(key,), source=key)
             states[key] = _interpolated_states(resims[key], times, objects)
             say(f"refit {key}")
             fits[f"fit({key})"] = fit_scenario(resims[key], objects=list(objects),

@@ -21,7 +21,7 @@ References
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -169,8 +169,7 @@ def _resimulate_chunk(job: tuple[int, list[ScenarioDescription]]
                       driver=c.driver, dt=c.dt, seed=c.seed, ego=c.ego,
                       indices=[max(i, 0) for i in indices])
     if start < 0:
-        runs = TraceSet(runs.signals, runs.time, runs.values, runs.offsets, (REFERENCE,),
-                        runs.metadata, runs.source)
+        runs = replace(runs, run_ids=(REFERENCE,))
     path = original.objects[c.to].positions(runs.run(0)[TIME])
     return runs, [_assess(runs.run(k), i, path, c) for k, i in enumerate(indices)]
 
