@@ -134,10 +134,6 @@ def test_monitor_finds_the_out_of_domain_braking_of_a_cutin_run(tmp_path, capsys
 
 
 def test_tolerance_absorbs_rounding_on_a_domain_boundary():
-    from simcred.contracts.algebra import Contract
-    from simcred.contracts.monitor import monitor
-    from simcred.traces import TraceSet
-
     a = np.array([-8.0, -9.0 - 1e-12, -9.0, -9.5])
     traces = TraceSet.from_runs([{"t": np.arange(4.0), "a": a}])
     domain = {"ST": Contract.from_strings("-9 <= a", "true", declared={"a": "real"})}

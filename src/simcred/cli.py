@@ -578,13 +578,45 @@ def paper_002(
                           f"got {variations}")
     with engine(workers, scheduler) as runner:
         claims = seed002.run_all(out, seed=seed, variations=variations, runner=runner,
-                                 progress=_steps("paper 002"), progress_for=progress)
+                                 progress=_steps("paper 002"), progress_for=progress).claims
     if not State.quiet:
         out_console.print(claims_table(claims, "seed 002: the paper's claims"))
         out_console.print(f"wrote measurement, results, figures and claims.json to {out}")
 
 
 ResimVehicle = Annotated[str, typer.Option(help="EGO vehicle model of the resimulation: ks or st.")]
+
+
+@paper_app.command("all")
+@one_line_errors
+def paper_all(
+    out: Annotated[Path, typer.Option(help="Directory for every seed's results and the "
+                                           "combined claims.json.")],
+    runs: Annotated[int | None, typer.Option(help="Seed 000: runs per trace set (default: the "
+                                                  "documented full size).")] = None,
+    variations: Annotated[int, typer.Option(help="Seed 002: variations of the cut-in.")] = 300,
+    seed: Annotated[int, typer.Option(help="Seed of every experiment.")] = 0,
+    workers: Workers = None,
+    scheduler: Scheduler = None,
+) -> None:
+    """All three seeds: paper 000, paper 002, and seed 003's contracts on the cut-in."""
+    from simcred.engine import engine
+    from simcred.paper.all import AllOptions, run_all
+    from simcred.paper.claims import claims_table
+
+    if runs is not None and runs < 2:
+        raise OptionError(f"runs must be at least 2, got {runs}")
+    if variations < 20:
+        raise OptionError(f"variations must be at least 20, got {variations}")
+    with engine(workers, scheduler) as runner:
+        claims = run_all(out, AllOptions(runs=runs, variations=variations, seed=seed),
+                         runner=runner, progress=_steps("paper 002"), progress_for=progress)
+    if not State.quiet:
+        for key, found in claims.items():
+            out_console.print(claims_table(found, f"seed {key}: claims"))
+        total = sum(len(c) for c in claims.values())
+        held = sum(c.passed for found in claims.values() for c in found)
+        out_console.print(f"{held} of {total} claims hold; wrote {out / 'claims.json'}")
 
 
 @app.command()

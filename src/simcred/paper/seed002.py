@@ -6,7 +6,7 @@ paper's findings checked as claims.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
@@ -135,8 +135,17 @@ def run_variations(out: Path, result: Reprocessed, *, n: int = 300, seed: int = 
     return campaign, variation_claims(campaign)
 
 
+@dataclass(frozen=True, slots=True, eq=False)
+class Seed002Run:
+    """What ``paper 002`` produced: the claims, the reprocessing and the variation campaign."""
+
+    claims: list[Claim]
+    result: Reprocessed
+    campaign: Campaign
+
+
 def run_all(out: Path, *, seed: int = 0, variations: int = 300, runner: Engine | None = None,
-            progress=None, progress_for=lambda _: None) -> list[Claim]:
+            progress=None, progress_for=lambda _: None) -> Seed002Run:
     """``simcred paper 002``: reprocessing and variations, plus ``claims.json``."""
     out.mkdir(parents=True, exist_ok=True)
     universe = cutin.CutInConfig()
@@ -148,5 +157,5 @@ def run_all(out: Path, *, seed: int = 0, variations: int = 300, runner: Engine |
                   "reprocess": asdict(ReprocessConfig(seed=seed)),
                   "variations": {"n": variations, "seed": campaign.variations.seed,
                                  **asdict(campaign.config)}})
-    return claims + more
+    return Seed002Run(claims + more, result, campaign)
 

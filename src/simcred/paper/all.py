@@ -1,0 +1,93 @@
+"""``simcred paper all``: the three seeds one after the other into one directory, and one
+``claims.json`` that collects theirs, with the provenance of the whole run.
+
+Layout: ``paper000/``, ``paper002/`` (with ``variations/``), ``paper003/``, ``claims.json``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.metadata
+import json
+import platform
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from simcred._json import dumps, envelope
+from simcred.engine import Engine
+from simcred.paper import seed000, seed002, seed003
+from simcred.paper.claims import Claim, write_claims
+from simcred.traces import concat
+
+TITLES = {
+    "000": "Neurohr et al. 2023 — comparing sets of runs (Markov chains + MMD tests)",
+    "002": "Wagner, Groh et al. — reprocessing a drive, scenario-based sensor model, variation",
+    "003": "Braun et al. — contracts: configuration, quotient, monitors",
+}
+PACKAGES = ("numpy", "scipy", "pyarrow", "dask", "z3-solver", "scenariogeneration",
+            "commonroad-vehicle-models", "matplotlib", "jinja2")
+
+
+@dataclass(frozen=True, slots=True)
+class AllOptions:
+    runs: int | None = None
+    variations: int = 300
+    seed: int = 0
+
+
+def versions() -> dict[str, str]:
+    found = {"python": platform.python_version()}
+    for name in ("simcred", *PACKAGES):
+        try:
+            found[name] = importlib.metadata.version(name)
+        except importlib.metadata.PackageNotFoundError:
+            found[name] = "not installed"
+    return found
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def run_all(out: Path, options: AllOptions, *, runner: Engine, progress=None,
+            progress_for=lambda _: None) -> dict[str, list[Claim]]:
+    """Run every seed into ``out`` and write the combined ``claims.json``."""
+    out.mkdir(parents=True, exist_ok=True)
+    claims = {"000": seed000.run_all(out / "paper000", runs=options.runs, seed=options.seed,
+                                     runner=runner, progress_for=progress_for)}
+    run002 = seed002.run_all(out / "paper002", seed=options.seed, variations=options.variations,
+                             runner=runner, progress=progress, progress_for=progress_for)
+    claims["002"] = run002.claims
+    monitored = {"resimulations": concat(list(run002.result.resimulations.values()),
+                                         source="paper002 resimulations"),
+                 "variations": run002.campaign.runs}
+    _, claims["003"] = seed003.run_contracts(out / "paper003", monitored)
+    write_claims(claims["003"], out / "paper003" / "claims.json", {
+        "library": seed003.LIBRARY.name, "test_case": seed003.TEST_CASE,
+        "removed_model": seed003.REMOVED, "monitored_models": list(seed003.MONITORED_MODELS),
+        "monitored_runs": {k: v.n_runs for k, v in monitored.items()},
+        "monitor_tolerance": seed003.TOLERANCE})
+    inputs = {
+        seed003.LIBRARY.name: _sha256(seed003.LIBRARY),
+        "paper002/measurement/gt.parquet": _sha256(out / "paper002/measurement/gt.parquet"),
+        "paper002/measurement/sd.parquet": _sha256(out / "paper002/measurement/sd.parquet"),
+        "paper002/descriptions/fit_GT.json": _sha256(out / "paper002/descriptions/fit_GT.json"),
+    }
+    _write_combined(out, options, inputs)
+    return claims
+
+
+def _write_combined(out: Path, options: AllOptions, inputs: dict[str, str]) -> Path:
+    seeds: dict[str, Any] = {}
+    for seed, title in TITLES.items():
+        document = json.loads((out / f"paper{seed}" / "claims.json").read_text())
+        seeds[seed] = {"title": title, "provenance": document["provenance"],
+                       "claims": document["claims"]}
+    run = {"command": "simcred paper all",
+           "options": {"runs": options.runs, "variations": options.variations,
+                       "seed": options.seed},
+           "versions": versions(), "inputs": inputs}
+    path = out / "claims.json"
+    path.write_text(dumps(envelope("claims_all", {"seeds": seeds, "run": run})))
+    return path
