@@ -22,11 +22,13 @@ echo "== 4. distance matrix: baseline, an independent repeat of it, and the vari
   --names baseline,repeat,variant --features y,heading --test permutation --seed 0 \
   --out "$out/matrix"
 echo
-echo "== 5. seed 000, sec. VI at a reduced size (500 runs per set): SimpleCar λ sweep and T-junction"
-"$simcred" paper 000 --out "$out/paper000" --runs 500 --workers 2
+echo "== 5. all three methods on the embedded defaults (reduced size): simcred paper all"
+echo "   seed 000: SimpleCar sweep + T-junction (500 runs per set); seed 002: cut-in reprocessed"
+echo "   and varied 300 times; seed 003: configuration, quotient, monitors"
+"$simcred" paper all --out "$out/all" --runs 500 --variations 300 --workers 2
 echo
-echo "== 6. seed 002: the cut-in reprocessed (fit, resimulation, risk, errors) and varied 300 times"
-"$simcred" paper 002 --out "$out/paper002" --workers 2
+echo "== 6. the report"
+"$simcred" report "$out/all"
 echo
 echo "== 7. a real A9 recording (sensor data only), reprocessed"
 a9="$(dirname "$0")/../../shared/data/real/osc-generator-a9/trajectories_file.csv"
@@ -36,6 +38,6 @@ else
   echo "(skipped: $a9 not found)"
 fi
 echo
-echo "Outputs in $out/: compare-*/comparison.json, compare-*/state_map.png, matrix/matrix.{json,csv,png},"
-echo "  paper000/ (fig5_inputs.png, fig6_xy.png, fig7_xy_heading.png, table3_*.png, claims.json),"
-echo "  paper002/ (figures/fig3..fig7, errors.json, reaction.json, scenario.xosc, claims.json), a9/"
+echo "Outputs in $out/: compare-*/, matrix/, all/ (paper000/, paper002/, paper003/, claims.json), a9/"
+echo
+echo "The report: $(cd "$out/all" && pwd)/index.html"
