@@ -18,6 +18,7 @@ demo: $(STAMP)
 	bash scripts/demo.sh $(BIN)/simcred $(DEMO_OUT)
 
 test: $(STAMP)
+	bash scripts/ensure_chromium.sh
 	$(BIN)/python -m pytest
 
 test-fast: $(STAMP)

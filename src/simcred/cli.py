@@ -723,6 +723,22 @@ def _print_reactions(result) -> None:
     out_console.print(table)
 
 
+@app.command()
+@one_line_errors
+def report(
+    directory: Annotated[Path, typer.Argument(metavar="DIR", help="Output directory of simcred "
+                                                                  "paper all.")],
+    out: Annotated[Path | None, typer.Option(help="HTML file to write (default: "
+                                                  "DIR/index.html).")] = None,
+) -> None:
+    """Write a self-contained HTML report of the papers' claims, figures and provenance."""
+    from simcred.report.html import write_report
+
+    path = write_report(directory, out=out)
+    if not State.quiet:
+        out_console.print(str(path), markup=False, highlight=False, soft_wrap=True)
+
+
 def run(argv: Sequence[str] | None = None) -> int:
     """Run the CLI and return its exit code; usage errors, too, are one line on stderr."""
     args = list(sys.argv[1:] if argv is None else argv) or ["--help"]

@@ -284,16 +284,22 @@ def _flatten(value: Any, prefix: str = "") -> list[dict]:
 
 
 def _experiments(provenance: Any) -> list[str]:
-    """One line per experiment of the provenance: its name, runs, sizes and seed."""
+    """One line per experiment of the provenance (its name, runs, sizes and seed), and one for
+    the provenance's top-level settings, if any."""
     if not isinstance(provenance, dict):
         return []
-    lines = []
+
+    def scalars(part: dict) -> list[str]:
+        return [f"{k} = {_text(v)}" for k, v in part.items() if not isinstance(v, dict | list)]
+
+    settings = scalars(provenance)
+    lines = [", ".join(settings[:6]) + (", …" if len(settings) > 6 else "")] if settings else []
     for name, part in provenance.items():
         if not isinstance(part, dict):
             continue
         facts = [f"{k} = {_text(part[k])}" for k in ("experiment", "runs", "n",
                                                      "sets_per_category", "seed")
-                 if k in part and not isinstance(part[k], dict | list)]
+                 if k in part and not isinstance(part[k], dict | list)] or scalars(part)[:6]
         lines.append(f"{name}: {', '.join(facts)}" if facts else str(name))
     return lines
 
@@ -358,9 +364,13 @@ def _configuration(part: Any) -> dict | None:
 def _quotient(part: Any) -> dict | None:
     if not isinstance(part, dict):
         return None
-    accepts = part.get("accepts")
+    accepts, given = part.get("accepts"), part.get("given")
     return {"removed": _text(part.get("removed")), "test_case": _text(part.get("test_case")),
             "configurable_without": _text(part.get("configurable_without")),
+            "without_reason": "" if part.get("without_reason") is None
+            else _text(part.get("without_reason")),
+            "given": [(_text(k), _text(v)) for k, v in given.items()]
+            if isinstance(given, dict) else [],
             "requirement": _text(part.get("requirement")),
             "accepts": [(_text(k), _status(v)) for k, v in accepts.items()]
             if isinstance(accepts, dict) else []}
