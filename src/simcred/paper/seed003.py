@@ -20,10 +20,16 @@ import yaml
 
 from simcred._json import dumps
 from simcred.contracts.algebra import Contract, refines
-from simcred.contracts.configure import configure, setup_refines
+from simcred.contracts.configure import (
+    configure,
+    missing_model_requirement,
+    missing_ports,
+    setup_refines,
+)
 from simcred.contracts.expr import Bool, to_text
 from simcred.contracts.library import Library
 from simcred.contracts.monitor import MonitorReport, monitor
+from simcred.contracts.project import project
 from simcred.paper.claims import Claim
 from simcred.traces import TIME, TraceSet
 
@@ -73,9 +79,6 @@ def _without(library_path: Path, model: str) -> Library:
 
 
 def _quotient(library_path: Path, library: Library, setup: dict[str, str]) -> dict[str, Any]:
-    from simcred.contracts.configure import missing_model_requirement, missing_ports
-    from simcred.contracts.project import project
-
     reduced = _without(library_path, REMOVED)
     without = configure(reduced, TEST_CASE)
     component = library.spec.models[REMOVED].implements
