@@ -12,8 +12,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import platform
 import sys
 import time
 from pathlib import Path
@@ -26,7 +24,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-from _timing import best_of  # noqa: E402
+from _timing import best_of, machine  # noqa: E402
 
 from oracle import literal_compare  # noqa: E402
 from simcred.compare import compare, matrix  # noqa: E402
@@ -135,8 +133,7 @@ def main() -> None:
     args = parser.parse_args()
     scale = 10 if args.quick else 1
     results = {
-        "machine": {"cpus": os.cpu_count(), "python": platform.python_version(),
-                    "numpy": np.__version__},
+        "machine": machine(),
         "oracle": bench_oracle(500 // scale, 200),
         "matrix": bench_matrix(1000 // scale, 200, 999),
         "flat_in_n": bench_flat_in_n(999),

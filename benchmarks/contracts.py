@@ -14,8 +14,6 @@ from __future__ import annotations
 import argparse
 import itertools
 import json
-import os
-import platform
 import sys
 from pathlib import Path
 
@@ -25,7 +23,7 @@ from rich.table import Table
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
-from _timing import best_of  # noqa: E402
+from _timing import best_of, machine  # noqa: E402
 
 from simcred.contracts.algebra import Contract  # noqa: E402
 from simcred.contracts.configure import configure  # noqa: E402
@@ -121,7 +119,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--quick", action="store_true")
     args = parser.parse_args()
-    results = {"machine": {"cpus": os.cpu_count(), "python": platform.python_version()},
+    results = {"machine": machine(),
                "configuration": bench_configuration(range(2) if args.quick else range(5)),
                "monitor": bench_monitor(10**6 if args.quick else 10**7)}
     table = Table(title="simcred contracts benchmarks")

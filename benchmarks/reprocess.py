@@ -14,9 +14,6 @@ Usage: python benchmarks/reprocess.py [--quick]
 from __future__ import annotations
 
 import argparse
-import json
-import os
-import platform
 import sys
 from pathlib import Path
 
@@ -32,7 +29,7 @@ from simcred.sim.experiments import cutin
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
-from _timing import best_of  # noqa: E402
+from _timing import best_of, machine, save_results  # noqa: E402
 
 TARGETS = {"fit": 0.2, "ttr per scene": 5e-3, "pipeline": 15.0}
 
@@ -118,12 +115,8 @@ def main() -> None:
                       "[green]yes[/green]" if met else "[red]no[/red]", reference, f"{ratio:.1f}×")
         results[key]["target_s"], results[key]["met"] = TARGETS[key], met
     Console().print(table)
-    out = ROOT / "benchmarks" / "results" / "reprocess.json"
-    out.parent.mkdir(exist_ok=True)
-    machine = {"python": platform.python_version(), "cpus": os.cpu_count(),
-               "machine": platform.machine()}
-    out.write_text(json.dumps({"machine": machine, "results": results}, indent=1) + "\n")
-    print(f"wrote {out}")
+    save_results(ROOT / "benchmarks" / "results" / "reprocess.json",
+                 {"machine": machine(), "results": results})
 
 
 if __name__ == "__main__":

@@ -16,8 +16,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import platform
 import sys
 from pathlib import Path
 
@@ -37,7 +35,7 @@ from simcred.sim.vehicles import (  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
-from _timing import best_of  # noqa: E402
+from _timing import best_of, machine  # noqa: E402
 
 DT = 0.01
 TARGET = 1e6  # vehicle-steps/s, batched SimpleCar on 2 cores
@@ -110,8 +108,7 @@ def main() -> None:
     for row in rows:
         row["cost_per_run_ratio_to_simplecar"] = row["s_per_simulated_s_per_run"] / reference
     results = {
-        "machine": {"cpus": os.cpu_count(), "python": platform.python_version(),
-                    "numpy": np.__version__},
+        "machine": machine(),
         "settings": {"integrator": "RK4", "dt_s": DT, "vehicle_parameters": "CommonRoad vehicle 2"
                      " (BMW 320i)", "repeats": repeats, "timing": "best of repeats, one process"},
         "rows": rows,

@@ -12,9 +12,6 @@ Usage: python benchmarks/vary.py [--quick]
 from __future__ import annotations
 
 import argparse
-import json
-import os
-import platform
 import sys
 from pathlib import Path
 
@@ -30,7 +27,7 @@ from simcred.sim.resimulation import resimulate
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
-from _timing import best_of  # noqa: E402
+from _timing import best_of, machine, save_results  # noqa: E402
 
 TARGET = 10.0
 
@@ -71,11 +68,8 @@ def main() -> None:
         results[label] = {"seconds": seconds, "met": met, "ratio_to_one_resimulation":
                           seconds / one}
     Console().print(table)
-    out = ROOT / "benchmarks" / "results" / "vary.json"
-    machine = {"python": platform.python_version(), "cpus": os.cpu_count(),
-               "machine": platform.machine()}
-    out.write_text(json.dumps({"machine": machine, "results": results}, indent=1) + "\n")
-    print(f"wrote {out}")
+    save_results(ROOT / "benchmarks" / "results" / "vary.json",
+                 {"machine": machine(), "results": results})
 
 
 if __name__ == "__main__":
