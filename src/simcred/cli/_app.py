@@ -1,0 +1,105 @@
+"""The typer app, its consoles and what every command group shares (options, errors, progress).
+
+Exit codes: 0 done, 1 negative verdict, 2 bad input or usage (one red line, no traceback),
+3 undecided.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable
+from functools import wraps
+from typing import Annotated
+
+import typer
+from rich.console import Console
+from rich.progress import track
+
+from simcred import __version__
+from simcred.engine import Progress
+from simcred.errors import SimcredError
+
+app = typer.Typer(
+    name="simcred",
+    help="Can I trust this simulation for this test case?",
+    pretty_exceptions_show_locals=False,
+    add_completion=False,
+)
+out_console = Console()
+err_console = Console(stderr=True)
+EXIT_BAD_INPUT = 2
+
+
+class State:
+    quiet = False
+    debug = False
+
+
+@app.callback()
+def main(
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress or tables.")] = False,
+    debug: Annotated[bool, typer.Option("--debug", help="Tracebacks for input errors.")] = False,
+    version: Annotated[bool, typer.Option("--version", help="Print the version and exit.",
+                                          is_eager=True)] = False,
+) -> None:
+    """simcred: validity of simulation models for testing automated driving."""
+    if version:
+        out_console.print(f"simcred {__version__}")
+        raise typer.Exit(0)
+    State.quiet, State.debug = quiet, debug
+
+
+def one_line_errors(command: Callable) -> Callable:
+    """Turn a SimcredError into one red line on stderr and exit code 2."""
+
+    @wraps(command)
+    def wrapper(*args, **kwargs):
+        try:
+            return command(*args, **kwargs)
+        except SimcredError as exc:
+            if State.debug:
+                raise
+            err_console.print(f"[red]error:[/red] {exc}", highlight=False, soft_wrap=True)
+            raise typer.Exit(EXIT_BAD_INPUT) from None
+
+    return wrapper
+
+
+def progress(description: str) -> Progress | None:
+    """A rich progress bar on stderr, only on a terminal and without --quiet."""
+    if State.quiet or not sys.stderr.isatty():
+        return None
+    return lambda items, total: track(items, total=total, description=description,
+                                      console=err_console, transient=True)
+
+
+
+Seed = Annotated[int | None, typer.Option(help="Seed (default: fresh entropy, stored in the "
+                                               "result).")]
+Workers = Annotated[int | None, typer.Option(help="Run on a local Dask cluster of N worker "
+                                                   "processes (default: in-process).")]
+Scheduler = Annotated[str | None, typer.Option(help="Run on the Dask scheduler at this address "
+                                                    "(e.g. tcp://host:8786).")]
+Json = Annotated[bool, typer.Option("--json", help="Print the result JSON to stdout.")]
+
+
+def _steps(description: str) -> Callable[[str], None] | None:
+    """Prints each pipeline step on stderr (on a terminal, without --quiet)."""
+    if State.quiet or not sys.stderr.isatty():
+        return None
+    return lambda step: err_console.print(f"[dim]{description}: {step}[/dim]")
+
+
+
+def _emit(document: dict, as_json: bool, summary: str) -> None:
+    import json
+
+    if as_json:
+        sys.stdout.write(json.dumps(document, indent=1, ensure_ascii=False) + "\n")
+    elif not State.quiet:
+        out_console.print(summary, highlight=False)
+
+
+
+
+ResimVehicle = Annotated[str, typer.Option(help="EGO vehicle model of the resimulation: ks or st.")]

@@ -1,0 +1,126 @@
+"""simcred paper 000|002|all and simcred report."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from simcred.cli._app import (
+    Scheduler,
+    State,
+    Workers,
+    _steps,
+    app,
+    one_line_errors,
+    out_console,
+    progress,
+)
+from simcred.errors import OptionError
+
+paper_app = typer.Typer(help="Regenerate the papers' experiments and check their claims.")
+app.add_typer(paper_app, name="paper")
+
+
+@paper_app.command("000")
+@one_line_errors
+def paper_000(
+    out: Annotated[Path, typer.Option(help="Directory for figures, tables and claims.json.")],
+    runs: Annotated[int | None, typer.Option(help="Runs per trace set (default: the "
+                                                  "documented full size).")] = None,
+    seed: Annotated[int, typer.Option(help="Seed of every campaign and test.")] = 0,
+    workers: Workers = None,
+    scheduler: Scheduler = None,
+) -> None:
+    """Neurohr et al. sec. VI: SimpleCar λ sweep (Figs. 5-7) and T-junction (Table 3)."""
+    from simcred.engine import engine
+    from simcred.paper import seed000
+    from simcred.paper.claims import claims_table
+
+    if runs is not None and runs < 2:
+        raise OptionError(f"runs must be at least 2, got {runs}")
+    with engine(workers, scheduler) as runner:
+        claims = seed000.run_all(out, runs=runs, seed=seed, runner=runner,
+                                 progress_for=progress)
+    if not State.quiet:
+        out_console.print(claims_table(claims, "seed 000: the paper's claims"))
+        out_console.print(f"wrote figures, tables and claims.json to {out}")
+
+
+@paper_app.command("002")
+@one_line_errors
+def paper_002(
+    out: Annotated[Path, typer.Option(help="Directory for the measurement, the reprocessing "
+                                           "results, figures and claims.json.")],
+    seed: Annotated[int, typer.Option(help="Seed of the manufactured universe (the variations "
+                                           "use seed + 1).")] = 0,
+    variations: Annotated[int, typer.Option(help="Variations of the cut-in (sec. V).")] = 300,
+    workers: Workers = None,
+    scheduler: Scheduler = None,
+) -> None:
+    """Wagner, Groh et al.: reprocessing the cut-in (Figs. 3-8, eqs. 2-7) and its claims."""
+    from simcred.engine import engine
+    from simcred.paper import seed002
+    from simcred.paper.claims import claims_table
+
+    if variations < 20:
+        raise OptionError(f"variations must be at least 20 (for the 5th/95th percentiles), "
+                          f"got {variations}")
+    with engine(workers, scheduler) as runner:
+        claims = seed002.run_all(out, seed=seed, variations=variations, runner=runner,
+                                 progress=_steps("paper 002"), progress_for=progress).claims
+    if not State.quiet:
+        out_console.print(claims_table(claims, "seed 002: the paper's claims"))
+        out_console.print(f"wrote measurement, results, figures and claims.json to {out}")
+
+
+
+@paper_app.command("all")
+@one_line_errors
+def paper_all(
+    out: Annotated[Path, typer.Option(help="Directory for every seed's results and the "
+                                           "combined claims.json.")],
+    runs: Annotated[int | None, typer.Option(help="Seed 000: runs per trace set (default: the "
+                                                  "documented full size).")] = None,
+    variations: Annotated[int, typer.Option(help="Seed 002: variations of the cut-in.")] = 300,
+    seed: Annotated[int, typer.Option(help="Seed of every experiment.")] = 0,
+    workers: Workers = None,
+    scheduler: Scheduler = None,
+) -> None:
+    """All three seeds: paper 000, paper 002, and seed 003's contracts on the cut-in."""
+    from simcred.engine import engine
+    from simcred.paper.all import AllOptions, run_all
+    from simcred.paper.claims import claims_table
+
+    if runs is not None and runs < 2:
+        raise OptionError(f"runs must be at least 2, got {runs}")
+    if variations < 20:
+        raise OptionError(f"variations must be at least 20, got {variations}")
+    with engine(workers, scheduler) as runner:
+        claims = run_all(out, AllOptions(runs=runs, variations=variations, seed=seed),
+                         runner=runner, progress=_steps("paper 002"), progress_for=progress)
+    if not State.quiet:
+        for key, found in claims.items():
+            out_console.print(claims_table(found, f"seed {key}: claims"))
+        total = sum(len(c) for c in claims.values())
+        held = sum(c.passed for found in claims.values() for c in found)
+        out_console.print(f"{held} of {total} claims hold; wrote {out / 'claims.json'}")
+
+
+@app.command()
+@one_line_errors
+def report(
+    directory: Annotated[Path, typer.Argument(metavar="DIR", help="Output directory of simcred "
+                                                                  "paper all.")],
+    out: Annotated[Path | None, typer.Option(help="HTML file to write (default: "
+                                                  "DIR/index.html).")] = None,
+) -> None:
+    """Write a self-contained HTML report of the papers' claims, figures and provenance."""
+    from simcred.report.html import write_report
+
+    path = write_report(directory, out=out)
+    if not State.quiet:
+        out_console.print(str(path), markup=False, highlight=False, soft_wrap=True)
+
+

@@ -1,0 +1,121 @@
+"""Commands of seed 002: reprocess, vary."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.table import Table
+
+from simcred.cli._app import (
+    ResimVehicle,
+    Scheduler,
+    State,
+    Workers,
+    _steps,
+    app,
+    one_line_errors,
+    out_console,
+    progress,
+)
+from simcred.errors import OptionError
+
+
+@app.command()
+@one_line_errors
+def reprocess(
+    measurement: Annotated[Path, typer.Argument(help="A measurement directory (simcred simulate "
+                                                     "cutin) or an A9 sensor-data CSV file.")],
+    out: Annotated[Path, typer.Option(help="Directory for the results.")],
+    vehicle: ResimVehicle = "ks",
+    object_id: Annotated[int | None, typer.Option(
+        "--object", help="A9 CSV: the object to reprocess (default: the lane changer).")] = None,
+    seed: Annotated[int, typer.Option(help="Seed of the resimulations' sensor noise.")] = 0,
+    threshold: Annotated[float, typer.Option(help="Position RMSE [m] at which the fit stops "
+                                                  "adding sections.")] = 0.02,
+    scenario_based: Annotated[bool, typer.Option(
+        help="Also resimulate with the scenario-based sensor model (needs GT).")] = True,
+) -> None:
+    """Reprocess a drive: fit, resimulate, refit, assess; errors per step (Wagner, Groh et al.)."""
+    from simcred.reprocess import output
+    from simcred.reprocess.inputs import read_measurement
+    from simcred.reprocess.pipeline import ReprocessConfig
+    from simcred.reprocess.pipeline import reprocess as run_pipeline
+    from simcred.sim.experiments.cutin import vehicle_model
+
+    vehicle_model(vehicle)  # validates the name before any work
+    config = ReprocessConfig(vehicle=vehicle, seed=seed, threshold=threshold,
+                             scenario_based=scenario_based)
+    result = run_pipeline(read_measurement(measurement, object_id), config,
+                          _steps("reprocessing"))
+    output.write(result, out)
+    if not State.quiet:
+        _print_reactions(result)
+        out_console.print(f"wrote errors.json, reaction.json, descriptions, scenario.xosc and "
+                          f"figures to {out}")
+
+
+@app.command()
+@one_line_errors
+def vary(
+    description: Annotated[Path, typer.Argument(help="Scenario description JSON (e.g. "
+                                                     "descriptions/fit_GT.json of reprocess).")],
+    out: Annotated[Path, typer.Option(help="Directory for variations, runs and figures.")],
+    n: Annotated[int, typer.Option("-n", "--n", help="Variations to generate.")] = 300,
+    seed: Annotated[int, typer.Option(help="Seed: variation i uses SeedSequence(seed, "
+                                           "spawn_key=(i,)).")] = 1,
+    vehicle: ResimVehicle = "ks",
+    workers: Workers = None,
+    scheduler: Scheduler = None,
+) -> None:
+    """Local variations of the TO's cut-in (Wagner, Groh et al. sec. V): vary, resimulate, risk."""
+    from simcred.engine import engine
+    from simcred.reprocess.vary import VaryConfig, run_campaign, write_campaign
+    from simcred.scenario.description import ScenarioDescription
+    from simcred.sim.experiments.cutin import vehicle_model
+
+    if n < 1:
+        raise OptionError(f"n must be at least 1, got {n}")
+    vehicle_model(vehicle)
+    original = ScenarioDescription.read(description)
+    with engine(workers, scheduler) as runner:
+        campaign = run_campaign(original, VaryConfig(n=n, seed=seed, vehicle=vehicle),
+                                runner=runner, progress_for=progress)
+    write_campaign(campaign, out)
+    if not State.quiet:
+        _print_campaign(campaign.summary())
+        out_console.print(f"wrote variations.json, variation_set.json, runs.parquet and "
+                          f"figures/fig8_variations.png to {out}")
+
+
+def _print_campaign(summary: dict) -> None:
+    table = Table(title="variation campaign")
+    table.add_column("what")
+    table.add_column("value")
+    p = summary["max_risk_percentiles"]
+    rows = [("generated / kept / rejected",
+             f"{summary['generated']} / {summary['kept']} / {summary['rejected']}"),
+            ("rejected because", ", ".join(f"{k}: {v}" for k, v in summary["rejections"].items())
+             or "—"),
+            ("manoeuvres", ", ".join(f"{k}: {v}" for k, v in summary["manoeuvres"].items())),
+            ("same category", f"{summary['same_category']:.1%}"),
+            ("max risk p5 / p50 / p95", f"{p['p5']:.3g} / {p['p50']:.3g} / {p['p95']:.3g}"),
+            ("unvaried (rGT) max risk", f"{summary['reference']['max_risk']:.3g} "
+                                        f"(percentile {summary['reference_risk_percentile']:.0f})"),
+            ("outside the validity range", str(len(summary["validity"]["outside"])))]
+    for row in rows:
+        table.add_row(*row)
+    out_console.print(table)
+
+
+def _print_reactions(result) -> None:
+    table = Table(title="EGO reaction per representation")
+    for column in ("trace", "manoeuvre", "reaction time [s]", "max risk"):
+        table.add_column(column)
+    for name, r in result.reactions.items():
+        time = "—" if r.time != r.time else f"{r.time:.2f}"
+        table.add_row(name, r.manoeuvre, time, f"{result.risk[name]['risk'].max():.3g}")
+    out_console.print(table)
+
+
