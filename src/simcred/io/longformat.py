@@ -170,7 +170,8 @@ def _check_duplicates(records, order, run_code, obj_code, run_names, obj_names) 
         obj = obj_names[obj_code[a]]
         who = f"run '{run_names[run_code[a]]}'" + (f", object '{obj}'" if obj else "")
         raise TraceSetError(f"{records.where}: {who} has two {records.row_name}s at "
-                            f"t={float(records.time[a])!r} ({records.row_name}s {a + 1} and {b + 1})")
+                            f"t={float(records.time[a])!r} "
+                            f"({records.row_name}s {a + 1} and {b + 1})")
 
 
 def _run_block(records, rows, codes, obj_names, where, missing):
