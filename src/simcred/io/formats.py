@@ -64,7 +64,7 @@ FORMATS: dict[str, Format] = {f.name: f for f in (
     Format("long", "longformat", "one long-format CSV or Parquet file (run/time/object columns)",
            LONG_READ, LONG_WRITE),
     Format("sumo-fcd", "sumo_fcd", "SUMO floating car data XML (<fcd-export>)", OBJECT_OPTIONS),
-    Format("commonroad", "commonroad", "CommonRoad XML scenario", ("layout",)),
+    Format("commonroad", "commonroad", "CommonRoad XML scenario", ("layout", "missing")),
     Format("osi", "osi", "ASAM OSI GroundTruth trace (.osi length-prefixed, .mcap)",
            ("objects_as", "missing"), ("name",)),
 )}
