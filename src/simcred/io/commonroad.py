@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from simcred.errors import TraceSetError
+from simcred.io._xml import xml_root
 from simcred.io.longformat import Records, to_traceset
 from simcred.traces import TraceSet
 
@@ -38,6 +39,9 @@ _ATTRIBUTE = {"heading": "orientation", "v": "velocity"}
 def _open(path: Path):
     from commonroad.common.file_reader import CommonRoadFileReader
 
+    root = xml_root(path)  # refuses DTDs and entities before commonroad-io's parser sees the file
+    if root != "commonRoad":
+        raise TraceSetError(f"{path}: root element <{root}> is not <commonRoad>")
     try:
         with warnings.catch_warnings(), _quiet("commonroad"):
             warnings.simplefilter("ignore")

@@ -21,7 +21,6 @@ Each format accepts only its own options; any other is a one-line :class:`Option
 
 from __future__ import annotations
 
-import gzip
 import hashlib
 import importlib
 from collections.abc import Mapping
@@ -29,9 +28,8 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from defusedxml import ElementTree as SafeET
-
 from simcred.errors import OptionError, TraceSetError
+from simcred.io._xml import xml_root
 from simcred.traces import TraceSet
 
 LONG_READ = ("run_column", "time_column", "object_column", "signals", "objects_as", "missing",
@@ -85,18 +83,6 @@ def _suffix(path: Path) -> str:
     if suffixes[-1:] == [".gz"] and len(suffixes) >= 2:
         return suffixes[-2] + ".gz"
     return path.suffix.lower()
-
-
-def xml_root(path: Path) -> str:
-    """The tag of the root element, read without expanding entities or loading DTDs."""
-    opener = gzip.open if _suffix(path).endswith(".gz") else open
-    try:
-        with opener(path, "rb") as stream:
-            for _, element in SafeET.iterparse(stream, events=("start",), forbid_dtd=True):
-                return element.tag
-    except (SafeET.ParseError, OSError, EOFError, ValueError) as exc:
-        raise TraceSetError(f"{path}: unreadable XML ({str(exc).splitlines()[0]})") from None
-    raise TraceSetError(f"{path}: empty XML document")
 
 
 def detect(path: str | Path, *, for_writing: bool = False,

@@ -97,8 +97,12 @@ def _codes(labels: np.ndarray) -> tuple[np.ndarray, list[str]]:
 
 def to_traceset(records: Records, *, objects_as: str = "signals", missing: str = "error",
                 object_prefix: str | None = None, metadata: Mapping[str, Any] | None = None,
-                source: str | None = None) -> TraceSet:
-    """Assemble long-format ``records`` into a TraceSet following the module's rules."""
+                source: str | None = None, skip_short_runs: bool = False) -> TraceSet:
+    """Assemble long-format ``records`` into a TraceSet following the module's rules.
+
+    With ``skip_short_runs`` a run with fewer than two time steps (an object seen once) is left
+    out and named in the metadata under ``runs_too_short``, instead of being an error.
+    """
     _check_choice("objects_as", objects_as, OBJECTS_AS)
     _check_choice("missing", missing, MISSING)
     n = len(records.time)
@@ -124,9 +128,13 @@ def to_traceset(records: Records, *, objects_as: str = "signals", missing: str =
     _check_duplicates(records, order, run_code, obj_code, run_names, obj_names)
     run_start = np.flatnonzero(np.diff(run_code[order], prepend=-1))
     run_stop = np.append(run_start[1:], n)
-    blocks, times, signals, dropped = [], [], None, 0
+    blocks, times, signals, dropped, kept, short = [], [], None, 0, [], []
     for r, (lo, hi) in enumerate(zip(run_start, run_stop, strict=True)):
         rows = order[lo:hi]
+        if skip_short_runs and len(np.unique(records.time[rows])) < 2:
+            short.append(run_names[r])
+            continue
+        kept.append(run_names[r])
         where = f"{records.where}: run '{run_names[r]}'"
         t, names, block, lost = _run_block(records, rows, obj_code[rows], obj_names, where,
                                            missing)
@@ -140,12 +148,16 @@ def to_traceset(records: Records, *, objects_as: str = "signals", missing: str =
     meta = dict(metadata or {})
     if dropped:
         meta["rows_dropped_by_intersect"] = dropped
+    if short:
+        meta["runs_too_short"] = short
+    if not kept:
+        raise TraceSetError(f"{records.where}: no run has two time steps or more")
     return TraceSet(
         signals=tuple(signals),
         time=np.concatenate(times),
         values=np.concatenate(blocks),
         offsets=np.concatenate([[0], np.cumsum([len(t) for t in times])]),
-        run_ids=tuple(run_names),
+        run_ids=tuple(kept),
         metadata=meta,
         source=source or records.where,
     )
