@@ -49,8 +49,8 @@ def convert(
     layout: Annotated[str | None, typer.Option(
         help="CommonRoad: obstacles (each dynamic obstacle a run) or scenario (one run, "
              "obj<id>. signals).")] = None,
-    name: Annotated[str | None, typer.Option(help="OSI output: name of the trace (MCAP topic)."
-                                             )] = None,
+    host: Annotated[str | None, typer.Option(help="OSI output: the object that is the host "
+                                                  "vehicle (default: ego, if present).")] = None,
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing OUT (never "
                                                                 "the input).")] = False,
     as_json: Json = False,
@@ -60,7 +60,7 @@ def convert(
 
     given = dict(run_column=run_column, time_column=time_column, object_column=object_column,
                  signals=_signals(signals), objects_as=objects_as, missing=missing,
-                 object_prefix=object_prefix, layout=layout, name=name)
+                 object_prefix=object_prefix, layout=layout, host=host)
     options = {k: v for k, v in given.items() if v is not None}
     result = convert_traces(source, target, source_format=input_format,
                             target_format=output_format, overwrite=overwrite, **options)

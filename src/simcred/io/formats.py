@@ -64,7 +64,7 @@ FORMATS: dict[str, Format] = {f.name: f for f in (
     Format("sumo-fcd", "sumo_fcd", "SUMO floating car data XML (<fcd-export>)", OBJECT_OPTIONS),
     Format("commonroad", "commonroad", "CommonRoad XML scenario", ("layout", "missing")),
     Format("osi", "osi", "ASAM OSI GroundTruth trace (.osi length-prefixed, .mcap)",
-           ("objects_as", "missing"), ("name",)),
+           ("objects_as", "missing"), ("host",)),
 )}
 PARQUET_SUFFIXES = (".parquet", ".pq")
 OSI_SUFFIXES = (".osi", ".mcap")
