@@ -376,12 +376,13 @@ def _stored_metadata(table: pa.Table, path: Path) -> dict:
 # -- TraceSet -> file ------------------------------------------------------------------------------
 
 
-def split_signal(name: str) -> tuple[str, str]:
+def split_signal(name: str, *, where: str = "",
+                 hint: str = "write without an object column") -> tuple[str, str]:
     """``"ego.sensor.x"`` -> ``("ego.sensor", "x")``: the object is all before the last dot."""
     obj, dot, field = name.rpartition(".")
     if not dot or not obj or not field:
-        raise TraceSetError(f"signal '{name}' is not '<object>.<field>'; write without an "
-                            "object column")
+        prefix = f"{where}: " if where else ""
+        raise TraceSetError(f"{prefix}signal '{name}' is not '<object>.<field>'; {hint}")
     return obj, field
 
 

@@ -187,7 +187,8 @@ def _layout(traces: TraceSet, path: Path):
     """Per object: its OSI id and its (field, signal column) pairs."""
     per_object: dict[str, list[tuple[str, int]]] = {}
     for j, signal in enumerate(traces.signals):
-        obj, field = split_signal(signal)
+        obj, field = split_signal(signal, where=str(path), hint="OSI stores objects (read "
+                                  "per-object formats with objects_as='signals')")
         if field not in FIELDS:
             raise TraceSetError(f"{path}: signal '{signal}': OSI stores no field '{field}' "
                                 f"(fields: {', '.join(FIELDS)})")
