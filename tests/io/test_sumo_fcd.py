@@ -68,6 +68,7 @@ def test_fcd_read_equals_sumos_own_numbers(sumo_run):
     fcd, own = sumo_run
     traces = read(fcd)
     assert traces.run_ids == ("lead", "obj7")
+    assert traces.lengths.tolist() == [80, 75]  # 8 s at 0.1 s; "7" departs at 0.5 s
     assert set(traces.metadata["skipped_attributes"]) == {"type", "lane"}
     tolerance = 0.5 * 10.0**-PRECISION + 1e-12  # SUMO prints PRECISION digits after the point
     for i, vehicle in enumerate(("lead", "7")):

@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 import pyarrow as pa
+import pyarrow.compute as pc
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 
@@ -58,8 +59,8 @@ class Records:
 
     where: str
     time: np.ndarray
-    runs: np.ndarray | None
-    objects: np.ndarray | None
+    runs: Sequence[str] | pa.Array | None
+    objects: Sequence[str] | pa.Array | None
     fields: Mapping[str, tuple[np.ndarray, np.ndarray]]
     default_run: str
     row_name: str = "row"
@@ -87,12 +88,25 @@ def object_name(label: str, prefix: str | None) -> str:
 # -- records -> TraceSet ---------------------------------------------------------------------------
 
 
-def _codes(labels: np.ndarray) -> tuple[np.ndarray, list[str]]:
-    """Integer codes of ``labels`` numbered by first appearance, and the labels in that order."""
-    names, first, inverse = np.unique(labels, return_index=True, return_inverse=True)
-    rank = np.empty(len(names), dtype=np.int64)
-    rank[np.argsort(first, kind="stable")] = np.arange(len(names))
-    return rank[inverse.ravel()], [str(n) for n in names[np.argsort(first, kind="stable")]]
+def _codes(labels) -> tuple[np.ndarray, list[str]]:
+    """Integer codes of ``labels`` numbered by first appearance, and the labels in that order.
+
+    Arrow's dictionary encoding numbers values by first appearance, in C (labels may be an Arrow
+    array or a sequence of str).
+    """
+    array = labels if isinstance(labels, pa.Array) else pa.array(labels, type=pa.string())
+    encoded = pc.dictionary_encode(array)
+    codes = encoded.indices.to_numpy(zero_copy_only=False).astype(np.int64, copy=False)
+    return codes, [str(v) for v in encoded.dictionary.to_pylist()]
+
+
+def _first_appearance(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Codes of integer ``keys`` by first appearance, and the key of each code."""
+    unique, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
+    order = np.argsort(first, kind="stable")
+    rank = np.empty(len(unique), dtype=np.int64)
+    rank[order] = np.arange(len(unique))
+    return rank[inverse.ravel()], unique[order]
 
 
 def to_traceset(records: Records, *, objects_as: str = "signals", missing: str = "error",
@@ -109,21 +123,23 @@ def to_traceset(records: Records, *, objects_as: str = "signals", missing: str =
     if n == 0:
         raise TraceSetError(f"{records.where}: the trace set is empty (no rows)")
     _check_finite(records)
-    runs = np.full(n, records.default_run, dtype=object) if records.runs is None else records.runs
-    objects = records.objects
-    if objects_as == "runs":
-        if objects is None:
+    if records.runs is None:
+        run_code, run_names = np.zeros(n, dtype=np.int64), [records.default_run]
+    else:
+        run_code, run_names = _codes(records.runs)
+    if records.objects is None:
+        if objects_as == "runs":
             raise OptionError("objects_as='runs' needs an object column")
-        names = np.array([object_name(str(o), object_prefix) for o in objects], dtype=object)
-        runs = names if records.runs is None else np.array(
-            [f"{r}.{o}" for r, o in zip(runs, names, strict=True)], dtype=object)
-        objects = None
-    run_code, run_names = _codes(np.asarray(runs, dtype=str))
-    if objects is None:
         obj_code, obj_names = np.zeros(n, dtype=np.int64), [""]
     else:
-        obj_code, obj_labels = _codes(np.asarray(objects, dtype=str))
+        obj_code, obj_labels = _codes(records.objects)
         obj_names = [object_name(o, object_prefix) for o in obj_labels]
+    if objects_as == "runs":  # every (run, object) pair is a run
+        run_code, pairs = _first_appearance(run_code * len(obj_names) + obj_code)
+        run_names = [obj_names[p % len(obj_names)] if records.runs is None
+                     else f"{run_names[p // len(obj_names)]}.{obj_names[p % len(obj_names)]}"
+                     for p in pairs]
+        obj_code, obj_names = np.zeros(n, dtype=np.int64), [""]
     order = np.lexsort((records.time, obj_code, run_code))
     _check_duplicates(records, order, run_code, obj_code, run_names, obj_names)
     run_start = np.flatnonzero(np.diff(run_code[order], prepend=-1))
@@ -265,7 +281,8 @@ def _first_line(exc: BaseException) -> str:
     return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
 
 
-def _labels(table: pa.Table, name: str | None, where: str) -> np.ndarray | None:
+def _labels(table: pa.Table, name: str | None, where: str) -> pa.Array | None:
+    """The key column ``name`` as an Arrow string array (integers become their decimal text)."""
     if name is None:
         return None
     _require(table, name, where)
@@ -273,7 +290,11 @@ def _labels(table: pa.Table, name: str | None, where: str) -> np.ndarray | None:
     if column.null_count:
         row = int(np.flatnonzero(column.is_null().to_numpy(zero_copy_only=False))[0]) + 1
         raise TraceSetError(f"{where}: column '{name}', row {row}: value is missing")
-    return np.asarray([str(v) for v in column.to_pylist()], dtype=object)
+    try:
+        return pc.cast(column.combine_chunks(), pa.string())
+    except pa.ArrowException:
+        raise TraceSetError(f"{where}: column '{name}' (type {column.type}) cannot name runs "
+                            "or objects") from None
 
 
 def _require(table: pa.Table, name: str, where: str) -> None:
