@@ -92,3 +92,30 @@ def test_convert_refuses_a_directory_output_inside_the_input(tmp_path, capsys):
     assert run(["convert", str(src), str(src / "nested")]) == 2
     assert "overwrite the input" in capsys.readouterr().err
     assert run(["convert", str(src / "r1.csv"), str(src.parent)]) == 2
+
+
+def test_reader_options_do_not_change_the_output_format(tmp_path):
+    # --objects-as is the reader's: a .parquet output stays the native Parquet format
+    same_fields = TraceSet.from_runs([{"t": [0, 1], "ego.x": [0, 1], "lead.x": [5, 7]}],
+                                     run_ids=["r1"])
+    src = write(same_fields, tmp_path / "in.csv", object_column="obj")
+    out = tmp_path / "out.parquet"
+    assert run(["--quiet", "convert", str(src), str(out), "--object-column", "obj",
+                "--run-column", "run", "--objects-as", "runs"]) == 0
+    back = read(out)
+    assert back.run_ids == ("r1.ego", "r1.lead") and back.signals == ("x",)
+    assert back.column("x").tolist() == [0, 1, 5, 7]
+    assert detect(out, for_writing=True, options={"objects_as": "runs"}).name == "parquet"
+
+
+def test_convert_real_commonroad_to_long_csv_and_back(tmp_path):
+    from pathlib import Path
+
+    scenario = Path(__file__).parent.parent / "data" / "commonroad-ngsim" / "USA_US101-3_3_T-1.xml"
+    out = tmp_path / "us101.csv"
+    assert run(["--quiet", "convert", str(scenario), str(out)]) == 0
+    back = read(out, run_column="run")
+    original = read(scenario)
+    assert back.run_ids == original.run_ids
+    assert back.values.tobytes() == original.values.tobytes()
+    assert back.time.tobytes() == original.time.tobytes()

@@ -203,3 +203,16 @@ def test_written_rows_are_ordered_by_run_time_object(tmp_path):
     # signals come back grouped by object (first appearance), fields in column order
     assert back.signals == ("ego.x", "ego.v", "lead.x")
     assert back.features(ts.signals).tolist() == ts.values.tolist()
+
+
+def test_highd_style_frames_and_semicolons(tmp_path):
+    # highD tracks: frame numbers at 25 Hz, one row per (frame, vehicle); here with ';' as in
+    # SUMO's xml2csv default and many spreadsheet exports
+    path = write_text(tmp_path / "01_tracks.csv", "frame;id;x;xVelocity\n1;3;10.0;30\n"
+                      "1;4;50.0;28\n2;3;11.2;30.5\n2;4;51.1;28.25\n")
+    ts = read(path, time_column="frame", object_column="id", objects_as="runs", time_scale=0.04)
+    assert ts.run_ids == ("obj3", "obj4") and ts.signals == ("x", "xVelocity")
+    assert ts.time.tolist() == [0.04, 0.08, 0.04, 0.08]
+    assert ts.column("xVelocity").tolist() == [30, 30.5, 28, 28.25]
+    with pytest.raises(OptionError, match="time_scale must be"):
+        read(path, time_column="frame", time_scale=0)

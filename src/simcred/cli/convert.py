@@ -35,6 +35,9 @@ def convert(
     object_column: Annotated[str | None, typer.Option(
         help="Long format: column naming the object; objects become <object>.<column> "
              "signals (integer ids: obj<id>.<column>).")] = None,
+    time_scale: Annotated[float | None, typer.Option(
+        help="Long format: seconds per unit of the time column (0.04 for 25 Hz frame numbers, "
+             "0.001 for ms; default: 1).")] = None,
     signals: Annotated[str | None, typer.Option(help="Long format: comma-separated value "
                                                      "columns to keep (default: all numeric).")
                        ] = None,
@@ -59,6 +62,7 @@ def convert(
     from simcred.io.formats import convert as convert_traces
 
     given = dict(run_column=run_column, time_column=time_column, object_column=object_column,
+                 time_scale=time_scale,
                  signals=_signals(signals), objects_as=objects_as, missing=missing,
                  object_prefix=object_prefix, layout=layout, host=host)
     options = {k: v for k, v in given.items() if v is not None}

@@ -33,7 +33,7 @@ from simcred.io._xml import xml_root
 from simcred.traces import TraceSet
 
 LONG_READ = ("run_column", "time_column", "object_column", "signals", "objects_as", "missing",
-             "object_prefix")
+             "object_prefix", "time_scale")
 LONG_WRITE = ("run_column", "time_column", "object_column")
 OBJECT_OPTIONS = ("objects_as", "missing", "object_prefix")
 
@@ -90,7 +90,7 @@ def detect(path: str | Path, *, for_writing: bool = False,
     """The format a path has (reading) or asks for (writing), from its suffix or XML root."""
     path, options = Path(path), dict(options or {})
     suffix = _suffix(path)
-    long_options = any(k in LONG_READ for k in options)
+    long_options = any(k in (LONG_WRITE if for_writing else LONG_READ) for k in options)
     if not for_writing:
         if path.is_dir():
             return FORMATS["csv-dir"]
@@ -210,8 +210,10 @@ def convert(source: str | Path, target: str | Path, *, source_format: str | None
             **options: Any) -> Conversion:
     """Read ``source`` in any format and write it to ``target`` in any writable format.
 
-    ``options`` go to the reader when its format takes them, and to the writer when its format
-    takes them (column names of a long-format output); an option neither takes is an error. The
+    ``options`` go to the reader when its format takes them; the others go to the writer when
+    its format takes them (column names of a long-format output), and so do the reader's when
+    ``target_format`` is named (long CSV -> long Parquet with the same columns); an option
+    neither side takes is an error. The
     output never replaces the input, and replaces an existing file only with ``overwrite=True``.
     The written trace set's metadata records where it came from (path, format, hash, options).
     """
@@ -219,10 +221,13 @@ def convert(source: str | Path, target: str | Path, *, source_format: str | None
     fmt_in = _named(source_format) if source_format else detect(source, options=options)
     if source_format and not source.exists():
         raise TraceSetError(f"{source}: no such file or directory")
-    fmt_out = (_named(target_format) if target_format
-               else detect(target, for_writing=True, options=options))
     read_options = {k: v for k, v in options.items() if k in fmt_in.read_options}
-    write_options = {k: v for k, v in options.items() if k in (fmt_out.write_options or ())}
+    rest = {k: v for k, v in options.items() if k not in read_options}
+    fmt_out = (_named(target_format) if target_format
+               else detect(target, for_writing=True, options=rest))
+    # an option the reader takes goes to the writer, too, only when the output format is named
+    pool = options if target_format else rest
+    write_options = {k: v for k, v in pool.items() if k in (fmt_out.write_options or ())}
     unused = sorted(set(options) - set(read_options) - set(write_options))
     if unused:
         raise OptionError(f"option '{unused[0]}' applies neither to the input format "

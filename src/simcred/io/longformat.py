@@ -17,6 +17,9 @@ Rules (also in ``docs/formats.md``)
 * **Missing rows**: with ``missing="error"`` (default) every object of a run must have a row at
   every time step of that run; ``missing="intersect"`` keeps the time steps where all objects of
   the run have a row (documented data loss, counted in the metadata).
+* **Time** is the time column times ``time_scale`` (seconds per unit: 0.04 for 25 Hz frame
+  numbers, 0.001 for milliseconds). A CSV file's delimiter is ``,``, ``;`` or tab, whichever
+  its header line has most of.
 * Two rows for the same (run, object, time), non-finite values, text in a value column named in
   ``signals``: one-line errors naming the file, row (1-based, header excluded), column and label.
   Text columns not named in ``signals`` are skipped and listed in the metadata.
@@ -261,18 +264,35 @@ def _read_table(path: Path, keys: Sequence[str]) -> pa.Table:
         except (pa.ArrowException, OSError) as exc:
             raise TraceSetError(f"{path}: unreadable Parquet ({_first_line(exc)})") from None
     text = {k: pa.string() for k in keys}
-    table = _read_csv(path, text)
+    delimiter = csv_delimiter(path)
+    table = _read_csv(path, text, delimiter)
     # integer-looking value columns are read again as floats: as int64, "-0" would lose its sign
     floats = {f.name: pa.float64() for f in table.schema
               if pa.types.is_integer(f.type) and f.name not in text}
-    return _read_csv(path, {**text, **floats}) if floats else table
+    return _read_csv(path, {**text, **floats}, delimiter) if floats else table
 
 
-def _read_csv(path: Path, types: Mapping[str, pa.DataType]) -> pa.Table:
+def csv_delimiter(path: Path) -> str:
+    """The delimiter of a CSV file: whichever of ``,`` ``;`` tab its header line has most of.
+
+    SUMO's ``xml2csv.py`` writes ``;`` by default, spreadsheet exports often ``;`` or tabs.
+    """
+    try:
+        with open(path, "rb") as stream:
+            header = stream.readline()
+    except OSError as exc:
+        raise TraceSetError(f"{path}: unreadable CSV ({_first_line(exc)})") from None
+    counts = {d: header.count(d.encode()) for d in (",", ";", "\t")}
+    best = max(counts, key=counts.get)
+    return best if counts[best] else ","
+
+
+def _read_csv(path: Path, types: Mapping[str, pa.DataType], delimiter: str) -> pa.Table:
     options = pacsv.ConvertOptions(null_values=[""], strings_can_be_null=True,
                                    column_types=dict(types))
     try:
-        return pacsv.read_csv(path, convert_options=options)
+        return pacsv.read_csv(path, parse_options=pacsv.ParseOptions(delimiter=delimiter),
+                              convert_options=options)
     except (pa.ArrowInvalid, OSError, UnicodeDecodeError) as exc:
         raise TraceSetError(f"{path}: unreadable CSV ({_first_line(exc)})") from None
 
@@ -337,7 +357,7 @@ def _value_columns(table: pa.Table, keys: Sequence[str], signals: Sequence[str] 
 def read(path: str | Path, *, run_column: str | None = None, time_column: str = TIME,
          object_column: str | None = None, signals: Sequence[str] | None = None,
          objects_as: str = "signals", missing: str = "error",
-         object_prefix: str | None = None) -> TraceSet:
+         object_prefix: str | None = None, time_scale: float = 1.0) -> TraceSet:
     """Read one long-format CSV or Parquet file (see the module docstring for the rules).
 
     Parameters
@@ -356,8 +376,14 @@ def read(path: str | Path, *, run_column: str | None = None, time_column: str = 
         What a missing row of an object means (see the rules).
     object_prefix : str, optional
         Prefix of every object name (default: ``obj`` before integer labels only).
+    time_scale : float, default: 1
+        Seconds per unit of the time column: 0.04 for frame numbers at 25 Hz (highD), 0.001
+        for milliseconds.
     """
     path = Path(path)
+    if not (isinstance(time_scale, int | float) and np.isfinite(time_scale) and time_scale > 0):
+        raise OptionError(f"time_scale must be a finite number > 0 (seconds per unit of the "
+                          f"time column), got {time_scale!r}")
     keys = [k for k in (run_column, object_column) if k is not None]
     if len({*keys, time_column}) != len(keys) + 1:
         raise OptionError("run, time and object columns must be different columns")
@@ -368,7 +394,7 @@ def read(path: str | Path, *, run_column: str | None = None, time_column: str = 
     fields, skipped = _value_columns(table, [*keys, time_column], signals, where)
     records = Records(
         where=where,
-        time=float_column(table, time_column, where),
+        time=float_column(table, time_column, where) * float(time_scale),
         runs=_labels(table, run_column, where),
         objects=_labels(table, object_column, where),
         fields=fields,
