@@ -156,3 +156,17 @@ def test_bad_traces_and_sets_are_one_line(tmp_path):
         with pytest.raises(SimcredError) as info:
             call()
         assert expected in str(info.value) and "\n" not in str(info.value), str(info.value)
+
+
+def test_real_ngsim_traffic_through_osi(tmp_path):
+    # real NGSIM positions and headings (CommonRoad scenario) as OSI objects: back bit for bit
+    scenario = Path(__file__).parent.parent / "data" / "commonroad-ngsim" / "USA_US101-3_3_T-1.xml"
+    real = read(scenario, layout="scenario")
+    keep = [s for s in real.signals if s.endswith((".x", ".y", ".heading"))]
+    osi_names = [s.replace(".heading", ".yaw") for s in keep]
+    run = {"t": real.time, **{n: real.column(s) for n, s in zip(osi_names, keep, strict=True)}}
+    traces = TraceSet.from_runs([run], run_ids=["us101"])
+    back = read(write(traces, tmp_path / "us101.osi"))
+    assert back.n_rows == 32 and set(back.signals) == set(osi_names)
+    assert back.features(traces.signals).tobytes() == traces.values.tobytes()
+    assert np.all(np.abs(back.time - traces.time) <= 0.5e-9)

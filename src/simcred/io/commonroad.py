@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from simcred.errors import TraceSetError
+from simcred.errors import OptionError, TraceSetError
 from simcred.io._xml import xml_root
 from simcred.io.longformat import Records, to_traceset
 from simcred.traces import TraceSet
@@ -115,8 +115,6 @@ def read(path: str | Path, *, layout: str = "obstacles", missing: str = "error")
     missing : {"error", "intersect"}
         Scenario layout: what an obstacle absent at a time step means (long-format rule).
     """
-    from simcred.errors import OptionError
-
     if layout not in LAYOUTS:
         raise OptionError(f"layout must be one of {', '.join(LAYOUTS)}, got {layout!r}")
     path = Path(path)
