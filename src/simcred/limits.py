@@ -54,7 +54,7 @@ LIMITS = {limit.name: limit for limit in (
 
 
 def check_count(value: int, limit: str, option: str, *, minimum: int = 1) -> int:
-    """Return ``value`` if ``minimum <= value <= limit``; else a one-line error naming ``option``."""
+    """``value`` if ``minimum <= value <= limit``, else a one-line error naming ``option``."""
     bound = LIMITS[limit]
     if value < minimum:
         raise OptionError(f"{option} must be at least {minimum}, got {value}")
