@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-import simcred
+from simcred._version import __version__
 
 SCHEMA_VERSION = 1
 
@@ -33,7 +33,7 @@ def plain(value: Any) -> Any:
 
 def envelope(kind: str, body: dict[str, Any]) -> dict[str, Any]:
     """Every result document starts with its schema version, kind and simcred version."""
-    return {"schema_version": SCHEMA_VERSION, "kind": kind, "simcred_version": simcred.__version__,
+    return {"schema_version": SCHEMA_VERSION, "kind": kind, "simcred_version": __version__,
             **body}
 
 

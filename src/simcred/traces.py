@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import hashlib
 import json
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -19,6 +19,34 @@ import numpy as np
 from simcred.errors import TraceSetError
 
 TIME = "t"
+
+
+@dataclass(frozen=True, slots=True)
+class FileHandlers:
+    """How :meth:`TraceSet.read` and :meth:`TraceSet.write` reach files.
+
+    The core does not import :mod:`simcred.io` (layers import one way, docs/architecture.md);
+    ``simcred.io`` registers its suffix-dispatching reader and writer here when it is imported,
+    and the package root ``simcred`` imports ``simcred.io``, so they are always registered.
+    """
+
+    read: Callable[[str | Path], TraceSet]
+    write: Callable[[TraceSet, str | Path], Path]
+
+
+_handlers: dict[str, FileHandlers] = {}
+
+
+def register_files(handlers: FileHandlers) -> None:
+    """Register the file formats of :meth:`TraceSet.read` / :meth:`TraceSet.write` (io does)."""
+    _handlers["files"] = handlers
+
+
+def _files() -> FileHandlers:
+    try:
+        return _handlers["files"]
+    except KeyError:  # pragma: no cover - simcred/__init__ imports simcred.io
+        raise RuntimeError("no TraceSet file formats registered: import simcred.io") from None
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -191,16 +219,15 @@ class TraceSet:
 
     @classmethod
     def read(cls, path: str | Path) -> TraceSet:
-        """Read a directory of CSV files (one per run) or one Parquet file with a ``run`` column."""
-        from simcred.io import read_traceset
+        """Read a directory of CSV files (one per run) or one Parquet file with a ``run`` column.
 
-        return read_traceset(path)
+        The formats are :mod:`simcred.io`'s, registered with :func:`register_files`.
+        """
+        return _files().read(path)
 
     def write(self, path: str | Path) -> Path:
         """Write as a CSV directory, or as Parquet when ``path`` ends in ``.parquet``/``.pq``."""
-        from simcred.io import write_traceset
-
-        return write_traceset(self, path)
+        return _files().write(self, path)
 
     # -- validation ---------------------------------------------------------------------------
 

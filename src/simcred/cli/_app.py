@@ -15,7 +15,7 @@ import typer
 from rich.console import Console
 from rich.progress import track
 
-from simcred import __version__
+from simcred._version import __version__
 from simcred.engine import Progress
 from simcred.errors import SimcredError
 

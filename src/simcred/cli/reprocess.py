@@ -38,18 +38,18 @@ def reprocess(
         help="Also resimulate with the scenario-based sensor model (needs GT).")] = True,
 ) -> None:
     """Reprocess a drive: fit, resimulate, refit, assess; errors per step (Wagner, Groh et al.)."""
-    from simcred.reprocess import output
+    from simcred.report.seed002 import write_reprocessed
     from simcred.reprocess.inputs import read_measurement
     from simcred.reprocess.pipeline import ReprocessConfig
     from simcred.reprocess.pipeline import reprocess as run_pipeline
-    from simcred.sim.experiments.cutin import vehicle_model
+    from simcred.sim.vehicles import vehicle_model
 
     vehicle_model(vehicle)  # validates the name before any work
     config = ReprocessConfig(vehicle=vehicle, seed=seed, threshold=threshold,
                              scenario_based=scenario_based)
     result = run_pipeline(read_measurement(measurement, object_id), config,
                           _steps("reprocessing"))
-    output.write(result, out)
+    write_reprocessed(result, out)
     if not State.quiet:
         _print_reactions(result)
         out_console.print(f"wrote errors.json, reaction.json, descriptions, scenario.xosc and "
@@ -71,9 +71,10 @@ def vary(
 ) -> None:
     """Local variations of the TO's cut-in (Wagner, Groh et al. sec. V): vary, resimulate, risk."""
     from simcred.engine import engine
-    from simcred.reprocess.vary import VaryConfig, run_campaign, write_campaign
+    from simcred.report.seed002 import write_variations
+    from simcred.reprocess.vary import VaryConfig, run_campaign
     from simcred.scenario.description import ScenarioDescription
-    from simcred.sim.experiments.cutin import vehicle_model
+    from simcred.sim.vehicles import vehicle_model
 
     if n < 1:
         raise OptionError(f"n must be at least 1, got {n}")
@@ -82,7 +83,7 @@ def vary(
     with engine(workers, scheduler) as runner:
         campaign = run_campaign(original, VaryConfig(n=n, seed=seed, vehicle=vehicle),
                                 runner=runner, progress_for=progress)
-    write_campaign(campaign, out)
+    write_variations(campaign, out)
     if not State.quiet:
         _print_campaign(campaign.summary())
         out_console.print(f"wrote variations.json, variation_set.json, runs.parquet and "

@@ -6,7 +6,7 @@ from pathlib import Path
 
 from simcred.errors import TraceSetError
 from simcred.io import csvdir, parquet
-from simcred.traces import TraceSet
+from simcred.traces import FileHandlers, TraceSet, register_files
 
 PARQUET_SUFFIXES = (".parquet", ".pq")
 
@@ -31,5 +31,7 @@ def write_traceset(traces: TraceSet, path: str | Path) -> Path:
         return parquet.write(traces, path)
     return csvdir.write(traces, path)
 
+
+register_files(FileHandlers(read=read_traceset, write=write_traceset))
 
 __all__ = ["read_traceset", "write_traceset"]

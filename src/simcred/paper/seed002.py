@@ -13,7 +13,7 @@ import numpy as np
 
 from simcred.engine import Engine
 from simcred.paper.claims import Claim, at_least, below, write_claims
-from simcred.reprocess import output
+from simcred.report.seed002 import write_reprocessed, write_variations
 from simcred.reprocess.errors import ErrorStats
 from simcred.reprocess.pipeline import SB, ReprocessConfig, Reprocessed, log_risk_rmse, reprocess
 from simcred.reprocess.vary import (
@@ -21,7 +21,6 @@ from simcred.reprocess.vary import (
     VaryConfig,
     risk_percentile_claim_values,
     run_campaign,
-    write_campaign,
 )
 from simcred.sim.experiments import cutin
 
@@ -101,7 +100,7 @@ def run_reprocessing(out: Path, *, seed: int = 0, config: cutin.CutInConfig | No
     measurement = cutin.simulate(seed, universe)
     measurement.write(out / "measurement")
     result = reprocess(measurement, ReprocessConfig(seed=seed), progress)
-    output.write(result, out)
+    write_reprocessed(result, out)
     return result, reprocess_claims(result, universe.sensor.offset)
 
 
@@ -131,7 +130,7 @@ def run_variations(out: Path, result: Reprocessed, *, n: int = 300, seed: int = 
                         driver=result.config.driver)
     campaign = run_campaign(result.descriptions["fit(GT)"], config, runner=runner,
                             progress_for=progress_for)
-    write_campaign(campaign, out)
+    write_variations(campaign, out)
     return campaign, variation_claims(campaign)
 
 

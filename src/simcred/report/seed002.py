@@ -10,8 +10,10 @@ from pathlib import Path
 import numpy as np
 
 from simcred.report.figures import _save, plt
+from simcred.reprocess import output
 from simcred.reprocess.errors import QUANTITIES, STEPS
 from simcred.reprocess.pipeline import SB, Reprocessed, log_risk
+from simcred.reprocess.vary import Campaign, write_campaign
 
 EGO_COLOR, TO_COLOR = "#1f4e9c", "#2ca02c"
 TRACE_STYLES = {  # representation -> (label, colour, line style)
@@ -225,3 +227,18 @@ def fig8_variations(campaign, path: str | Path) -> Path:
     for ax in (paths, speeds, risks):
         ax.grid(alpha=0.3)
     return _save(fig, Path(path))
+
+
+def write_reprocessed(result: Reprocessed, directory: str | Path) -> dict[str, Path]:
+    """:func:`simcred.reprocess.output.write` and Figs. 3-7 into ``directory/figures``."""
+    files = output.write(result, directory)
+    write_figures(result, Path(directory) / "figures")
+    return files
+
+
+def write_variations(campaign: Campaign, directory: str | Path) -> dict[str, Path]:
+    """:func:`simcred.reprocess.vary.write_campaign` and ``figures/fig8_variations.png``."""
+    files = write_campaign(campaign, directory)
+    files["figure"] = fig8_variations(campaign, Path(directory) / "figures" /
+                                      "fig8_variations.png")
+    return files

@@ -1,5 +1,8 @@
 """Writing a reprocessing result to a directory (``simcred reprocess --out DIR``).
 
+The figures (``figures/``, Figs. 3-7) are drawn by :func:`simcred.report.seed002.write_reprocessed`,
+which calls :func:`write` and then draws them (reprocess does not import report).
+
 Layout::
 
     reprocess.json      summary: options, fits, sensor model, reactions, eqs. (4)-(7), risk
@@ -9,7 +12,6 @@ Layout::
     descriptions/       every scenario description (JSON), e.g. fit_GT.json, fit_rGT_sb.json
     scenario.xosc       OpenSCENARIO export of the measurement's description (GT, else SD)
     resimulations/      every resimulation as Parquet, e.g. rGT.parquet
-    figures/            Figs. 3-7
 """
 
 from __future__ import annotations
@@ -20,7 +22,6 @@ from typing import Any
 
 from simcred._json import dumps, envelope
 from simcred.io import parquet
-from simcred.report.seed002 import write_figures
 from simcred.reprocess.pipeline import Reprocessed
 from simcred.scenario.openscenario import to_openscenario, validate_openscenario
 
@@ -73,7 +74,6 @@ def write(result: Reprocessed, directory: str | Path) -> dict[str, Path]:
     files["openscenario"] = to_openscenario(result.descriptions[source], out / "scenario.xosc",
                                             ego=result.config.ego)
     validate_openscenario(files["openscenario"])
-    write_figures(result, out / "figures")
     return files
 
 

@@ -27,13 +27,13 @@ import numpy as np
 
 from simcred.errors import SimcredError
 from simcred.io.measurement import Measurement
+from simcred.kinematics import MOTION_SIGNALS
 from simcred.reprocess.errors import ErrorStats, decompose
 from simcred.reprocess.reaction import Reaction, ReactionCriteria, reaction, reaction_analysis
 from simcred.risk import VehicleStates, risk_series, time_headway, time_to_collision
 from simcred.scenario.description import ScenarioDescription
 from simcred.scenario.fit import ScenarioFit, fit_scenario
 from simcred.sim.driver import DriverConfig
-from simcred.sim.experiments.cutin import OBJECT_SIGNALS
 from simcred.sim.resimulation import resimulate
 from simcred.sim.sensors import IdealSensor, OffsetDelaySensor, Sensor, estimate_sensor
 from simcred.traces import TIME, TraceSet
@@ -147,10 +147,10 @@ def _assessed_name(key: str) -> str:
 
 def _raw_states(traces: TraceSet, objects: tuple[str, ...]) -> dict[str, np.ndarray]:
     run = traces.run(0)
-    missing = [f"{o}.{s}" for o in objects for s in OBJECT_SIGNALS if f"{o}.{s}" not in run]
+    missing = [f"{o}.{s}" for o in objects for s in MOTION_SIGNALS if f"{o}.{s}" not in run]
     if missing:
         raise SimcredError(f"{traces.source}: missing signal(s) {', '.join(missing)}")
-    return {o: np.column_stack([run[f"{o}.{s}"] for s in OBJECT_SIGNALS]) for o in objects}
+    return {o: np.column_stack([run[f"{o}.{s}"] for s in MOTION_SIGNALS]) for o in objects}
 
 
 def _interpolated_states(traces: TraceSet, times: np.ndarray, objects: tuple[str, ...]
@@ -159,7 +159,7 @@ def _interpolated_states(traces: TraceSet, times: np.ndarray, objects: tuple[str
     t = run[TIME]
     out = {}
     for o in objects:
-        columns = [run[f"{o}.{s}"] for s in OBJECT_SIGNALS]
+        columns = [run[f"{o}.{s}"] for s in MOTION_SIGNALS]
         columns[3] = np.unwrap(columns[3])
         out[o] = np.column_stack([np.interp(times, t, col) for col in columns])
     return out
@@ -169,7 +169,7 @@ def _description_states(description: ScenarioDescription, times: np.ndarray,
                         objects: tuple[str, ...]) -> dict[str, np.ndarray]:
     inside = np.clip(times, description.t0, description.t1)
     sampled = description.sample(inside)
-    return {o: np.column_stack([sampled[f"{o}.{s}"] for s in OBJECT_SIGNALS]) for o in objects}
+    return {o: np.column_stack([sampled[f"{o}.{s}"] for s in MOTION_SIGNALS]) for o in objects}
 
 
 def _as_ideal(states: dict[str, dict[str, np.ndarray]]) -> dict[str, dict[str, np.ndarray]]:

@@ -29,6 +29,7 @@ import numpy as np
 from simcred.compare import compare
 from simcred.compare.result import Comparison
 from simcred.engine import Engine, shared
+from simcred.kinematics import MOTION_SIGNALS
 from simcred.reprocess.reaction import Reaction, ReactionCriteria, reaction
 from simcred.risk import risk_series
 from simcred.scenario.description import ScenarioDescription
@@ -39,7 +40,6 @@ from simcred.scenario.variation import (
     generate_variations,
 )
 from simcred.sim.driver import DriverConfig
-from simcred.sim.experiments.cutin import OBJECT_SIGNALS
 from simcred.sim.resimulation import resimulate
 from simcred.sim.sensors import Sensor
 from simcred.traces import TIME, TraceSet, concat
@@ -196,7 +196,7 @@ def _assess(run: dict[str, np.ndarray], index: int, original: tuple[np.ndarray, 
 def _compare_to_original(runs: TraceSet, reference: TraceSet, c: VaryConfig) -> Comparison:
     """Seed-000 distance between the varied TO trajectories and as many copies of the original's
     (the original is one deterministic trajectory)."""
-    features = [f"{c.to}.{s}" for s in OBJECT_SIGNALS[:2]]
+    features = [f"{c.to}.{s}" for s in MOTION_SIGNALS[:2]]
     step = max(1, int(round(c.risk_dt / c.dt)))
     varied = _subsample(runs, features, step)
     one = _subsample(reference, features, step)
@@ -225,13 +225,12 @@ def risk_percentile_claim_values(campaign: Campaign) -> tuple[float, float, floa
 
 def write_campaign(campaign: Campaign, directory) -> dict[str, Any]:
     """``variations.json`` (summary), ``variation_set.json`` (every variation: records and kept
-    TO tracks), ``runs.parquet`` (resimulated runs), ``reference.parquet``, ``comparison.json``
-    and ``figures/fig8_variations.png``."""
+    TO tracks), ``runs.parquet`` (resimulated runs), ``reference.parquet`` and
+    ``comparison.json``; :func:`simcred.report.seed002.write_variations` adds Fig. 8."""
     from pathlib import Path
 
     from simcred._json import dumps, envelope
     from simcred.io import parquet
-    from simcred.report.seed002 import fig8_variations
 
     out = Path(directory)
     out.mkdir(parents=True, exist_ok=True)
@@ -243,5 +242,4 @@ def write_campaign(campaign: Campaign, directory) -> dict[str, Any]:
     parquet.write(campaign.runs, files["runs"])
     parquet.write(campaign.reference_runs, files["reference"])
     files["comparison"].write_text(campaign.comparison.to_json())
-    files["figure"] = fig8_variations(campaign, out / "figures" / "fig8_variations.png")
     return files

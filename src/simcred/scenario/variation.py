@@ -10,7 +10,7 @@ with :func:`~simcred.scenario.fit.fit_track`, which restores smooth v(t) and θ(
 second paragraph). Variations that break :class:`PlausibilityLimits` are rejected and counted by
 reason.
 
-Variation ``i`` draws only from ``run_rng(seed, i)``. It is therefore the same whether it is made
+Variation ``i`` draws only from ``stream(seed, i)``. It is therefore the same whether it is made
 alone (:func:`vary_one`), within any ``n`` (:func:`generate_variations`) or on any Dask worker.
 
 Deviations from [1], which leaves these open:
@@ -54,7 +54,7 @@ from simcred.scenario.description import (
     sample_times,
 )
 from simcred.scenario.fit import THRESHOLD, fit_track
-from simcred.sim.campaign import run_rng
+from simcred.seeds import stream
 
 KIND = "variation_set"
 METHOD = ("clamped C2 cubic Bezier path through equitemporal fix points, displaced around the "
@@ -511,7 +511,7 @@ class VariationRecord:
     Attributes
     ----------
     index : int
-        The variation's index: its random stream is ``run_rng(seed, index)``.
+        The variation's index: its random stream is ``stream(seed, index)``.
     displacements : numpy.ndarray, shape (k, 2)
         Longitudinal and lateral offset (m) of each varied fix point, in the order of
         :attr:`VariationSet.varied`.
@@ -577,7 +577,7 @@ class VariationSet:
     records : tuple of VariationRecord
         Every generated variation, kept or rejected, by index.
     seed : int
-        The seed (the drawn entropy if none was given): variation i uses ``run_rng(seed, i)``.
+        The seed (the drawn entropy if none was given): variation i uses ``stream(seed, i)``.
     to, ego : str
         The varied object and the EGO (unchanged).
     fix_times : numpy.ndarray
@@ -819,14 +819,14 @@ def draw_displacements(seed: int, index: int, count: int,
                        options: VariationOptions = VariationOptions()) -> np.ndarray:
     """The offsets of variation ``index``: shape (count, 2), columns longitudinal and lateral (m).
 
-    Drawn from ``run_rng(seed, index)`` only: a uniform array U of shape (count, 2), mapped by the
+    Drawn from ``stream(seed, index)`` only: a uniform array U of shape (count, 2), mapped by the
     inverse normal CDF onto the normal law truncated at ± ``truncation`` σ
     (z = Φ⁻¹(Φ(−c) + (Φ(c) − Φ(−c)) U)), then scaled by (σ_lon, σ_lat); without truncation,
     ``standard_normal((count, 2))``. One draw per offset, no rejection loop.
     """
     _index_iv(index, seed)
     _count_iv(count, "count")
-    rng = run_rng(seed, index)
+    rng = stream(seed, index)
     if options.truncation is None:
         z = rng.standard_normal((count, 2))
     else:
@@ -853,7 +853,7 @@ def vary_one(
     description : ScenarioDescription
         The original scenario.
     index : int
-        Variation index (≥ 0); its offsets come from ``run_rng(seed, index)`` only.
+        Variation index (≥ 0); its offsets come from ``stream(seed, index)`` only.
     seed : int
         Seed of the variation set (≥ 0).
     to, ego : str, default: "to", "ego"
