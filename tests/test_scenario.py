@@ -406,3 +406,20 @@ def test_openscenario_options(tmp_path, description):
                              road_file="road.xodr")
     validate_openscenario(replay)
     assert replay.read_text().count("<FollowTrajectoryAction") == 2
+
+
+def test_openscenario_export_is_byte_identical_on_rerun(tmp_path, description):
+    first = to_openscenario(description, tmp_path / "a.xosc").read_bytes()
+    second = to_openscenario(description, tmp_path / "b.xosc").read_bytes()
+    assert first == second
+    assert b'date="1970-01-01T00:00:00"' in first  # no date in the inputs: NO_DATE
+
+
+def test_openscenario_date_comes_from_the_description(tmp_path, description):
+    dated = ScenarioDescription(description.objects, dt=description.dt,
+                                metadata={"date": "2024-05-06T07:08:09"})
+    assert b'date="2024-05-06T07:08:09"' in to_openscenario(dated, tmp_path / "a.xosc"
+                                                            ).read_bytes()
+    with pytest.raises(SimcredError, match="not an ISO 8601 date"):
+        to_openscenario(ScenarioDescription(description.objects, dt=description.dt,
+                                            metadata={"date": "yesterday"}), tmp_path / "b.xosc")
