@@ -13,7 +13,8 @@ from scipy.interpolate import CubicSpline
 
 from simcred._json import dumps
 from simcred.errors import SimcredError
-from simcred.scenario import ScenarioDescription, TrackStates, fit_track
+from simcred.kinematics import Track
+from simcred.scenario import ScenarioDescription, fit_track
 from simcred.scenario.variation import (
     BezierPath,
     PlausibilityLimits,
@@ -271,10 +272,10 @@ def test_displacements_follow_the_truncated_normal(description):
 # -- 6: plausibility -------------------------------------------------------------------------------
 
 
-def states_from_positions(t, x, y) -> TrackStates:
+def states_from_positions(t, x, y) -> Track:
     vx, vy = np.gradient(x, t), np.gradient(y, t)
     v, heading = np.hypot(vx, vy), np.unwrap(np.arctan2(vy, vx))
-    return TrackStates(t=t, x=x, y=y, v=v, heading=heading, acceleration=np.gradient(v, t),
+    return Track(t=t, x=x, y=y, v=v, heading=heading, acceleration=np.gradient(v, t),
                        yaw_rate=np.gradient(heading, t))
 
 
@@ -294,7 +295,7 @@ def test_each_limit_names_its_reason():
     ones = np.ones_like(t)
 
     def states(v=20.0, heading=0.0, acceleration=0.0, yaw_rate=0.0):
-        return TrackStates(t=t, x=t, y=t, v=v * ones, heading=heading * ones,
+        return Track(t=t, x=t, y=t, v=v * ones, heading=heading * ones,
                            acceleration=acceleration * ones, yaw_rate=yaw_rate * ones)
 
     assert check_plausibility(states(acceleration=-9.5)) == [Reason.LONGITUDINAL_ACCELERATION]

@@ -44,12 +44,6 @@ MOTION_SIGNALS = ("x", "y", "v", "heading")
 RATE_SIGNALS = ("acceleration", "yaw_rate")
 
 
-def _readonly(values: object) -> np.ndarray:
-    array = np.array(values, dtype=float)
-    array.flags.writeable = False
-    return array
-
-
 @dataclass(frozen=True, slots=True, eq=False)
 class Track:
     """States of one object at increasing times ``t``.
@@ -63,8 +57,8 @@ class Track:
 
     Notes
     -----
-    Arrays are stored read-only. Equality is identity (no float ``__eq__``);
-    :meth:`equals` compares bitwise.
+    Columns are float arrays (given float arrays are kept, not copied: a track is a view of
+    its source). Equality is identity (no float ``__eq__``); :meth:`equals` compares bitwise.
     """
 
     t: np.ndarray
@@ -79,7 +73,7 @@ class Track:
         for name in ("t", *MOTION_SIGNALS, *RATE_SIGNALS):
             value = getattr(self, name)
             if value is not None:
-                object.__setattr__(self, name, _readonly(value))
+                object.__setattr__(self, name, np.asarray(value, dtype=float))
         shape = self.t.shape
         if len(shape) != 1:
             raise SimcredError(f"a track's time must be one-dimensional, got shape {shape}")

@@ -16,19 +16,14 @@ Layout::
 
 from __future__ import annotations
 
-import re
 from pathlib import Path
 from typing import Any
 
 from simcred._json import dumps, envelope
 from simcred.io import parquet
 from simcred.reprocess.pipeline import Reprocessed
+from simcred.reprocess.representation import GT, SD, Rep
 from simcred.scenario.openscenario import to_openscenario, validate_openscenario
-
-
-def file_stem(name: str) -> str:
-    """``fit(rGT[sb])`` → ``fit_rGT_sb``."""
-    return re.sub(r"_+", "_", re.sub(r"[^A-Za-z0-9]+", "_", name)).strip("_")
 
 
 def summary(result: Reprocessed) -> dict[str, Any]:
@@ -66,11 +61,11 @@ def write(result: Reprocessed, directory: str | Path) -> dict[str, Path]:
     }
     (out / "descriptions").mkdir(exist_ok=True)
     for name, description in result.descriptions.items():
-        description.write(out / "descriptions" / f"{file_stem(name)}.json")
+        description.write(out / "descriptions" / f"{Rep(name).file_stem}.json")
     for name, traces in result.resimulations.items():
         (out / "resimulations").mkdir(exist_ok=True)
-        parquet.write(traces, out / "resimulations" / f"{file_stem(name)}.parquet")
-    source = "fit(GT)" if "fit(GT)" in result.descriptions else "fit(SD)"
+        parquet.write(traces, out / "resimulations" / f"{Rep(name).file_stem}.parquet")
+    source = GT.fit() if GT.fit() in result.descriptions else SD.fit()
     files["openscenario"] = to_openscenario(result.descriptions[source], out / "scenario.xosc",
                                             ego=result.config.ego)
     validate_openscenario(files["openscenario"])

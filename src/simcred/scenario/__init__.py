@@ -11,7 +11,6 @@ from simcred.scenario.description import (
     ObjectTrack,
     ScenarioDescription,
     Spline,
-    TrackStates,
 )
 from simcred.scenario.fit import ScenarioFit, StopReason, TrackFit, fit_scenario, fit_track
 from simcred.scenario.openscenario import (
@@ -27,7 +26,6 @@ __all__ = [
     "Spline",
     "StopReason",
     "TrackFit",
-    "TrackStates",
     "build_openscenario",
     "fit_scenario",
     "fit_track",

@@ -32,6 +32,7 @@ from scipy.interpolate import BSpline
 
 from simcred._json import SCHEMA_VERSION, dumps, envelope
 from simcred.errors import SimcredError
+from simcred.kinematics import Track
 from simcred.traces import TIME, TraceSet
 
 KIND = "scenario_description"
@@ -232,19 +233,6 @@ def _gauss(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 @dataclass(frozen=True, slots=True, eq=False)
-class TrackStates:
-    """States of one object at times ``t``: eq. (1)'s x, y, v, θ and its rates a = v̇, ω = θ̇."""
-
-    t: np.ndarray
-    x: np.ndarray
-    y: np.ndarray
-    v: np.ndarray
-    heading: np.ndarray
-    acceleration: np.ndarray
-    yaw_rate: np.ndarray
-
-
-@dataclass(frozen=True, slots=True, eq=False)
 class ObjectTrack:
     """One object of the description, [1] sec. II-B.
 
@@ -308,7 +296,7 @@ class ObjectTrack:
         return (self.x0 + quad.integrate(cx_full, cx_part),
                 self.y0 + quad.integrate(cy_full, cy_part))
 
-    def states(self, t: ArrayLike) -> TrackStates:
+    def states(self, t: ArrayLike) -> Track:
         """x, y, v, θ, a = v̇ and ω = θ̇ at times ``t`` (1-D, inside [t0, t1], any order).
 
         Positions integrate [1] eq. (1), ẋ = v cos θ, ẏ = v sin θ, from (x0, y0) at t0 with
@@ -326,7 +314,7 @@ class ObjectTrack:
         """
         t = self._times(t)
         x, y = self.positions(t)
-        return TrackStates(t=t, x=x, y=y, v=self.speed(t), heading=self.heading(t),
+        return Track(t=t, x=x, y=y, v=self.speed(t), heading=self.heading(t),
                            acceleration=self.speed.derivative(t),
                            yaw_rate=self.heading.derivative(t))
 

@@ -27,10 +27,10 @@ from typing import Any
 import numpy as np
 
 from simcred.errors import OptionError, SimcredError
+from simcred.kinematics import Track
 from simcred.scenario.description import (
     ObjectTrack,
     ScenarioDescription,
-    TrackStates,
     sample_times,
 )
 
@@ -163,7 +163,7 @@ def _vehicle(xosc: Any, name: str, track: ObjectTrack) -> Any:
     return xosc.Vehicle(name, xosc.VehicleCategory.car, box, front, rear, 70.0, 10.0, 10.0)
 
 
-def _position(xosc: Any, states: TrackStates, i: int) -> Any:
+def _position(xosc: Any, states: Track, i: int) -> Any:
     return xosc.WorldPosition(x=float(states.x[i]), y=float(states.y[i]),
                               h=float(states.heading[i]))
 

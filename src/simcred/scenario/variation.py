@@ -47,10 +47,10 @@ from scipy.special import ndtr, ndtri
 from simcred._json import dumps, envelope
 from simcred.engine import Engine, Progress, shared
 from simcred.errors import OptionError, SimcredError
+from simcred.kinematics import Track
 from simcred.scenario.description import (
     ObjectTrack,
     ScenarioDescription,
-    TrackStates,
     sample_times,
 )
 from simcred.scenario.fit import THRESHOLD, fit_track
@@ -335,21 +335,21 @@ class PlausibilityLimits:
                               f"{self.curvature_min_speed!r}")
 
 
-def check_plausibility(states: TrackStates | ObjectTrack,
+def check_plausibility(states: Track | ObjectTrack,
                        limits: PlausibilityLimits = PlausibilityLimits(), *,
                        t: ArrayLike | None = None, rmse: float | None = None) -> list[Reason]:
     """The limits that a track violates; empty if it is plausible.
 
     Parameters
     ----------
-    states : TrackStates or ObjectTrack
+    states : Track or ObjectTrack
         Sampled states (their t, v, heading, acceleration, yaw_rate are used), or a track, which
         is sampled at ``t``.
     limits : PlausibilityLimits, default: PlausibilityLimits()
         The bounds.
     t : array_like, optional
         Times for an ObjectTrack; default every 0.01 s over its span. Not allowed with
-        TrackStates.
+        Track.
     rmse : float, optional
         The refit's position RMSE (m), checked against ``limits.max_rmse``.
 
@@ -383,7 +383,7 @@ def check_plausibility(states: TrackStates | ObjectTrack,
     return [reason for reason, ok in checks.items() if not np.all(ok)]
 
 
-def _rates_iv(states: TrackStates | ObjectTrack, t: ArrayLike | None
+def _rates_iv(states: Track | ObjectTrack, t: ArrayLike | None
               ) -> tuple[np.ndarray, ...]:
     """t, v, θ, v̇, θ̇ of states, or of a track at ``t`` (its splines only: no quadrature)."""
     if isinstance(states, ObjectTrack):
@@ -394,11 +394,11 @@ def _rates_iv(states: TrackStates | ObjectTrack, t: ArrayLike | None
             raise SimcredError(f"times must be 1-D and not empty, got shape {times.shape}")
         return (times, track.speed(times), track.heading(times), track.speed.derivative(times),
                 track.heading.derivative(times))
-    if not isinstance(states, TrackStates):
-        raise SimcredError(f"states must be TrackStates or an ObjectTrack, got "
+    if not isinstance(states, Track):
+        raise SimcredError(f"states must be Track or an ObjectTrack, got "
                            f"{type(states).__name__}")
     if t is not None:
-        raise SimcredError("t is only for an ObjectTrack: TrackStates carry their own times")
+        raise SimcredError("t is only for an ObjectTrack: Track carry their own times")
     names = ("t", "v", "heading", "acceleration", "yaw_rate")
     arrays = tuple(np.asarray(getattr(states, name), dtype=np.float64) for name in names)
     for name, array in zip(names, arrays, strict=True):
