@@ -14,14 +14,15 @@ from scipy.interpolate import CubicSpline
 from simcred._json import dumps
 from simcred.errors import SimcredError
 from simcred.kinematics import Track
-from simcred.scenario import ScenarioDescription, fit_track
-from simcred.scenario.variation import (
+from simcred.scenario import (
     BezierPath,
     PlausibilityLimits,
     Reason,
+    ScenarioDescription,
     Status,
     VariationOptions,
     check_plausibility,
+    fit_track,
     generate_variations,
     influence,
     load_variations,
@@ -258,7 +259,7 @@ def test_different_seeds_and_indices_differ(description):
 def test_displacements_follow_the_truncated_normal(description):
     options = VariationOptions(sigma_lon=0.3, sigma_lat=0.3, truncation=2.0)
     result = generate_variations(description, 1, SEED, options=options)
-    from simcred.scenario.variation import draw_displacements
+    from simcred.scenario import draw_displacements
 
     z = np.concatenate([draw_displacements(SEED, i, 4, options) for i in range(2000)]) / 0.3
     assert np.abs(z).max() <= 2.0
