@@ -8,13 +8,14 @@ against the schema. :func:`generate_variations` varies a traffic object's cut-in
 Bézier path (:class:`BezierPath`) and rejects implausible variations
 (:class:`PlausibilityLimits`).
 
-Modules: ``description`` (splines, eq. (1)), ``fit`` (least squares, sections), ``openscenario``
-(export), ``frenet`` (path frame), ``bezier`` (the path), ``plausibility`` (limits),
-``variation`` (drawing and refitting variations), ``variation_set`` (options and results).
+Modules: ``spline`` (time curves, the quadrature of eq. (1)), ``description`` (objects,
+JSON), ``fit`` (least squares, sections), ``openscenario`` (export), ``frenet`` (path frame),
+``bezier`` (the path), ``plausibility`` (limits), ``variation`` (drawing and refitting
+variations), ``variation_set`` (options and results).
 """
 
 from simcred.scenario.bezier import BezierPath, influence
-from simcred.scenario.description import ObjectTrack, ScenarioDescription, Spline
+from simcred.scenario.description import ObjectTrack, ScenarioDescription
 from simcred.scenario.fit import ScenarioFit, StopReason, TrackFit, fit_scenario, fit_track
 from simcred.scenario.openscenario import (
     build_openscenario,
@@ -22,6 +23,7 @@ from simcred.scenario.openscenario import (
     validate_openscenario,
 )
 from simcred.scenario.plausibility import PlausibilityLimits, Reason, check_plausibility
+from simcred.scenario.spline import Spline
 from simcred.scenario.variation import draw_displacements, generate_variations, vary_one
 from simcred.scenario.variation_set import (
     Status,

@@ -25,13 +25,8 @@ from numpy.typing import ArrayLike
 from scipy.optimize import least_squares
 
 from simcred.errors import OptionError, SimcredError
-from simcred.scenario.description import (
-    ObjectTrack,
-    Quadrature,
-    ScenarioDescription,
-    Spline,
-    design_matrix,
-)
+from simcred.scenario.description import ObjectTrack, ScenarioDescription
+from simcred.scenario.spline import Quadrature, Spline, design_matrix
 from simcred.traces import TIME, TraceSet
 
 THRESHOLD = 0.05

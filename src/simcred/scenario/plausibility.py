@@ -124,7 +124,7 @@ def check_plausibility(states: Track | ObjectTrack,
 
     Examples
     --------
-    >>> from simcred.scenario.description import Spline
+    >>> from simcred.scenario.spline import Spline
     >>> track = ObjectTrack(0.0, 0.0, Spline(0.0, 4.0, [20.0] * 4), Spline(0.0, 4.0, [0.0] * 4))
     >>> check_plausibility(track), check_plausibility(track, rmse=0.5)
     ([], [<Reason.REFIT_RMSE: 'refit_rmse'>])
