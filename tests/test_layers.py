@@ -23,7 +23,7 @@ SRC = Path(__file__).resolve().parents[1] / "src"
 #: it may import the core and io (io registers the TraceSet file formats), nothing imports it
 #: from inside the package but the CLI.
 #: The core is ordered within itself (0.0 … 0.6), so its modules cannot import in a circle.
-CORE = ("_version", "errors", "_json", "seeds", "engine", "traces", "kinematics")
+CORE = ("_version", "_lazy", "errors", "_json", "seeds", "engine", "traces", "kinematics")
 LAYERS: dict[str, float] = {
     **{unit: i / 10 for i, unit in enumerate(CORE)},
     "io": 1,
@@ -189,3 +189,19 @@ def test_relative_imports_are_resolved(tmp_path):
     edges = {e.imported for e in imports(package / "ttr.py", tmp_path)}
     assert edges == {"simcred.sim", "simcred.sim.vehicles", "simcred.risk",
                      "simcred.risk.measures"}
+
+
+# -- faces: every package lists its public API, and every listed name resolves -------------------
+
+FACES = ["simcred.io", "simcred.scenario", "simcred.risk", "simcred.sim", "simcred.reprocess",
+         "simcred.report", "simcred.paper", "simcred.kinematics", "simcred.seeds", "simcred.cli"]
+
+
+@pytest.mark.parametrize("face", FACES)
+def test_every_face_lists_names_that_exist(face):
+    import importlib
+
+    module = importlib.import_module(face)
+    assert module.__all__, face
+    missing = [name for name in module.__all__ if getattr(module, name, None) is None]
+    assert not missing, f"{face}.__all__ lists missing names {missing}"

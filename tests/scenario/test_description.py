@@ -270,7 +270,7 @@ def test_json_round_trip_is_exact(data, sections, t0, span, x0, y0):
                         Spline(t0, t1, data.draw(coefficients)))
     original = ScenarioDescription({"to": track}, dt=data.draw(st.floats(1e-4, 10.0)),
                                    metadata={"source": "hypothesis"})
-    text = json.dumps(original.to_json(), allow_nan=False)
+    text = json.dumps(original.to_dict(), allow_nan=False)
     back = ScenarioDescription.from_json(json.loads(text))
     assert back.equals(original)
     got = back.objects["to"]
@@ -322,7 +322,7 @@ def _break(document: dict, how: str) -> dict | str:
 ])
 def test_malformed_json_names_the_file(tmp_path, description, how, needle):
     path = tmp_path / "bad.json"
-    document = _break(description.to_json(), how)
+    document = _break(description.to_dict(), how)
     path.write_text(json.dumps(document))  # NaN is written as the token NaN
     with pytest.raises(SimcredError) as exc:
         ScenarioDescription.read(path)

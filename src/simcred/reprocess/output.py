@@ -26,38 +26,23 @@ from simcred.reprocess.representation import GT, SD, Rep
 from simcred.scenario.openscenario import to_openscenario, validate_openscenario
 
 
-def summary(result: Reprocessed) -> dict[str, Any]:
-    c = result.config
-    return {
-        "options": {"vehicle": c.vehicle, "dt": c.dt, "risk_dt": c.risk_dt, "seed": c.seed,
-                    "ego": c.ego, "objects": list(c.objects), "threshold": c.threshold,
-                    "scenario_based": c.scenario_based},
-        "fits": {name: {obj: {"sections": f.sections, "rmse": f.rmse,
-                              "stop_reason": str(f.stop_reason)}
-                        for obj, f in fit.fits.items()} for name, fit in result.fits.items()},
-        "sensor_model": None if result.sensor_model is None else result.sensor_model.to_json(),
-        "reactions": {k: r.to_json() for k, r in result.reactions.items()},
-        "analysis": result.analysis,
-        "max_risk": {k: float(r["risk"].max()) for k, r in result.risk.items()},
-    }
-
-
 def write(result: Reprocessed, directory: str | Path) -> dict[str, Path]:
     """Write everything; returns the main files by role."""
     out = Path(directory)
     out.mkdir(parents=True, exist_ok=True)
     files = {
-        "summary": _json(out / "reprocess.json", "reprocess", summary(result)),
+        "summary": _json(out / "reprocess.json", "reprocess", result.to_dict(), result.inputs),
         "errors": _json(out / "errors.json", "errors", {
-            sensor: {step: {obj: {q: s.to_json() for q, s in by_q.items()}
+            sensor: {step: {obj: {q: s.to_dict() for q, s in by_q.items()}
                             for obj, by_q in by_obj.items()}
                      for step, by_obj in table.items()}
-            for sensor, table in result.errors.items()}),
+            for sensor, table in result.errors.items()}, result.inputs),
         "reaction": _json(out / "reaction.json", "reaction", {
-            "reactions": {k: r.to_json() for k, r in result.reactions.items()},
-            "analysis": result.analysis}),
+            "reactions": {k: r.to_dict() for k, r in result.reactions.items()},
+            "analysis": result.analysis}, result.inputs),
         "risk": _json(out / "risk.json", "risk", {
-            k: {col: values for col, values in r.items()} for k, r in result.risk.items()}),
+            k: {col: values for col, values in r.items()} for k, r in result.risk.items()},
+            result.inputs),
     }
     (out / "descriptions").mkdir(exist_ok=True)
     for name, description in result.descriptions.items():
@@ -72,6 +57,6 @@ def write(result: Reprocessed, directory: str | Path) -> dict[str, Path]:
     return files
 
 
-def _json(path: Path, kind: str, body: dict[str, Any]) -> Path:
-    path.write_text(dumps(envelope(kind, body)))
+def _json(path: Path, kind: str, body: dict[str, Any], inputs: dict[str, str]) -> Path:
+    path.write_text(dumps(envelope(kind, body, inputs=inputs)))
     return path

@@ -22,9 +22,11 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
+from simcred._json import JsonResult
 from simcred.errors import SimcredError
 from simcred.io.measurement import Measurement
 from simcred.kinematics import MOTION_SIGNALS, Track
@@ -66,8 +68,8 @@ class ReprocessConfig:
 
 
 @dataclass(frozen=True, slots=True, eq=False)
-class Reprocessed:
-    """Everything the pipeline produced."""
+class Reprocessed(JsonResult):
+    """Everything the pipeline produced; :meth:`to_dict` is ``reprocess.json``'s body."""
 
     config: ReprocessConfig
     times: np.ndarray
@@ -80,10 +82,31 @@ class Reprocessed:
     analysis: dict[str, float | None]
     risk: dict[str, dict[str, np.ndarray]]
     sensor_model: OffsetDelaySensor | None
+    inputs: dict[str, str] = field(default_factory=dict)  # GT / SD -> content hash
 
     @property
     def names(self) -> tuple[str, ...]:
         return tuple(self.states)
+
+    def __repr__(self) -> str:
+        reactions = ", ".join(f"{k}: {r.manoeuvre}" for k, r in self.reactions.items())
+        return f"Reprocessed({len(self.states)} representations; reactions {reactions})"
+
+    def to_dict(self) -> dict[str, Any]:
+        """Options, fits, sensor model, reactions, eqs. (4)-(7), max risk per representation."""
+        c = self.config
+        return {
+            "options": {"vehicle": c.vehicle, "dt": c.dt, "risk_dt": c.risk_dt, "seed": c.seed,
+                        "ego": c.ego, "objects": list(c.objects), "threshold": c.threshold,
+                        "scenario_based": c.scenario_based},
+            "fits": {name: {obj: {"sections": f.sections, "rmse": f.rmse,
+                                  "stop_reason": str(f.stop_reason)}
+                            for obj, f in fit.fits.items()} for name, fit in self.fits.items()},
+            "sensor_model": None if self.sensor_model is None else self.sensor_model.to_dict(),
+            "reactions": {k: r.to_dict() for k, r in self.reactions.items()},
+            "analysis": self.analysis,
+            "max_risk": {k: float(r["risk"].max()) for k, r in self.risk.items()},
+        }
 
 
 def reprocess(measurement: Measurement, config: ReprocessConfig | None = None,
@@ -125,7 +148,8 @@ def reprocess(measurement: Measurement, config: ReprocessConfig | None = None,
     if sensor_model is not None:
         errors[SensorKind.SCENARIO_BASED] = decompose(_as_ideal(states), objects)
     return Reprocessed(c, times, states, descriptions, fits, resims, errors, reactions,
-                       _analysis(states, reactions, c), risk, sensor_model)
+                       _analysis(states, reactions, c), risk, sensor_model,
+                       {str(name): traces.digest() for name, traces in raw.items()})
 
 
 def _sensors(name: Rep, model: OffsetDelaySensor | None

@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
+from simcred._json import JsonResult
 from simcred.errors import OptionError, SimcredError
 from simcred.risk.prediction import (
     EvasionSet,
@@ -52,7 +53,7 @@ _CHUNK_SAMPLES = 1 << 16
 
 
 @dataclass(frozen=True, slots=True, eq=False)
-class RiskResult:
+class RiskResult(JsonResult):
     """Risk of many scenes, with the per-prediction TTRs it is made of.
 
     Attributes
@@ -102,6 +103,21 @@ class RiskResult:
     lanes: Lanes
     reaction: ReactionTime
     method: str = "ttr"
+
+    def __repr__(self) -> str:
+        scenes, objects, predictions = self.ttr.shape
+        peak = f"{self.risk.max():.3g}" if self.risk.size else "-"
+        return (f"RiskResult({scenes} scenes, {objects} objects, {predictions} predictions, "
+                f"max risk {peak})")
+
+    def to_dict(self) -> dict[str, Any]:
+        """Per scene: risk, smallest TTR, dominant (object, prediction); and the settings."""
+        return {"method": self.method, "resolution": self.resolution,
+                "prediction_names": list(self.prediction_names),
+                "maneuver_names": list(self.maneuver_names),
+                "risk": self.risk, "ttr_min": self.ttr_min,
+                "dominant_object": self.dominant_object,
+                "dominant_prediction": self.dominant_prediction}
 
     @property
     def dominant_maneuver(self) -> np.ndarray:

@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from simcred._json import SCHEMA_VERSION, dumps, envelope
+from simcred._json import SCHEMA_VERSION, JsonResult, envelope
 from simcred.errors import SimcredError
 from simcred.kinematics import Track
 from simcred.scenario.spline import DEGREE, Quadrature, Spline, in_span
@@ -72,6 +72,11 @@ class ObjectTrack:
     heading: Spline
     length: float = 4.5
     width: float = 1.8
+
+    def __repr__(self) -> str:
+        return (f"ObjectTrack(x0={self.x0:g}, y0={self.y0:g}, [{self.t0:g}, {self.t1:g}] s, "
+                f"{self.sections} sections)")
+
 
     def __post_init__(self) -> None:
         for name in ("x0", "y0", "length", "width"):
@@ -146,7 +151,7 @@ class ObjectTrack:
 
 
 @dataclass(frozen=True, slots=True, eq=False)
-class ScenarioDescription:
+class ScenarioDescription(JsonResult):
     """Objects with their tracks, [1] sec. II-B.
 
     Parameters
@@ -166,6 +171,11 @@ class ScenarioDescription:
     objects: Mapping[str, ObjectTrack]
     dt: float = 0.1
     metadata: Mapping[str, Any] = field(default_factory=dict)
+
+    def __repr__(self) -> str:
+        return (f"ScenarioDescription({', '.join(self.objects)}; [{self.t0:g}, {self.t1:g}] s, "
+                f"dt {self.dt:g})")
+
 
     def __post_init__(self) -> None:
         if not self.objects:
@@ -224,11 +234,11 @@ class ScenarioDescription:
 
     def equals(self, other: ScenarioDescription) -> bool:
         """Exact content equality: same JSON document."""
-        return self.to_json() == other.to_json()
+        return self.to_dict() == other.to_dict()
 
     # -- JSON ---------------------------------------------------------------------------------
 
-    def to_json(self) -> dict[str, Any]:
+    def to_dict(self) -> dict[str, Any]:
         """The JSON document (plain dicts, lists and floats; floats round-trip exactly)."""
         objects = {name: _track_to_json(track) for name, track in self.objects.items()}
         return envelope(KIND, {"dt": self.dt, "metadata": dict(self.metadata),
@@ -237,13 +247,13 @@ class ScenarioDescription:
     @classmethod
     def from_json(cls, document: Mapping[str, Any], *, source: str = "<memory>"
                   ) -> ScenarioDescription:
-        """Inverse of :meth:`to_json`; errors are one line naming ``source`` and the key."""
+        """Inverse of :meth:`to_dict`; errors are one line naming ``source`` and the key."""
         return _description_from_json(document, source)
 
     def write(self, path: str | Path) -> Path:
         """Write :meth:`to_json` to ``path`` (deterministic, indented JSON)."""
         path = Path(path)
-        path.write_text(dumps(self.to_json()), encoding="utf-8")
+        path.write_text(self.to_json(), encoding="utf-8")
         return path
 
     @classmethod

@@ -74,6 +74,10 @@ class Spline:
     coefficients: np.ndarray
     _bspline: BSpline = field(init=False, repr=False)
 
+    def __repr__(self) -> str:
+        return f"Spline([{self.t0:g}, {self.t1:g}] s, {self.sections} sections)"
+
+
     def __post_init__(self) -> None:
         t0, t1 = float(self.t0), float(self.t1)
         if not (math.isfinite(t0) and math.isfinite(t1) and t0 < t1):

@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from simcred._json import dumps, envelope
+from simcred._json import JsonResult, envelope
 from simcred.errors import OptionError, SimcredError
 from simcred.scenario.bezier import BezierPath
 from simcred.scenario.description import (
@@ -39,7 +39,7 @@ class Status(StrEnum):
 
 
 @dataclass(frozen=True, slots=True, eq=False)
-class VariationRecord:
+class VariationRecord(JsonResult):
     """What happened to variation ``index``.
 
     Attributes
@@ -66,7 +66,11 @@ class VariationRecord:
     status: Status
     reasons: tuple[Reason, ...]
 
-    def to_json(self) -> dict[str, Any]:
+    def __repr__(self) -> str:
+        return f"VariationRecord({self.index}, {self.status.value}, rmse {self.rmse:.3g})"
+
+
+    def to_dict(self) -> dict[str, Any]:
         return {"index": self.index, "status": self.status.value,
                 "reasons": [r.value for r in self.reasons],
                 "displacements": self.displacements.tolist(),
@@ -87,6 +91,10 @@ class Variation:
     description: ScenarioDescription
     path: BezierPath
 
+    def __repr__(self) -> str:
+        return f"Variation({self.record!r})"
+
+
     @property
     def index(self) -> int:
         return self.record.index
@@ -101,7 +109,7 @@ class Variation:
 
 
 @dataclass(frozen=True, slots=True, eq=False)
-class VariationSet:
+class VariationSet(JsonResult):
     """The variations of one description, [1] sec. V (Fig. 8: 300 variations).
 
     Attributes
@@ -149,6 +157,11 @@ class VariationSet:
     base: ScenarioDescription
     method: str = METHOD
 
+    def __repr__(self) -> str:
+        return (f"VariationSet({self.generated} generated, {self.kept} kept, "
+                f"{self.rejected} rejected, seed {self.seed})")
+
+
     @property
     def generated(self) -> int:
         return len(self.records)
@@ -169,16 +182,16 @@ class VariationSet:
         counts = {reason.value: sum(reason in r.reasons for r in self.records) for reason in Reason}
         return {reason: count for reason, count in counts.items() if count}
 
-    def to_json(self) -> dict[str, Any]:
+    def to_dict(self) -> dict[str, Any]:
         """The JSON document: settings, counts, every record, and each kept variation's TO track.
 
         Deterministic (same set, same text) and float-exact; read the descriptions back with
         :func:`load_variations`.
         """
-        tracks = {v.index: v.description.to_json()["objects"][self.to] for v in self.variations}
+        tracks = {v.index: v.description.to_dict()["objects"][self.to] for v in self.variations}
         records = []
         for record in self.records:
-            entry = record.to_json()
+            entry = record.to_dict()
             if record.index in tracks:
                 entry["track"] = tracks[record.index]
             records.append(entry)
@@ -191,13 +204,13 @@ class VariationSet:
             "original_reasons": [r.value for r in self.original_reasons],
             "generated": self.generated, "kept": self.kept, "rejected": self.rejected,
             "rejections": self.rejections, "records": records,
-            "description": self.base.to_json(),
+            "description": self.base.to_dict(),
         })
 
     def write(self, path: str | Path) -> Path:
         """Write :meth:`to_json` to ``path`` (deterministic, indented JSON)."""
         path = Path(path)
-        path.write_text(dumps(self.to_json()), encoding="utf-8")
+        path.write_text(self.to_json(), encoding="utf-8")
         return path
 
 
