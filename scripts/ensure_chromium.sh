@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Make sure a Chromium is on PATH for the real-browser test of `simcred report`
-# (tests/test_report.py). If neither `chromium` nor `chromium-browser` is found, install Debian's
+# (tests/report/test_html.py). If neither `chromium` nor `chromium-browser` is found, install Debian's
 # `chromium` package with apt-get (non-interactive; as root, or through sudo when available).
 # Exit 0 when a Chromium is available at the end, 1 otherwise.
 set -uo pipefail

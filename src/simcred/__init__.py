@@ -4,14 +4,9 @@ Validity of simulation models for testing automated driving, after Neurohr et al
 of run sets), Wagner, Groh et al. (reprocessing of real drives) and Braun et al. (contracts).
 """
 
-from importlib.metadata import PackageNotFoundError, version
-
-try:
-    __version__ = version("simcred")
-except PackageNotFoundError:  # pragma: no cover - running from a source tree without install
-    __version__ = "0+unknown"
-
-from simcred.errors import OptionError, SimcredError, TraceSetError  # noqa: E402
-from simcred.traces import TraceSet  # noqa: E402
+import simcred.io  # noqa: F401  (registers the file formats of TraceSet.read / write)
+from simcred._version import __version__
+from simcred.errors import OptionError, SimcredError, TraceSetError
+from simcred.traces import TraceSet
 
 __all__ = ["TraceSet", "SimcredError", "TraceSetError", "OptionError", "__version__"]

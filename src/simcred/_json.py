@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-import simcred
+from simcred._version import __version__
 from simcred.errors import SimcredError
 
 SCHEMA_VERSION = 1
@@ -16,7 +18,7 @@ SCHEMA_VERSION = 1
 
 def plain(value: Any) -> Any:
     """Convert numpy scalars/arrays, tuples and enums to JSON-native values, recursively."""
-    if isinstance(value, dict):
+    if isinstance(value, Mapping):
         return {str(k): plain(v) for k, v in value.items()}
     if isinstance(value, list | tuple):
         return [plain(v) for v in value]
@@ -33,13 +35,38 @@ def plain(value: Any) -> Any:
     return value
 
 
-def envelope(kind: str, body: dict[str, Any]) -> dict[str, Any]:
-    """Every result document starts with its schema version, kind and simcred version."""
-    return {"schema_version": SCHEMA_VERSION, "kind": kind, "simcred_version": simcred.__version__,
-            **body}
+def envelope(kind: str, body: Mapping[str, Any], *, inputs: Mapping[str, str] | None = None,
+             options: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """A result document: the envelope, then ``body``.
+
+    Every JSON file simcred writes starts with ``schema_version``, ``kind`` (what the document
+    is, e.g. ``"reprocess"``) and ``simcred_version``; then, when given, ``inputs`` (name →
+    content hash, e.g. :meth:`simcred.traces.TraceSet.digest` or :func:`file_digest`) and
+    ``options`` (everything that produced it, the seed included). Stable API: every package
+    writes its files through it.
+
+    >>> list(envelope("x", {"value": 1}, inputs={"a": "sha256:00"}))
+    ['schema_version', 'kind', 'simcred_version', 'inputs', 'value']
+    """
+    head: dict[str, Any] = {"schema_version": SCHEMA_VERSION, "kind": kind,
+                            "simcred_version": __version__}
+    if inputs is not None:
+        head["inputs"] = dict(inputs)
+    if options is not None:
+        head["options"] = dict(options)
+    clash = set(head) & set(body)
+    if clash:
+        raise ValueError(f"envelope keys in the body of a {kind!r} document: {sorted(clash)}")
+    return {**head, **body}
 
 
-def dumps(document: dict[str, Any]) -> str:
+def file_digest(path: str | Path) -> str:
+    """``sha256:<hex>`` of a file's bytes (an input's content hash for :func:`envelope`)."""
+    return "sha256:" + hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def dumps(document: Mapping[str, Any]) -> str:
+    """Deterministic JSON text: keys in insertion order, floats round-trip, no NaN."""
     return json.dumps(plain(document), indent=1, allow_nan=False) + "\n"
 
 
@@ -65,3 +92,17 @@ def read_json(path: Path, error: type[SimcredError] = SimcredError) -> Any:
     except OSError as exc:
         raise error(f"{path}: cannot read ({exc.strerror or exc})") from None
     return loads(data, str(path), error)
+
+
+class JsonResult:
+    """The result convention: a frozen dataclass gives :meth:`to_dict` (plain data); this mixin
+    gives :meth:`to_json`, the deterministic text of that dict (:func:`dumps`)."""
+
+    __slots__ = ()
+
+    def to_dict(self) -> dict[str, Any]:  # pragma: no cover - every result defines it
+        raise NotImplementedError
+
+    def to_json(self) -> str:
+        """:meth:`to_dict` as deterministic JSON text."""
+        return dumps(self.to_dict())

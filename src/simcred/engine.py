@@ -6,8 +6,10 @@ Results never depend on where they were computed: every task derives its randomn
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
+from contextvars import ContextVar
+from types import MappingProxyType
 from typing import Any, TypeVar
 
 from simcred.errors import OptionError
@@ -17,18 +19,27 @@ R = TypeVar("R")
 #: Wraps an iterable of ``total`` items, e.g. in a progress bar.
 Progress = Callable[[Iterable[T], int], Iterable[T]]
 
-_shared: dict[str, Any] = {}
+#: The ``shared_values`` of the :meth:`Engine.map` call whose task is running. A context
+#: variable, set around each task and reset after it: a ``map`` inside a task (nested) sees its
+#: own values and gives the outer task its values back (a module-level dict was overwritten).
+_SHARED: ContextVar[Mapping[str, Any]] = ContextVar("simcred_shared", default=MappingProxyType({}))
 
 
 def shared(key: str) -> Any:
-    """A value given to every task of one :meth:`Engine.map` call through ``shared``."""
-    return _shared[key]
+    """A value given to every task of the running :meth:`Engine.map` call through
+    ``shared_values``."""
+    try:
+        return _SHARED.get()[key]
+    except KeyError:
+        raise KeyError(f"no shared value {key!r} in this map call") from None
 
 
-def _run_task(item: Any, task: Callable, values: dict[str, Any]) -> Any:
-    _shared.clear()
-    _shared.update(values)  # references only: the values themselves are not copied
-    return task(item)
+def _run_task(item: Any, task: Callable, values: Mapping[str, Any]) -> Any:
+    token = _SHARED.set(MappingProxyType(dict(values)))  # references: values are not copied
+    try:
+        return task(item)
+    finally:
+        _SHARED.reset(token)
 
 
 class Engine:

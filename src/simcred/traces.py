@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import hashlib
 import json
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -19,6 +19,34 @@ import numpy as np
 from simcred.errors import TraceSetError
 
 TIME = "t"
+
+
+@dataclass(frozen=True, slots=True)
+class FileHandlers:
+    """How :meth:`TraceSet.read` and :meth:`TraceSet.write` reach files.
+
+    The core does not import :mod:`simcred.io` (layers import one way, docs/architecture.md);
+    ``simcred.io`` registers its suffix-dispatching reader and writer here when it is imported,
+    and the package root ``simcred`` imports ``simcred.io``, so they are always registered.
+    """
+
+    read: Callable[..., TraceSet]
+    write: Callable[..., Path]
+
+
+_handlers: dict[str, FileHandlers] = {}
+
+
+def register_files(handlers: FileHandlers) -> None:
+    """Register the file formats of :meth:`TraceSet.read` / :meth:`TraceSet.write` (io does)."""
+    _handlers["files"] = handlers
+
+
+def _files() -> FileHandlers:
+    try:
+        return _handlers["files"]
+    except KeyError:  # pragma: no cover - simcred/__init__ imports simcred.io
+        raise RuntimeError("no TraceSet file formats registered: import simcred.io") from None
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -192,17 +220,16 @@ class TraceSet:
     @classmethod
     def read(cls, path: str | Path, **options: Any) -> TraceSet:
         """Read any supported format (CSV directory, Parquet, long format, SUMO FCD, CommonRoad,
-        OSI); ``options`` such as ``run_column=`` go to the reader (:func:`simcred.io.read`)."""
-        from simcred.io import read_traceset
+        OSI); ``options`` such as ``run_column=`` go to the reader (:func:`simcred.io.read`).
 
-        return read_traceset(path, **options)
+        The formats are :mod:`simcred.io`'s, registered with :func:`register_files`.
+        """
+        return _files().read(path, **options)
 
     def write(self, path: str | Path, **options: Any) -> Path:
         """Write in the format ``path`` implies (:func:`simcred.io.write`): a CSV directory,
         Parquet for ``.parquet``/``.pq``, a long CSV for ``.csv``, OSI for ``.osi``/``.mcap``."""
-        from simcred.io import write_traceset
-
-        return write_traceset(self, path, **options)
+        return _files().write(self, path, **options)
 
     # -- validation ---------------------------------------------------------------------------
 

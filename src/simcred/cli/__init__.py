@@ -11,8 +11,10 @@ from collections.abc import Sequence
 
 import typer
 
-from simcred.cli import compare, contracts, convert, paper, reprocess, simulate  # noqa: F401
-from simcred.cli._app import app, err_console
+from simcred.cli import compare, contracts, convert, paper, reprocess, simulate  # noqa: F401  (registers)
+from simcred.cli._app import app, error_line, plain_help
+
+plain_help(app)
 
 __all__ = ["app", "entry", "run"]
 
@@ -23,11 +25,10 @@ def run(argv: Sequence[str] | None = None) -> int:
     try:
         code = app(args=args, prog_name="simcred", standalone_mode=False)
     except typer.TyperException as exc:
-        err_console.print(f"[red]error:[/red] {exc.format_message()}", highlight=False,
-                          soft_wrap=True)
+        error_line(exc.format_message())
         return exc.exit_code
     except typer.Abort:
-        err_console.print("aborted")
+        error_line("aborted")
         return 1
     return code if isinstance(code, int) else 0
 

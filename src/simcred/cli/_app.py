@@ -7,15 +7,18 @@ Exit codes: 0 done, 1 negative verdict, 2 bad input or usage (one red line, no t
 from __future__ import annotations
 
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Sequence
 from functools import wraps
 from typing import Annotated
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.progress import track
+from rich.table import Table
+from rich.text import Text
 
-from simcred import __version__
+from simcred._version import __version__
 from simcred.engine import Progress
 from simcred.errors import SimcredError
 
@@ -35,18 +38,55 @@ class State:
     debug = False
 
 
+def _print_version(value: bool) -> None:
+    if value:
+        out_console.print(f"simcred {__version__}", markup=False, highlight=False)
+        raise typer.Exit(0)
+
+
 @app.callback()
 def main(
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress or tables.")] = False,
     debug: Annotated[bool, typer.Option("--debug", help="Tracebacks for input errors.")] = False,
     version: Annotated[bool, typer.Option("--version", help="Print the version and exit.",
-                                          is_eager=True)] = False,
+                                          is_eager=True, callback=_print_version)] = False,
 ) -> None:
     """simcred: validity of simulation models for testing automated driving."""
-    if version:
-        out_console.print(f"simcred {__version__}")
-        raise typer.Exit(0)
     State.quiet, State.debug = quiet, debug
+
+
+def plain_help(root: typer.Typer) -> None:
+    """Help texts are plain text, not rich markup: ``[m]`` or ``rGT[sb]`` must not vanish.
+
+    Applied to the app and every command group registered on it (cli/__init__ calls it after
+    importing all groups).
+    """
+    root.rich_markup_mode = None
+    for group in root.registered_groups:
+        if group.typer_instance is not None:
+            plain_help(group.typer_instance)
+
+
+def say(text: str) -> None:
+    """One line of plain text on stdout (paths and names may hold brackets: not markup)."""
+    out_console.print(text, markup=False, highlight=False, soft_wrap=True)
+
+
+def plain_table(title: str, columns: Sequence[str], rows: Iterable[Sequence[str | Text]]
+                ) -> Table:
+    """A rich table whose cells are text, not markup (``rGT[sb]`` stays ``rGT[sb]``);
+    pass a :class:`rich.text.Text` for a styled cell."""
+    table = Table(title=Text(title))
+    for column in columns:
+        table.add_column(Text(column), overflow="fold")
+    for row in rows:
+        table.add_row(*(cell if isinstance(cell, Text) else Text(cell) for cell in row))
+    return table
+
+
+def error_line(message: str) -> None:
+    """One red ``error:`` line on stderr; the message is escaped (brackets are text)."""
+    err_console.print(f"[red]error:[/red] {escape(message)}", highlight=False, soft_wrap=True)
 
 
 def one_line_errors(command: Callable) -> Callable:
@@ -59,7 +99,7 @@ def one_line_errors(command: Callable) -> Callable:
         except SimcredError as exc:
             if State.debug:
                 raise
-            err_console.print(f"[red]error:[/red] {exc}", highlight=False, soft_wrap=True)
+            error_line(str(exc))
             raise typer.Exit(EXIT_BAD_INPUT) from None
 
     return wrapper
@@ -87,7 +127,7 @@ def _steps(description: str) -> Callable[[str], None] | None:
     """Prints each pipeline step on stderr (on a terminal, without --quiet)."""
     if State.quiet or not sys.stderr.isatty():
         return None
-    return lambda step: err_console.print(f"[dim]{description}: {step}[/dim]")
+    return lambda step: err_console.print(f"[dim]{escape(f'{description}: {step}')}[/dim]")
 
 
 

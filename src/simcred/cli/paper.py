@@ -15,7 +15,9 @@ from simcred.cli._app import (
     app,
     one_line_errors,
     out_console,
+    plain_table,
     progress,
+    say,
 )
 from simcred.errors import OptionError
 
@@ -36,7 +38,6 @@ def paper_000(
     """Neurohr et al. sec. VI: SimpleCar λ sweep (Figs. 5-7) and T-junction (Table 3)."""
     from simcred.engine import engine
     from simcred.paper import seed000
-    from simcred.paper.claims import claims_table
 
     if runs is not None and runs < 2:
         raise OptionError(f"runs must be at least 2, got {runs}")
@@ -45,7 +46,7 @@ def paper_000(
                                  progress_for=progress)
     if not State.quiet:
         out_console.print(claims_table(claims, "seed 000: the paper's claims"))
-        out_console.print(f"wrote figures, tables and claims.json to {out}")
+        say(f"wrote figures, tables and claims.json to {out}")
 
 
 @paper_app.command("002")
@@ -62,7 +63,6 @@ def paper_002(
     """Wagner, Groh et al.: reprocessing the cut-in (Figs. 3-8, eqs. 2-7) and its claims."""
     from simcred.engine import engine
     from simcred.paper import seed002
-    from simcred.paper.claims import claims_table
 
     if variations < 20:
         raise OptionError(f"variations must be at least 20 (for the 5th/95th percentiles), "
@@ -72,7 +72,7 @@ def paper_002(
                                  progress=_steps("paper 002"), progress_for=progress).claims
     if not State.quiet:
         out_console.print(claims_table(claims, "seed 002: the paper's claims"))
-        out_console.print(f"wrote measurement, results, figures and claims.json to {out}")
+        say(f"wrote measurement, results, figures and claims.json to {out}")
 
 
 
@@ -91,7 +91,6 @@ def paper_all(
     """All three seeds: paper 000, paper 002, and seed 003's contracts on the cut-in."""
     from simcred.engine import engine
     from simcred.paper.all import AllOptions, run_all
-    from simcred.paper.claims import claims_table
 
     if runs is not None and runs < 2:
         raise OptionError(f"runs must be at least 2, got {runs}")
@@ -105,7 +104,7 @@ def paper_all(
             out_console.print(claims_table(found, f"seed {key}: claims"))
         total = sum(len(c) for c in claims.values())
         held = sum(c.passed for found in claims.values() for c in found)
-        out_console.print(f"{held} of {total} claims hold; wrote {out / 'claims.json'}")
+        say(f"{held} of {total} claims hold; wrote {out / 'claims.json'}")
 
 
 @app.command()
@@ -121,6 +120,19 @@ def report(
 
     path = write_report(directory, out=out)
     if not State.quiet:
-        out_console.print(str(path), markup=False, highlight=False, soft_wrap=True)
+        say(str(path))
 
 
+
+
+def claims_table(claims, title: str):
+    """The claims as a table: id, claim, value, bound, passed (green yes / red no)."""
+    from rich.text import Text
+
+    def row(c):
+        value = "—" if c.value is None else f"{c.value:.4g}"
+        bound = "—" if c.bound is None else f"{c.bound:.4g}"
+        verdict = Text("yes", style="green") if c.passed else Text("no", style="red")
+        return c.id, c.claim, value, bound, verdict
+
+    return plain_table(title, ("id", "claim", "value", "bound", "passed"), map(row, claims))

@@ -6,7 +6,6 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from rich.table import Table
 
 from simcred.cli._app import (
     ResimVehicle,
@@ -17,7 +16,9 @@ from simcred.cli._app import (
     app,
     one_line_errors,
     out_console,
+    plain_table,
     progress,
+    say,
 )
 from simcred.errors import OptionError
 
@@ -38,21 +39,21 @@ def reprocess(
         help="Also resimulate with the scenario-based sensor model (needs GT).")] = True,
 ) -> None:
     """Reprocess a drive: fit, resimulate, refit, assess; errors per step (Wagner, Groh et al.)."""
-    from simcred.reprocess import output
+    from simcred.report.seed002 import write_reprocessed
     from simcred.reprocess.inputs import read_measurement
     from simcred.reprocess.pipeline import ReprocessConfig
     from simcred.reprocess.pipeline import reprocess as run_pipeline
-    from simcred.sim.experiments.cutin import vehicle_model
+    from simcred.sim.vehicles import vehicle_model
 
     vehicle_model(vehicle)  # validates the name before any work
     config = ReprocessConfig(vehicle=vehicle, seed=seed, threshold=threshold,
                              scenario_based=scenario_based)
     result = run_pipeline(read_measurement(measurement, object_id), config,
                           _steps("reprocessing"))
-    output.write(result, out)
+    write_reprocessed(result, out)
     if not State.quiet:
         _print_reactions(result)
-        out_console.print(f"wrote errors.json, reaction.json, descriptions, scenario.xosc and "
+        say(f"wrote errors.json, reaction.json, descriptions, scenario.xosc and "
                           f"figures to {out}")
 
 
@@ -64,16 +65,18 @@ def vary(
     out: Annotated[Path, typer.Option(help="Directory for variations, runs and figures.")],
     n: Annotated[int, typer.Option("-n", "--n", help="Variations to generate.")] = 300,
     seed: Annotated[int, typer.Option(help="Seed: variation i uses SeedSequence(seed, "
-                                           "spawn_key=(i,)).")] = 1,
+                                           "spawn_key=(i,)); paper 002 varies with its seed "
+                                           "+ 1.")] = 0,
     vehicle: ResimVehicle = "ks",
     workers: Workers = None,
     scheduler: Scheduler = None,
 ) -> None:
     """Local variations of the TO's cut-in (Wagner, Groh et al. sec. V): vary, resimulate, risk."""
     from simcred.engine import engine
-    from simcred.reprocess.vary import VaryConfig, run_campaign, write_campaign
+    from simcred.report.seed002 import write_variations
+    from simcred.reprocess.vary import VaryConfig, run_campaign
     from simcred.scenario.description import ScenarioDescription
-    from simcred.sim.experiments.cutin import vehicle_model
+    from simcred.sim.vehicles import vehicle_model
 
     if n < 1:
         raise OptionError(f"n must be at least 1, got {n}")
@@ -82,17 +85,14 @@ def vary(
     with engine(workers, scheduler) as runner:
         campaign = run_campaign(original, VaryConfig(n=n, seed=seed, vehicle=vehicle),
                                 runner=runner, progress_for=progress)
-    write_campaign(campaign, out)
+    write_variations(campaign, out)
     if not State.quiet:
         _print_campaign(campaign.summary())
-        out_console.print(f"wrote variations.json, variation_set.json, runs.parquet and "
+        say(f"wrote variations.json, variation_set.json, runs.parquet and "
                           f"figures/fig8_variations.png to {out}")
 
 
 def _print_campaign(summary: dict) -> None:
-    table = Table(title="variation campaign")
-    table.add_column("what")
-    table.add_column("value")
     p = summary["max_risk_percentiles"]
     rows = [("generated / kept / rejected",
              f"{summary['generated']} / {summary['kept']} / {summary['rejected']}"),
@@ -104,18 +104,11 @@ def _print_campaign(summary: dict) -> None:
             ("unvaried (rGT) max risk", f"{summary['reference']['max_risk']:.3g} "
                                         f"(percentile {summary['reference_risk_percentile']:.0f})"),
             ("outside the validity range", str(len(summary["validity"]["outside"])))]
-    for row in rows:
-        table.add_row(*row)
-    out_console.print(table)
+    out_console.print(plain_table("variation campaign", ("what", "value"), rows))
 
 
 def _print_reactions(result) -> None:
-    table = Table(title="EGO reaction per representation")
-    for column in ("trace", "manoeuvre", "reaction time [s]", "max risk"):
-        table.add_column(column)
-    for name, r in result.reactions.items():
-        time = "—" if r.time != r.time else f"{r.time:.2f}"
-        table.add_row(name, r.manoeuvre, time, f"{result.risk[name]['risk'].max():.3g}")
-    out_console.print(table)
-
-
+    rows = [(str(name), r.manoeuvre, "—" if r.time != r.time else f"{r.time:.2f}",
+             f"{result.risk[name]['risk'].max():.3g}") for name, r in result.reactions.items()]
+    out_console.print(plain_table("EGO reaction per representation",
+                                  ("trace", "manoeuvre", "reaction time [s]", "max risk"), rows))

@@ -13,8 +13,8 @@ from simcred.cli._app import (
     Workers,
     app,
     one_line_errors,
-    out_console,
     progress,
+    say,
 )
 from simcred.errors import OptionError
 
@@ -37,7 +37,7 @@ def _simulate(experiment, params: dict, runs: int, seed: int, out: Path, chunk_s
                           progress=progress("simulating chunks"))
     path = traces.write(out)
     if not State.quiet:
-        out_console.print(f"wrote {path}: {traces.n_runs} runs, {traces.n_rows} rows, "
+        say(f"wrote {path}: {traces.n_runs} runs, {traces.n_rows} rows, "
                           f"signals {', '.join(traces.signals)}")
 
 
@@ -101,6 +101,6 @@ def simulate_cutin(
     measurement = cutin.simulate(seed, cutin.CutInConfig(ego_model=ego_model))
     measurement.write(out)
     if not State.quiet:
-        out_console.print(f"wrote {out}: GT and SD, {measurement.sd.n_rows} samples each")
+        say(f"wrote {out}: GT and SD, {measurement.sd.n_rows} samples each")
 
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from simcred.io.formats import FORMATS, PARQUET_SUFFIXES, detect, read, write
-from simcred.traces import TraceSet
+from simcred.traces import FileHandlers, TraceSet, register_files
 
 
 def read_traceset(path: str | Path, **options) -> TraceSet:
@@ -22,6 +22,8 @@ def write_traceset(traces: TraceSet, path: str | Path, **options) -> Path:
     ``.osi``/``.mcap``, else a CSV directory (the same as :func:`write`)."""
     return write(traces, path, **options)
 
+
+register_files(FileHandlers(read=read_traceset, write=write_traceset))
 
 __all__ = ["FORMATS", "PARQUET_SUFFIXES", "detect", "read", "read_traceset", "write",
            "write_traceset"]

@@ -35,6 +35,7 @@ import numpy as np
 import pyproj
 
 from simcred.errors import TraceSetError
+from simcred.kinematics import MOTION_SIGNALS
 from simcred.traces import TIME, TraceSet
 
 EGO_COLUMNS = ("timestamp", "lat", "long", "heading", "speed")
@@ -46,10 +47,8 @@ LANE_COLUMNS = {
     "right_curvature": "lin_right_kruemm",
 }
 KMH = 1 / 3.6  # km/h -> m/s
-LANE_WIDTH = 3.5  # m, used where the file has no lane markings
 STALE_SPEED = 1.0  # m/s: a fix repeated while the ego is faster than this is a held (stale) fix
 MIN_TRACK = 1.0  # m of GNSS track needed to estimate the heading offset
-SIGNALS = ("x", "y", "v", "heading")
 _OBJECT_COLUMN = re.compile(r"^(pos_x|pos_y|speed_x|speed_y|class)_(\d+)$")
 
 
@@ -60,7 +59,7 @@ def _frozen(array: Any, dtype: type = np.float64) -> np.ndarray:
 
 
 @dataclass(frozen=True, slots=True, eq=False)
-class ObjectTrack:
+class A9Object:
     """One detected object over the rows where it is present, in the local frame, SI units.
 
     Parameters
@@ -122,7 +121,7 @@ class A9Recording:
         ``x``, ``y`` [m]: dead-reckoned position shifted onto the GNSS fixes; ``v`` [m/s];
         ``heading`` [rad], the recorded heading plus :attr:`heading_offset`, unwrapped;
         ``gnss_x``, ``gnss_y`` [m]: the GNSS fixes as recorded, projected.
-    objects : mapping of int to ObjectTrack
+    objects : mapping of int to A9Object
         Every object present in at least one row, by id.
     lanes : mapping of str to ndarray
         ``left_y``, ``right_y`` [m], ``left_curvature``, ``right_curvature`` [1/m] of the ego's
@@ -140,7 +139,7 @@ class A9Recording:
     source: str
     time: np.ndarray
     ego: Mapping[str, np.ndarray]
-    objects: Mapping[int, ObjectTrack]
+    objects: Mapping[int, A9Object]
     lanes: Mapping[str, np.ndarray]
     origin: tuple[float, float]
     crs: str
@@ -189,7 +188,7 @@ class A9Recording:
         meta = self.metadata()
         stem = Path(self.source).stem
         if object_id is None:
-            run = {TIME: self.time, **{f"ego.{s}": self.ego[s] for s in SIGNALS}}
+            run = {TIME: self.time, **{f"ego.{s}": self.ego[s] for s in MOTION_SIGNALS}}
             return TraceSet.from_runs([run], run_ids=[stem], metadata=meta, source=self.source)
         track = self._track(object_id, name)
         lo, hi = max(track.segments(), key=lambda seg: seg[1] - seg[0])
@@ -198,16 +197,20 @@ class A9Recording:
                                 "(at least 2 are needed)")
         k = np.searchsorted(track.rows, lo)
         part = slice(k, k + hi - lo)
-        run = {TIME: self.time[lo:hi], **{f"ego.{s}": self.ego[s][lo:hi] for s in SIGNALS}}
-        run.update({f"{name}.{s}": getattr(track, s)[part] for s in SIGNALS})
+        run = {TIME: self.time[lo:hi], **{f"ego.{s}": self.ego[s][lo:hi] for s in MOTION_SIGNALS}}
+        run.update({f"{name}.{s}": getattr(track, s)[part] for s in MOTION_SIGNALS})
         meta.update(object_id=object_id, object_class=track.object_class, rows=[lo, hi])
         return TraceSet.from_runs([run], run_ids=[f"{stem}:obj{object_id}"], metadata=meta,
                                   source=self.source)
 
-    def _track(self, object_id: int, name: str) -> ObjectTrack:
+    def _track(self, object_id: int, name: str) -> A9Object:
         if name in ("", "ego") or "." in name:
             raise TraceSetError(f"{self.source}: object prefix {name!r} must be a plain name "
                                 "other than 'ego'")
+        return self.object(object_id)
+
+    def object(self, object_id: int) -> A9Object:
+        """Object ``object_id``; a one-line error names the objects present if there is none."""
         if object_id not in self.objects:
             raise TraceSetError(f"{self.source}: no object {object_id} (objects present: "
                                 f"{list(self.objects)})")
@@ -424,7 +427,7 @@ def _rotate(psi: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, 
     return c * a - s * b, s * a + c * b
 
 
-def _object(table: _Table, k: int, ego: Mapping[str, np.ndarray]) -> ObjectTrack | None:
+def _object(table: _Table, k: int, ego: Mapping[str, np.ndarray]) -> A9Object | None:
     cells = {f: table.numbers(f"{f}_{k}") for f in OBJECT_FIELDS}
     present = ~np.isnan(cells["pos_x"])
     for f in OBJECT_FIELDS[1:]:
@@ -441,7 +444,7 @@ def _object(table: _Table, k: int, ego: Mapping[str, np.ndarray]) -> ObjectTrack
     rel_x, rel_y = cells["pos_x"][rows], cells["pos_y"][rows]
     dx, dy = _rotate(psi, rel_x, rel_y)
     vx, vy = cells["speed_x"][rows] * KMH, cells["speed_y"][rows] * KMH
-    return ObjectTrack(
+    return A9Object(
         id=k, rows=rows, x=ego["x"][rows] + dx, y=ego["y"][rows] + dy, v=np.hypot(vx, vy),
         heading=np.unwrap(psi + np.arctan2(vy, vx)), rel_x=rel_x, rel_y=rel_y,
         object_class=_object_class(table, k, rows),
@@ -456,69 +459,4 @@ def _object_class(table: _Table, k: int, rows: np.ndarray) -> int | None:
     return int(Counter(values.tolist()).most_common(1)[0][0]) if values.size else None
 
 
-# -- lane changes ---------------------------------------------------------------------------------
-
-
-def lane_offset(recording: A9Recording, object_id: int, *, lane_width: float | None = None
-                ) -> tuple[np.ndarray, np.ndarray]:
-    """Lateral offset of an object from the ego lane's centre line, and the lane width, per row.
-
-    The centre line in the ego frame is ``c + kappa x^2 / 2`` with ``c`` the mean of the left and
-    right marking offsets and ``kappa`` the mean marking curvature (small-angle form of the
-    markings' circular arcs); the width is left minus right marking offset. Where the markings are
-    not recorded: ``c = 0``, ``kappa = 0``, width ``lane_width`` (3.5 m by default). A given
-    ``lane_width`` replaces the measured width everywhere.
-
-    Returns
-    -------
-    offset, width : ndarray, shape (n,)
-        Over the rows where the object is present [m]; the object is in the ego's lane where
-        ``|offset| < width / 2``.
-    """
-    _lane_width_iv(recording, lane_width)
-    track = recording._track(object_id, "to")
-    lanes = {key: value[track.rows] for key, value in recording.lanes.items()}
-    left, right = lanes["left_y"], lanes["right_y"]
-    marked = np.isfinite(left) & np.isfinite(right)
-    centre = np.where(marked, 0.5 * (left + right), 0.0)
-    curvatures = np.vstack([lanes["left_curvature"], lanes["right_curvature"]])
-    known = np.isfinite(curvatures)
-    kappa = np.where(known, curvatures, 0.0).sum(axis=0) / np.maximum(known.sum(axis=0), 1)
-    width = np.where(marked, left - right, LANE_WIDTH)
-    if lane_width is not None:
-        width = np.full(len(track), float(lane_width))
-    return track.rel_y - centre - 0.5 * kappa * track.rel_x**2, width
-
-
-def _lane_width_iv(recording: A9Recording, lane_width: float | None) -> None:
-    if lane_width is not None and not (np.isfinite(lane_width) and lane_width > 0):
-        raise TraceSetError(f"{recording.source}: lane_width must be a positive number, "
-                            f"not {lane_width!r}")
-
-
-def lane_changer(recording: A9Recording, *, lane_width: float | None = None) -> int:
-    """The object that enters or leaves the ego's lane and is present longest (ties: lowest id).
-
-    An object crosses the ego's lane when its :func:`lane_offset` lies inside ``±width/2`` in some
-    rows and outside in others.
-
-    Raises
-    ------
-    TraceSetError
-        If no object crosses the ego's lane.
-    """
-    _lane_width_iv(recording, lane_width)
-    crossing = []
-    for k, track in recording.objects.items():
-        offset, width = lane_offset(recording, k, lane_width=lane_width)
-        inside = np.abs(offset) < width / 2
-        if inside.any() and not inside.all():
-            crossing.append((-len(track), k))
-    if not crossing:
-        raise TraceSetError(f"{recording.source}: no object crosses the ego's lane "
-                            f"(objects: {list(recording.objects)})")
-    return min(crossing)[1]
-
-
-__all__ = ["A9Recording", "ObjectTrack", "heading_offset", "lane_changer", "lane_offset",
-           "read_a9"]
+__all__ = ["A9Object", "A9Recording", "heading_offset", "read_a9"]

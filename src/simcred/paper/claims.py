@@ -5,8 +5,6 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from rich.table import Table
-
 from simcred._json import dumps, envelope
 
 
@@ -35,14 +33,3 @@ def write_claims(claims: list[Claim], path: Path, provenance: dict) -> Path:
     path.write_text(dumps(envelope("claims", body)))
     return path
 
-
-def claims_table(claims: list[Claim], title: str) -> Table:
-    table = Table(title=title)
-    for column in ("id", "claim", "value", "bound", "passed"):
-        table.add_column(column, overflow="fold")
-    for c in claims:
-        value = "—" if c.value is None else f"{c.value:.4g}"
-        bound = "—" if c.bound is None else f"{c.bound:.4g}"
-        verdict = "[green]yes[/green]" if c.passed else "[red]no[/red]"
-        table.add_row(c.id, c.claim, value, bound, verdict)
-    return table

@@ -17,7 +17,8 @@ from scipy.stats import spearmanr
 from simcred.compare import compare
 from simcred.engine import Engine, Progress, shared
 from simcred.paper.claims import Claim, at_least, below
-from simcred.sim.campaign import Campaign, derive_seed
+from simcred.seeds import derive_seed
+from simcred.sim.campaign import Campaign
 from simcred.sim.experiments import simplecar_sweep
 
 KERNELS = ("gaussian", "laplace", "linear")
@@ -223,7 +224,8 @@ def run_all(out: Path, *, runs: int | None, seed: int, runner: Engine,
     examples = [(f"λ = {lam}", simplecar_sweep.simulate(range(5), seed, lam=lam, dt=0.1,
                                                         duration=config.duration))
                 for lam in (1.0, 0.81)]
-    fig5_inputs(out / "fig5_inputs.png", examples, duration=config.duration)
+    fig5_inputs(out / "fig5_inputs.png", simplecar_sweep.base_inputs, examples,
+                duration=config.duration)
     fig_distance_curves(sweep, "xy", out / "fig6_xy.png", "Fig. 6: features (x, y)")
     fig_distance_curves(sweep, "xy_heading", out / "fig7_xy_heading.png",
                         "Fig. 7: features (x, y, ψ)")

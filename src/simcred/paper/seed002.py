@@ -13,15 +13,15 @@ import numpy as np
 
 from simcred.engine import Engine
 from simcred.paper.claims import Claim, at_least, below, write_claims
-from simcred.reprocess import output
+from simcred.report.seed002 import write_reprocessed, write_variations
 from simcred.reprocess.errors import ErrorStats
-from simcred.reprocess.pipeline import SB, ReprocessConfig, Reprocessed, log_risk_rmse, reprocess
+from simcred.reprocess.pipeline import ReprocessConfig, Reprocessed, log_risk_rmse, reprocess
+from simcred.reprocess.representation import GT, Sensor
 from simcred.reprocess.vary import (
     Campaign,
     VaryConfig,
     risk_percentile_claim_values,
     run_campaign,
-    write_campaign,
 )
 from simcred.sim.experiments import cutin
 
@@ -74,12 +74,13 @@ def reprocess_claims(result: Reprocessed, configured_offset: float) -> list[Clai
 
 def _scenario_based_claims(result: Reprocessed) -> list[Claim]:
     r = result.reactions
-    if f"rGT{SB}" not in r:
+    rgt_sb = GT.resimulation(Sensor.SCENARIO_BASED)
+    if rgt_sb not in r:
         return []
-    sb = r[f"rGT{SB}"]
+    sb = r[rgt_sb]
     gap = abs(sb.time - r["GT"].time) if not math.isnan(sb.time) else math.inf
     ideal = log_risk_rmse(result.risk["GT"], result.risk["rGT"])
-    scenario_based = log_risk_rmse(result.risk["GT"], result.risk[f"rGT{SB}"])
+    scenario_based = log_risk_rmse(result.risk["GT"], result.risk[rgt_sb])
     return [
         Claim("scenario_based_same_behaviour",
               "with the scenario-based sensor model the resimulated EGO chooses GT's manoeuvre "
@@ -101,7 +102,7 @@ def run_reprocessing(out: Path, *, seed: int = 0, config: cutin.CutInConfig | No
     measurement = cutin.simulate(seed, universe)
     measurement.write(out / "measurement")
     result = reprocess(measurement, ReprocessConfig(seed=seed), progress)
-    output.write(result, out)
+    write_reprocessed(result, out)
     return result, reprocess_claims(result, universe.sensor.offset)
 
 
@@ -131,7 +132,7 @@ def run_variations(out: Path, result: Reprocessed, *, n: int = 300, seed: int = 
                         driver=result.config.driver)
     campaign = run_campaign(result.descriptions["fit(GT)"], config, runner=runner,
                             progress_for=progress_for)
-    write_campaign(campaign, out)
+    write_variations(campaign, out)
     return campaign, variation_claims(campaign)
 
 

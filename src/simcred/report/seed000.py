@@ -7,19 +7,22 @@ from pathlib import Path
 import numpy as np
 
 from simcred.report.figures import _save, plt
-from simcred.sim.experiments import simplecar_sweep
 
 KERNEL_COLORS = {"gaussian": "#1f77b4", "laplace": "#d62728", "linear": "#2ca02c"}
 
 
-def fig5_inputs(path: str | Path, sample_paths, taus=(0.81, 1.0, 1.2), duration: float = 40.0
-                ) -> Path:
-    """Fig. 5: the time-scaled input functions, and a few resulting paths."""
+def fig5_inputs(path: str | Path, base_inputs, sample_paths, taus=(0.81, 1.0, 1.2),
+                duration: float = 40.0) -> Path:
+    """Fig. 5: the time-scaled input functions, and a few resulting paths.
+
+    ``base_inputs(t) -> (speed, steering_rate)`` are the sweep's input functions (the experiment
+    gives them: report does not import experiments).
+    """
     fig, (speed_ax, steer_ax, path_ax) = plt.subplots(1, 3, figsize=(15, 4.2),
                                                       constrained_layout=True)
     t = np.linspace(0.0, duration, 800)
     for tau in taus:
-        speed, steering_rate = simplecar_sweep.base_inputs(tau * t)
+        speed, steering_rate = base_inputs(tau * t)
         speed_ax.plot(t, tau * speed, label=f"τ = {tau}")
         steer_ax.plot(t, tau * steering_rate, label=f"τ = {tau}")
     speed_ax.set(xlabel="t [s]", ylabel="u_v [m/s]", title="speed input τ·v(τt)")

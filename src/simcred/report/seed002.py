@@ -10,24 +10,28 @@ from pathlib import Path
 import numpy as np
 
 from simcred.report.figures import _save, plt
+from simcred.reprocess import output
 from simcred.reprocess.errors import QUANTITIES, STEPS
-from simcred.reprocess.pipeline import SB, Reprocessed, log_risk
+from simcred.reprocess.pipeline import Reprocessed, log_risk
+from simcred.reprocess.representation import GT, SD, Rep, Sensor
+from simcred.reprocess.vary import Campaign, write_campaign
 
 EGO_COLOR, TO_COLOR = "#1f4e9c", "#2ca02c"
+RGT, RSD = GT.resimulation(), SD.resimulation()
 TRACE_STYLES = {  # representation -> (label, colour, line style)
-    "GT": ("GT", "#222222", "-"),
-    "SD": ("SD (no GT recorded)", "#222222", "-"),
-    "rGT": ("rGT (ideal sensor)", "#1f77b4", "--"),
-    "rSD": ("rSD (ideal sensor)", "#17becf", "--"),
-    f"rGT{SB}": ("rGT (scenario-based sensor)", "#d62728", "-."),
-    f"rSD{SB}": ("rSD (scenario-based sensor)", "#ff7f0e", ":"),
+    GT: ("GT", "#222222", "-"),
+    SD: ("SD (no GT recorded)", "#222222", "-"),
+    RGT: ("rGT (ideal sensor)", "#1f77b4", "--"),
+    RSD: ("rSD (ideal sensor)", "#17becf", "--"),
+    GT.resimulation(Sensor.SCENARIO_BASED): ("rGT (scenario-based sensor)", "#d62728", "-."),
+    SD.resimulation(Sensor.SCENARIO_BASED): ("rSD (scenario-based sensor)", "#ff7f0e", ":"),
 }
-def _styles(result: Reprocessed) -> list[tuple[str, tuple[str, str, str]]]:
+def _styles(result: Reprocessed) -> list[tuple[Rep, tuple[str, str, str]]]:
     """The representations to draw: the measurement (GT, or SD when there is no GT) and every
     resimulation that was run."""
-    reference = "GT" if "GT" in result.states else "SD"
+    reference = GT if GT in result.states else SD
     return [(key, style) for key, style in TRACE_STYLES.items()
-            if f"fit({key})" in result.states and (key == reference or key[0] == "r")]
+            if key.fit() in result.states and (key == reference or key.resimulated)]
 
 
 UNITS = {"d": "Δd [m]", "v": "Δv [m/s]", "heading": "Δθ [rad]"}
@@ -36,7 +40,8 @@ UNITS = {"d": "Δd [m]", "v": "Δv [m/s]", "heading": "Δθ [rad]"}
 def fig3_fit(result: Reprocessed, path: str | Path, source: str = "GT") -> Path:
     """Fig. 3: the scenario description fitted to ``source`` (thin) over the data (thick)."""
     ego, to = result.config.ego, result.config.objects[0]
-    t, raw, fit = result.times, result.states[source], result.states[f"fit({source})"]
+    source = Rep(source)
+    t, raw, fit = result.times, result.states[source], result.states[source.fit()]
     fig = plt.figure(figsize=(12, 7), constrained_layout=True)
     grid = fig.add_gridspec(2, 2)
     xy, speed, heading = fig.add_subplot(grid[0, :]), fig.add_subplot(grid[1, 0]), \
@@ -128,10 +133,10 @@ def fig6_traces(result: Reprocessed, path: str | Path, before: float = 0.5,
     window = (t >= start) & (t <= start + before + after)
     fig, ax = plt.subplots(figsize=(12, 4.5), constrained_layout=True)
     for key, (label, color, style) in _styles(result):
-        states = result.states[f"fit({key})"]
+        states = result.states[key.fit()]
         ax.plot(states[ego][window, 0], states[ego][window, 1], color=color, ls=style, lw=2,
                 label=f"EGO {label}")
-    truth = result.states["fit(GT)" if "fit(GT)" in result.states else "fit(SD)"][to]
+    truth = result.states[GT.fit() if GT.fit() in result.states else SD.fit()][to]
     ax.plot(truth[window, 0], truth[window, 1], color=TO_COLOR, lw=6, alpha=0.35, label="TO")
     ax.set(xlabel="x [m]", ylabel="y [m]",
            title=f"paths from {start:.1f} s to {start + before + after:.1f} s: who brakes, "
@@ -148,7 +153,7 @@ def fig7_velocity_risk(result: Reprocessed, path: str | Path) -> Path:
                                       sharex=True)
     t = result.times
     for key, (label, color, style) in _styles(result):
-        source = key if key in ("GT", "SD") else f"fit({key})"
+        source = key.fit() if key.resimulated else key
         speed.plot(t, result.states[source][ego][:, 2], color=color, ls=style,
                    label=f"EGO {label}")
         r = result.risk[key]
@@ -225,3 +230,18 @@ def fig8_variations(campaign, path: str | Path) -> Path:
     for ax in (paths, speeds, risks):
         ax.grid(alpha=0.3)
     return _save(fig, Path(path))
+
+
+def write_reprocessed(result: Reprocessed, directory: str | Path) -> dict[str, Path]:
+    """:func:`simcred.reprocess.output.write` and Figs. 3-7 into ``directory/figures``."""
+    files = output.write(result, directory)
+    write_figures(result, Path(directory) / "figures")
+    return files
+
+
+def write_variations(campaign: Campaign, directory: str | Path) -> dict[str, Path]:
+    """:func:`simcred.reprocess.vary.write_campaign` and ``figures/fig8_variations.png``."""
+    files = write_campaign(campaign, directory)
+    files["figure"] = fig8_variations(campaign, Path(directory) / "figures" /
+                                      "fig8_variations.png")
+    return files

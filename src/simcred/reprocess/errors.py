@@ -22,6 +22,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from simcred._json import JsonResult
+
 QUANTITIES = ("d", "v", "heading")
 
 #: The steps of Fig. 4: name -> (output, input), both keys of the pipeline's representations.
@@ -39,7 +41,7 @@ STEPS: dict[str, tuple[str, str]] = {
 
 
 @dataclass(frozen=True, slots=True)
-class ErrorStats:
+class ErrorStats(JsonResult):
     """Summary of one error series (Fig. 4's box, whiskers and diamond)."""
 
     q25: float
@@ -58,7 +60,7 @@ class ErrorStats:
         return cls(float(q25), float(median), float(q75), float(values.min()),
                    float(values.max()), float(values.mean()), float(values.std()), len(values))
 
-    def to_json(self) -> dict[str, float]:
+    def to_dict(self) -> dict[str, float]:
         return asdict(self)
 
 

@@ -5,7 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from simcred.errors import TraceSetError
-from simcred.io.a9 import lane_changer, read_a9
+from simcred.io.a9 import read_a9
+from simcred.io.a9_lanes import lane_changer
 from simcred.io.measurement import INDEX, Measurement
 from simcred.scenario.frenet import to_path_frame
 

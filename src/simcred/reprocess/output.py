@@ -1,5 +1,8 @@
 """Writing a reprocessing result to a directory (``simcred reprocess --out DIR``).
 
+The figures (``figures/``, Figs. 3-7) are drawn by :func:`simcred.report.seed002.write_reprocessed`,
+which calls :func:`write` and then draws them (reprocess does not import report).
+
 Layout::
 
     reprocess.json      summary: options, fits, sensor model, reactions, eqs. (4)-(7), risk
@@ -9,41 +12,18 @@ Layout::
     descriptions/       every scenario description (JSON), e.g. fit_GT.json, fit_rGT_sb.json
     scenario.xosc       OpenSCENARIO export of the measurement's description (GT, else SD)
     resimulations/      every resimulation as Parquet, e.g. rGT.parquet
-    figures/            Figs. 3-7
 """
 
 from __future__ import annotations
 
-import re
 from pathlib import Path
 from typing import Any
 
 from simcred._json import dumps, envelope
 from simcred.io import parquet
-from simcred.report.seed002 import write_figures
 from simcred.reprocess.pipeline import Reprocessed
+from simcred.reprocess.representation import GT, SD, Rep
 from simcred.scenario.openscenario import to_openscenario, validate_openscenario
-
-
-def file_stem(name: str) -> str:
-    """``fit(rGT[sb])`` → ``fit_rGT_sb``."""
-    return re.sub(r"_+", "_", re.sub(r"[^A-Za-z0-9]+", "_", name)).strip("_")
-
-
-def summary(result: Reprocessed) -> dict[str, Any]:
-    c = result.config
-    return {
-        "options": {"vehicle": c.vehicle, "dt": c.dt, "risk_dt": c.risk_dt, "seed": c.seed,
-                    "ego": c.ego, "objects": list(c.objects), "threshold": c.threshold,
-                    "scenario_based": c.scenario_based},
-        "fits": {name: {obj: {"sections": f.sections, "rmse": f.rmse,
-                              "stop_reason": str(f.stop_reason)}
-                        for obj, f in fit.fits.items()} for name, fit in result.fits.items()},
-        "sensor_model": None if result.sensor_model is None else result.sensor_model.to_json(),
-        "reactions": {k: r.to_json() for k, r in result.reactions.items()},
-        "analysis": result.analysis,
-        "max_risk": {k: float(r["risk"].max()) for k, r in result.risk.items()},
-    }
 
 
 def write(result: Reprocessed, directory: str | Path) -> dict[str, Path]:
@@ -51,32 +31,32 @@ def write(result: Reprocessed, directory: str | Path) -> dict[str, Path]:
     out = Path(directory)
     out.mkdir(parents=True, exist_ok=True)
     files = {
-        "summary": _json(out / "reprocess.json", "reprocess", summary(result)),
+        "summary": _json(out / "reprocess.json", "reprocess", result.to_dict(), result.inputs),
         "errors": _json(out / "errors.json", "errors", {
-            sensor: {step: {obj: {q: s.to_json() for q, s in by_q.items()}
+            sensor: {step: {obj: {q: s.to_dict() for q, s in by_q.items()}
                             for obj, by_q in by_obj.items()}
                      for step, by_obj in table.items()}
-            for sensor, table in result.errors.items()}),
+            for sensor, table in result.errors.items()}, result.inputs),
         "reaction": _json(out / "reaction.json", "reaction", {
-            "reactions": {k: r.to_json() for k, r in result.reactions.items()},
-            "analysis": result.analysis}),
+            "reactions": {k: r.to_dict() for k, r in result.reactions.items()},
+            "analysis": result.analysis}, result.inputs),
         "risk": _json(out / "risk.json", "risk", {
-            k: {col: values for col, values in r.items()} for k, r in result.risk.items()}),
+            k: {col: values for col, values in r.items()} for k, r in result.risk.items()},
+            result.inputs),
     }
     (out / "descriptions").mkdir(exist_ok=True)
     for name, description in result.descriptions.items():
-        description.write(out / "descriptions" / f"{file_stem(name)}.json")
+        description.write(out / "descriptions" / f"{Rep(name).file_stem}.json")
     for name, traces in result.resimulations.items():
         (out / "resimulations").mkdir(exist_ok=True)
-        parquet.write(traces, out / "resimulations" / f"{file_stem(name)}.parquet")
-    source = "fit(GT)" if "fit(GT)" in result.descriptions else "fit(SD)"
+        parquet.write(traces, out / "resimulations" / f"{Rep(name).file_stem}.parquet")
+    source = GT.fit() if GT.fit() in result.descriptions else SD.fit()
     files["openscenario"] = to_openscenario(result.descriptions[source], out / "scenario.xosc",
                                             ego=result.config.ego)
     validate_openscenario(files["openscenario"])
-    write_figures(result, out / "figures")
     return files
 
 
-def _json(path: Path, kind: str, body: dict[str, Any]) -> Path:
-    path.write_text(dumps(envelope(kind, body)))
+def _json(path: Path, kind: str, body: dict[str, Any], inputs: dict[str, str]) -> Path:
+    path.write_text(dumps(envelope(kind, body, inputs=inputs)))
     return path

@@ -22,24 +22,29 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
+from simcred._json import JsonResult
 from simcred.errors import SimcredError
 from simcred.io.measurement import Measurement
+from simcred.kinematics import MOTION_SIGNALS, Track
 from simcred.reprocess.errors import ErrorStats, decompose
 from simcred.reprocess.reaction import Reaction, ReactionCriteria, reaction, reaction_analysis
+from simcred.reprocess.representation import GT, SD, Rep, Source
+from simcred.reprocess.representation import Sensor as SensorKind
 from simcred.risk import VehicleStates, risk_series, time_headway, time_to_collision
 from simcred.scenario.description import ScenarioDescription
 from simcred.scenario.fit import ScenarioFit, fit_scenario
 from simcred.sim.driver import DriverConfig
-from simcred.sim.experiments.cutin import OBJECT_SIGNALS
 from simcred.sim.resimulation import resimulate
-from simcred.sim.sensors import IdealSensor, OffsetDelaySensor, Sensor, estimate_sensor
+from simcred.sim.sensors import IdealSensor, OffsetDelaySensor, estimate_sensor
+from simcred.sim.sensors import Sensor as SensorModel
 from simcred.traces import TIME, TraceSet
 
-SENSORS = ("ideal", "scenario-based")
-SB = "[sb]"
+SENSORS = tuple(sensor.value for sensor in SensorKind)
+SB = "[sb]"  # the suffix of a scenario-based representation's name (Rep prints it)
 LOG_RISK_FLOOR = 1e-9  # risk below this counts as this on the log scale
 
 Progress = Callable[[str], None]
@@ -63,8 +68,8 @@ class ReprocessConfig:
 
 
 @dataclass(frozen=True, slots=True, eq=False)
-class Reprocessed:
-    """Everything the pipeline produced."""
+class Reprocessed(JsonResult):
+    """Everything the pipeline produced; :meth:`to_dict` is ``reprocess.json``'s body."""
 
     config: ReprocessConfig
     times: np.ndarray
@@ -77,10 +82,31 @@ class Reprocessed:
     analysis: dict[str, float | None]
     risk: dict[str, dict[str, np.ndarray]]
     sensor_model: OffsetDelaySensor | None
+    inputs: dict[str, str] = field(default_factory=dict)  # GT / SD -> content hash
 
     @property
     def names(self) -> tuple[str, ...]:
         return tuple(self.states)
+
+    def __repr__(self) -> str:
+        reactions = ", ".join(f"{k}: {r.manoeuvre}" for k, r in self.reactions.items())
+        return f"Reprocessed({len(self.states)} representations; reactions {reactions})"
+
+    def to_dict(self) -> dict[str, Any]:
+        """Options, fits, sensor model, reactions, eqs. (4)-(7), max risk per representation."""
+        c = self.config
+        return {
+            "options": {"vehicle": c.vehicle, "dt": c.dt, "risk_dt": c.risk_dt, "seed": c.seed,
+                        "ego": c.ego, "objects": list(c.objects), "threshold": c.threshold,
+                        "scenario_based": c.scenario_based},
+            "fits": {name: {obj: {"sections": f.sections, "rmse": f.rmse,
+                                  "stop_reason": str(f.stop_reason)}
+                            for obj, f in fit.fits.items()} for name, fit in self.fits.items()},
+            "sensor_model": None if self.sensor_model is None else self.sensor_model.to_dict(),
+            "reactions": {k: r.to_dict() for k, r in self.reactions.items()},
+            "analysis": self.analysis,
+            "max_risk": {k: float(r["risk"].max()) for k, r in self.risk.items()},
+        }
 
 
 def reprocess(measurement: Measurement, config: ReprocessConfig | None = None,
@@ -89,47 +115,51 @@ def reprocess(measurement: Measurement, config: ReprocessConfig | None = None,
     c = ReprocessConfig() if config is None else config
     say = progress or (lambda _: None)
     objects = (c.ego, *c.objects)
-    raw = {"SD": measurement.sd} | ({"GT": measurement.gt} if measurement.gt else {})
-    times = raw["SD"].run(0)[TIME]
-    if "GT" in raw and not np.array_equal(raw["GT"].run(0)[TIME], times):
-        raise SimcredError(f"{raw['GT'].source}: GT and SD must share their sample times "
-                           f"({raw['GT'].n_rows} vs {raw['SD'].n_rows} samples)")
+    raw = {SD: measurement.sd} | ({GT: measurement.gt} if measurement.gt else {})
+    times = raw[SD].run(0)[TIME]
+    if GT in raw and not np.array_equal(raw[GT].run(0)[TIME], times):
+        raise SimcredError(f"{raw[GT].source}: GT and SD must share their sample times "
+                           f"({raw[GT].n_rows} vs {raw[SD].n_rows} samples)")
     states = {name: _raw_states(traces, objects) for name, traces in raw.items()}
     fits, resims = {}, {}
     for name, traces in raw.items():
         say(f"fit {name}")
-        fits[f"fit({name})"] = fit_scenario(traces, objects=list(objects),
-                                             threshold=c.threshold)
-    sensor_model = _sensor_model(measurement, c) if c.scenario_based and "GT" in raw else None
+        fits[name.fit()] = fit_scenario(traces, objects=list(objects), threshold=c.threshold)
+    sensor_model = _sensor_model(measurement, c) if c.scenario_based and GT in raw else None
     for name in raw:
-        for label, sensor in _sensors(name, sensor_model):
+        for kind, sensor in _sensors(name, sensor_model):
             say(f"resimulate {name} ({sensor.name} sensor)")
-            key = f"r{name}{label}"
+            key = name.resimulation(kind)
             resims[key] = replace(resimulate(
-                fits[f"fit({name})"].description, sensor=sensor, vehicle=c.vehicle,
+                fits[name.fit()].description, sensor=sensor, vehicle=c.vehicle,
                 driver=c.driver, dt=c.dt, seed=c.seed, ego=c.ego), run_ids=(key,), source=key)
             states[key] = _interpolated_states(resims[key], times, objects)
             say(f"refit {key}")
-            fits[f"fit({key})"] = fit_scenario(resims[key], objects=list(objects),
-                                                threshold=c.threshold)
+            fits[key.fit()] = fit_scenario(resims[key], objects=list(objects),
+                                           threshold=c.threshold)
     descriptions = {k: f.description for k, f in fits.items()}
     for key, description in descriptions.items():
         states[key] = _description_states(description, times, objects)
     say("assess")
-    assessed = {_assessed_name(k): d for k, d in descriptions.items()}
+    assessed = {k.unfitted: d for k, d in descriptions.items()}
     reactions = {k: _reaction(d, c) for k, d in assessed.items()}
     risk = {k: _risk(d, c) for k, d in assessed.items()}
-    errors = {"ideal": decompose(states, objects)}
+    errors = {SensorKind.IDEAL: decompose(states, objects)}
     if sensor_model is not None:
-        errors["scenario-based"] = decompose(_as_ideal(states), objects)
+        errors[SensorKind.SCENARIO_BASED] = decompose(_as_ideal(states), objects)
     return Reprocessed(c, times, states, descriptions, fits, resims, errors, reactions,
-                       _analysis(states, reactions, c), risk, sensor_model)
+                       _analysis(states, reactions, c), risk, sensor_model,
+                       {str(name): traces.digest() for name, traces in raw.items()})
 
 
-def _sensors(name: str, model: OffsetDelaySensor | None) -> list[tuple[str, Sensor]]:
-    chosen: list[tuple[str, Sensor]] = [("", IdealSensor())]
+def _sensors(name: Rep, model: OffsetDelaySensor | None
+             ) -> list[tuple[SensorKind, SensorModel]]:
+    """The resimulations' sensors: ideal, and the scenario-based model (its dynamic part only
+    for SD, whose description already contains the offset, [1] §IV)."""
+    chosen: list[tuple[SensorKind, SensorModel]] = [(SensorKind.IDEAL, IdealSensor())]
     if model is not None:
-        chosen.append((SB, model if name == "GT" else model.dynamic_only()))
+        chosen.append((SensorKind.SCENARIO_BASED,
+                       model if name.source is Source.GT else model.dynamic_only()))
     return chosen
 
 
@@ -140,42 +170,33 @@ def _sensor_model(measurement: Measurement, c: ReprocessConfig) -> OffsetDelaySe
     return estimate_sensor(t, gt[c.ego][:, :2], gt[c.objects[0]], sd[c.objects[0]])
 
 
-def _assessed_name(key: str) -> str:
-    """``fit(rGT)`` → ``rGT``: the risk and reaction of a trace are taken on its description."""
-    return key[4:-1]
+def _tracks(traces: TraceSet, objects: tuple[str, ...]) -> dict[str, Track]:
+    run = traces.run(0)
+    missing = [f"{o}.{s}" for o in objects for s in MOTION_SIGNALS if f"{o}.{s}" not in run]
+    if missing:
+        raise SimcredError(f"{traces.source}: missing signal(s) {', '.join(missing)}")
+    return {o: Track.from_columns(run, o, time=TIME, source=traces.source) for o in objects}
 
 
 def _raw_states(traces: TraceSet, objects: tuple[str, ...]) -> dict[str, np.ndarray]:
-    run = traces.run(0)
-    missing = [f"{o}.{s}" for o in objects for s in OBJECT_SIGNALS if f"{o}.{s}" not in run]
-    if missing:
-        raise SimcredError(f"{traces.source}: missing signal(s) {', '.join(missing)}")
-    return {o: np.column_stack([run[f"{o}.{s}"] for s in OBJECT_SIGNALS]) for o in objects}
+    return {o: track.states() for o, track in _tracks(traces, objects).items()}
 
 
 def _interpolated_states(traces: TraceSet, times: np.ndarray, objects: tuple[str, ...]
                          ) -> dict[str, np.ndarray]:
-    run = traces.run(0)
-    t = run[TIME]
-    out = {}
-    for o in objects:
-        columns = [run[f"{o}.{s}"] for s in OBJECT_SIGNALS]
-        columns[3] = np.unwrap(columns[3])
-        out[o] = np.column_stack([np.interp(times, t, col) for col in columns])
-    return out
+    return {o: track.interpolate(times).states() for o, track in _tracks(traces, objects).items()}
 
 
 def _description_states(description: ScenarioDescription, times: np.ndarray,
                         objects: tuple[str, ...]) -> dict[str, np.ndarray]:
     inside = np.clip(times, description.t0, description.t1)
-    sampled = description.sample(inside)
-    return {o: np.column_stack([sampled[f"{o}.{s}"] for s in OBJECT_SIGNALS]) for o in objects}
+    return {o: description.objects[o].states(inside).states() for o in objects}
 
 
-def _as_ideal(states: dict[str, dict[str, np.ndarray]]) -> dict[str, dict[str, np.ndarray]]:
-    """Representations renamed so that the ``[sb]`` ones take the place of the ideal ones."""
-    renamed = {k: v for k, v in states.items() if SB not in k}
-    renamed.update({k.replace(SB, ""): v for k, v in states.items() if SB in k})
+def _as_ideal(states: dict[Rep, dict[str, np.ndarray]]) -> dict[Rep, dict[str, np.ndarray]]:
+    """Representations renamed so that the scenario-based ones take the place of the ideal."""
+    renamed = {k: v for k, v in states.items() if not k.scenario_based}
+    renamed.update({k.ideal(): v for k, v in states.items() if k.scenario_based})
     return renamed
 
 
@@ -211,17 +232,17 @@ def log_risk_rmse(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> float:
 def _analysis(states: dict[str, dict[str, np.ndarray]], reactions: dict[str, Reaction],
               c: ReprocessConfig) -> dict[str, float | None]:
     """Eqs. (4)-(7) for the ideal sensor, and the same for the scenario-based model."""
-    if "GT" not in states:
+    if GT not in states:
         return {}
     to = c.objects[0]
-    offset = float(np.mean(np.hypot(*(states["SD"][to][:, :2] - states["GT"][to][:, :2]).T)))
-    gt = reactions["GT"]
+    offset = float(np.mean(np.hypot(*(states[SD][to][:, :2] - states[GT][to][:, :2]).T)))
+    gt = reactions[GT]
     speed = gt.speed_at_reaction if not math.isnan(gt.speed_at_reaction) else float(
-        np.mean(states["GT"][c.ego][:, 2]))
+        np.mean(states[GT][c.ego][:, 2]))
     result = {"sensor_offset_d": offset, "ego_speed": speed,
               **reaction_analysis(reactions, offset, speed)}
-    sb = {k.replace(SB, ""): v for k, v in reactions.items() if SB in k}
+    sb = {k.ideal(): v for k, v in reactions.items() if k.scenario_based}
     if sb:
-        sb["GT"] = gt
+        sb[GT] = gt
         result.update({f"{k}{SB}": v for k, v in reaction_analysis(sb, offset, speed).items()})
     return result

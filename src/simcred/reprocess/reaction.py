@@ -19,6 +19,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from simcred._json import JsonResult
+
 
 @dataclass(frozen=True, slots=True)
 class ReactionCriteria:
@@ -30,7 +32,7 @@ class ReactionCriteria:
 
 
 @dataclass(frozen=True, slots=True)
-class Reaction:
+class Reaction(JsonResult):
     """When and how the EGO reacted in one trace (``time`` NaN: never)."""
 
     time: float
@@ -39,7 +41,7 @@ class Reaction:
     min_acceleration: float
     max_lateral: float
 
-    def to_json(self) -> dict[str, float | str | None]:
+    def to_dict(self) -> dict[str, float | str | None]:
         return {k: (None if isinstance(v, float) and math.isnan(v) else v)
                 for k, v in asdict(self).items()}
 

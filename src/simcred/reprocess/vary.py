@@ -21,14 +21,17 @@ References
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
+from simcred._json import JsonResult
 from simcred.compare import compare
 from simcred.compare.result import Comparison
 from simcred.engine import Engine, shared
+from simcred.kinematics import MOTION_SIGNALS
 from simcred.reprocess.reaction import Reaction, ReactionCriteria, reaction
 from simcred.risk import risk_series
 from simcred.scenario.description import ScenarioDescription
@@ -39,7 +42,6 @@ from simcred.scenario.variation import (
     generate_variations,
 )
 from simcred.sim.driver import DriverConfig
-from simcred.sim.experiments.cutin import OBJECT_SIGNALS
 from simcred.sim.resimulation import resimulate
 from simcred.sim.sensors import Sensor
 from simcred.traces import TIME, TraceSet, concat
@@ -69,7 +71,7 @@ class VaryConfig:
 
 
 @dataclass(frozen=True, slots=True)
-class Outcome:
+class Outcome(JsonResult):
     """How one resimulated run went."""
 
     index: int
@@ -88,15 +90,15 @@ class Outcome:
         """Inside the corridor around the original TO path and in the original's category."""
         return self.max_deviation <= config.max_deviation and self.same_category(reference)
 
-    def to_json(self) -> dict[str, Any]:
+    def to_dict(self) -> dict[str, Any]:
         return {"index": self.index, "max_risk": self.max_risk, "cuts_in": self.cuts_in,
                 "max_deviation": self.max_deviation, **{
-                    f"reaction_{k}": v for k, v in self.reaction.to_json().items()}}
+                    f"reaction_{k}": v for k, v in self.reaction.to_dict().items()}}
 
 
 @dataclass(frozen=True, slots=True, eq=False)
-class Campaign:
-    """Everything :func:`run_campaign` produced."""
+class Campaign(JsonResult):
+    """Everything :func:`run_campaign` produced; :meth:`to_dict` is :meth:`summary`."""
 
     config: VaryConfig
     variations: VariationSet
@@ -110,6 +112,14 @@ class Campaign:
     def max_risks(self) -> np.ndarray:
         return np.array([o.max_risk for o in self.outcomes])
 
+    def __repr__(self) -> str:
+        v = self.variations
+        return (f"Campaign({v.generated} generated, {v.kept} kept, reference max risk "
+                f"{self.reference.max_risk:.3g})")
+
+    def to_dict(self) -> dict[str, Any]:
+        return self.summary()
+
     def summary(self) -> dict[str, Any]:
         c, v = self.config, self.variations
         risks = self.max_risks
@@ -118,7 +128,7 @@ class Campaign:
         return {
             "generated": v.generated, "kept": v.kept, "rejected": v.rejected,
             "rejections": v.rejections, "seed": v.seed,
-            "reference": self.reference.to_json(),
+            "reference": self.reference.to_dict(),
             "max_risk_percentiles": dict(zip(("p5", "p25", "p50", "p75", "p95"),
                                              np.percentile(risks, [5, 25, 50, 75, 95]).tolist(),
                                              strict=True)),
@@ -131,7 +141,7 @@ class Campaign:
                                      if not ok],
                          "to_distance_vs_original": self.comparison.distance,
                          "start_differs": self.comparison.start.rejected},
-            "variations": [o.to_json() for o in self.outcomes],
+            "variations": [o.to_dict() for o in self.outcomes],
         }
 
 
@@ -196,7 +206,7 @@ def _assess(run: dict[str, np.ndarray], index: int, original: tuple[np.ndarray, 
 def _compare_to_original(runs: TraceSet, reference: TraceSet, c: VaryConfig) -> Comparison:
     """Seed-000 distance between the varied TO trajectories and as many copies of the original's
     (the original is one deterministic trajectory)."""
-    features = [f"{c.to}.{s}" for s in OBJECT_SIGNALS[:2]]
+    features = [f"{c.to}.{s}" for s in MOTION_SIGNALS[:2]]
     step = max(1, int(round(c.risk_dt / c.dt)))
     varied = _subsample(runs, features, step)
     one = _subsample(reference, features, step)
@@ -225,23 +235,23 @@ def risk_percentile_claim_values(campaign: Campaign) -> tuple[float, float, floa
 
 def write_campaign(campaign: Campaign, directory) -> dict[str, Any]:
     """``variations.json`` (summary), ``variation_set.json`` (every variation: records and kept
-    TO tracks), ``runs.parquet`` (resimulated runs), ``reference.parquet``, ``comparison.json``
-    and ``figures/fig8_variations.png``."""
+    TO tracks), ``runs.parquet`` (resimulated runs), ``reference.parquet`` and
+    ``comparison.json``; :func:`simcred.report.seed002.write_variations` adds Fig. 8."""
     from pathlib import Path
 
     from simcred._json import dumps, envelope
     from simcred.io import parquet
-    from simcred.report.seed002 import fig8_variations
 
     out = Path(directory)
     out.mkdir(parents=True, exist_ok=True)
     files = {"summary": out / "variations.json", "variations": out / "variation_set.json",
              "runs": out / "runs.parquet", "reference": out / "reference.parquet",
              "comparison": out / "comparison.json"}
-    files["summary"].write_text(dumps(envelope("variation_campaign", campaign.summary())))
+    base = "sha256:" + hashlib.sha256(campaign.variations.base.to_json().encode()).hexdigest()
+    files["summary"].write_text(dumps(envelope("variation_campaign", campaign.summary(),
+                                               inputs={"description": base})))
     campaign.variations.write(files["variations"])
     parquet.write(campaign.runs, files["runs"])
     parquet.write(campaign.reference_runs, files["reference"])
     files["comparison"].write_text(campaign.comparison.to_json())
-    files["figure"] = fig8_variations(campaign, out / "figures" / "fig8_variations.png")
     return files

@@ -1,19 +1,21 @@
-"""Risk measures of highway scenes: Time-To-React risk after Wagner et al. 2018, TTC and THW."""
+"""Risk measures of highway scenes: Time-To-React risk after Wagner et al. 2018, TTC and THW.
+
+Modules: ``scene`` (the inputs: vehicle states, lanes), ``prediction`` (the TOs' predictions, the
+EGO's evasions, the reaction-time law, predicted paths), ``ttr`` (the TTR search and the risk),
+``measures`` (TTC, THW).
+"""
 
 from simcred.risk.measures import time_headway, time_to_collision
-from simcred.risk.ttr import (
+from simcred.risk.prediction import (
     DEFAULT_PREDICTIONS,
     MANEUVERS,
     EvasionSet,
-    Lanes,
     Prediction,
     PredictionSet,
     ReactionTime,
-    RiskResult,
-    VehicleStates,
-    risk,
-    risk_series,
 )
+from simcred.risk.scene import Lanes, VehicleStates
+from simcred.risk.ttr import RiskResult, risk, risk_series
 
 __all__ = [
     "DEFAULT_PREDICTIONS",

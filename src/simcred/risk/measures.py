@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from simcred.errors import SimcredError
-from simcred.risk.ttr import VehicleStates
+from simcred.risk.scene import VehicleStates
 
 
 def _lead(ego: VehicleStates, objects: VehicleStates

@@ -21,347 +21,39 @@ References
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.special import ndtr
 
+from simcred._json import JsonResult
 from simcred.errors import OptionError, SimcredError
+from simcred.risk.prediction import (
+    EvasionSet,
+    PredictionSet,
+    ReactionTime,
+    _direction,
+    _lateral_plan,
+    _overlap,
+    _Path,
+    _travel,
+    _unit,
+)
+from simcred.risk.scene import _STATE_FIELDS, Lanes, VehicleStates
 
-MANEUVERS = ("brake", "left", "right")
 """The EGO's evasive maneuvers, in the order of :attr:`RiskResult.maneuver` codes."""
 
-_STATE_FIELDS = ("x", "y", "v", "heading", "acceleration", "yaw_rate", "length", "width")
-# peak |d²p/dτ²| of the quintic smoothstep p(τ) = 10τ³ - 15τ⁴ + 6τ⁵, at τ = (3 ∓ √3)/6
-_SMOOTHSTEP_PEAK_ACCEL = 10.0 / math.sqrt(3.0)
-# work arrays of one chunk of scenes hold at most about this many samples
+
 _CHUNK_SAMPLES = 1 << 16
 
 
-def _require(condition: bool, message: str) -> None:
-    """Raise a one-line :class:`OptionError` unless ``condition``."""
-    if not condition:
-        raise OptionError(message)
-
-
-# -- inputs ------------------------------------------------------------------------------------
-
-@dataclass(frozen=True, slots=True, eq=False)
-class VehicleStates:
-    """States of vehicles in many scenes: arrays of one common shape, scalars broadcast.
-
-    Parameters
-    ----------
-    x, y : array_like
-        Position of the vehicle's centre (m); the road runs along +x, y points left.
-    v : array_like
-        Speed (m/s), >= 0.
-    heading : array_like
-        Heading (rad) relative to the road, in (-π/2, π/2): all traffic drives along +x.
-    acceleration : array_like, default: 0
-        Longitudinal acceleration (m/s²).
-    yaw_rate : array_like, default: 0
-        Yaw rate (rad/s); sets the initial curvature of the predicted paths.
-    length, width : array_like, default: 4.5, 1.8
-        Size of the vehicle's rectangle (m), > 0.
-    name : str, default: "vehicle"
-        Names the vehicle in error messages (``ego.v[3] must be finite``).
-
-    Notes
-    -----
-    Shape ``(scenes,)`` for the EGO; ``(scenes,)`` (one TO per scene) or ``(scenes, objects)``
-    for the TOs. Fields are stored as read-only float arrays broadcast to the common shape.
-    Equality is identity.
-    """
-
-    x: ArrayLike
-    y: ArrayLike
-    v: ArrayLike
-    heading: ArrayLike
-    acceleration: ArrayLike = 0.0
-    yaw_rate: ArrayLike = 0.0
-    length: ArrayLike = 4.5
-    width: ArrayLike = 1.8
-    name: str = "vehicle"
-
-    def __post_init__(self) -> None:
-        arrays = []
-        for f in _STATE_FIELDS:
-            try:
-                arrays.append(np.asarray(getattr(self, f), dtype=float))
-            except (TypeError, ValueError):
-                raise SimcredError(f"{self.name}.{f} must be numeric") from None
-        try:
-            arrays = np.broadcast_arrays(*arrays)
-        except ValueError:
-            shapes = ", ".join(f"{f} {a.shape}" for f, a in zip(_STATE_FIELDS, arrays, strict=True))
-            raise SimcredError(f"{self.name}: fields do not broadcast to one shape: {shapes}"
-                               ) from None
-        if arrays[0].ndim > 2:
-            raise SimcredError(f"{self.name}: states must be 0-, 1- or 2-D (scenes[, objects]), "
-                               f"got shape {arrays[0].shape}")
-        for f, a in zip(_STATE_FIELDS, arrays, strict=True):
-            _check_values(f"{self.name}.{f}", a)
-            a = np.array(a)  # own copy: broadcast views share memory with the caller
-            a.setflags(write=False)
-            object.__setattr__(self, f, a)
-
-    @property
-    def shape(self) -> tuple[int, ...]:
-        """The common shape of the fields."""
-        return self.x.shape
-
-    def as_dict(self) -> dict[str, np.ndarray]:
-        """The fields by name (without ``name``)."""
-        return {f: getattr(self, f) for f in _STATE_FIELDS}
-
-
-def _check_values(label: str, a: np.ndarray) -> None:
-    """One-line error naming the first offending element of state field ``label``."""
-    field = label.rsplit(".", 1)[1]
-    rules = {"v": (a < 0, "must be >= 0"),
-             "heading": (np.abs(a) >= np.pi / 2, "must lie in (-pi/2, pi/2): traffic drives +x"),
-             "length": (a <= 0, "must be > 0"), "width": (a <= 0, "must be > 0")}
-    bad, message = ~np.isfinite(a), "must be finite"
-    if not bad.any() and field in rules:
-        bad, message = rules[field]
-    if bad.any():
-        where = np.unravel_index(int(np.argmax(bad)), a.shape) if a.ndim else ()
-        index = f"[{', '.join(map(str, where))}]" if where else ""
-        raise SimcredError(f"{label}{index} {message}, got {float(a[where])}")
-
-
-@dataclass(frozen=True, slots=True)
-class Lanes:
-    """Straight parallel lanes along +x.
-
-    Parameters
-    ----------
-    width : float, default: 3.5
-        Lane width (m); also the lateral offset of a lane change and of an evasive steer.
-    centre : float, default: 0.0
-        y of one lane centre (the EGO's lane in the main use case); the others lie at
-        ``centre + k * width`` for every integer k. Road edges are not modelled.
-    """
-
-    width: float = 3.5
-    centre: float = 0.0
-
-    def __post_init__(self) -> None:
-        _require(math.isfinite(self.width) and self.width > 0, "lanes.width must be > 0")
-        _require(math.isfinite(self.centre), "lanes.centre must be finite")
-
-    def centre_of(self, y: ArrayLike) -> np.ndarray:
-        """Centre of the lane that contains lateral position ``y``."""
-        k = np.round((np.asarray(y, dtype=float) - self.centre) / self.width)
-        return self.centre + k * self.width
-
-
-@dataclass(frozen=True, slots=True)
-class Prediction:
-    """One predicted behaviour of a TO: longitudinal acceleration plus a lateral target lane.
-
-    Parameters
-    ----------
-    name : str
-        Label, unique within a :class:`PredictionSet`.
-    probability : float
-        Prior probability of this behaviour, in [0, 1].
-    acceleration : float or None, default: 0
-        Constant longitudinal acceleration (m/s²) over the horizon; a braking vehicle stays at
-        standstill once stopped. None: the TO's current acceleration (0 unless given).
-    lane_change : {-1, 0, 1}, default: 0
-        Target lane relative to the reference lane: +1 left, -1 right, 0 keep.
-    """
-
-    name: str
-    probability: float
-    acceleration: float | None = 0.0
-    lane_change: int = 0
-
-    def __post_init__(self) -> None:
-        _require(0.0 <= self.probability <= 1.0,
-                 f"prediction {self.name!r}: probability must lie in [0, 1], got "
-                 f"{self.probability!r}")
-        _require(self.acceleration is None or math.isfinite(self.acceleration),
-                 f"prediction {self.name!r}: acceleration must be finite or None")
-        _require(self.lane_change in (-1, 0, 1),
-                 f"prediction {self.name!r}: lane_change must be -1, 0 or 1, got "
-                 f"{self.lane_change!r}")
-
-
-DEFAULT_PREDICTIONS: tuple[Prediction, ...] = (
-    Prediction("keep", 0.70, acceleration=None),
-    Prediction("accelerate", 0.05, acceleration=1.0),
-    Prediction("brake-2", 0.10, acceleration=-2.0),
-    Prediction("brake-4", 0.04, acceleration=-4.0),
-    Prediction("brake-6", 0.008, acceleration=-6.0),
-    Prediction("brake-8", 0.002, acceleration=-8.0),
-    Prediction("lane-change-left", 0.05, lane_change=1),
-    Prediction("lane-change-right", 0.05, lane_change=-1),
-)
 """Priors standing in for the euroFOT statistics of [1] (see docs/risk.md): not fitted to data."""
 
 
-@dataclass(frozen=True, slots=True)
-class PredictionSet:
-    """The TO predictions of a scene and the time grid they are sampled on.
-
-    Parameters
-    ----------
-    predictions : tuple of Prediction, default: :data:`DEFAULT_PREDICTIONS`
-        Priors must sum to 1 (within 1e-9).
-    horizon : float, default: 5.0
-        Prediction horizon (s); collisions later than this are not seen.
-    dt : float, default: 0.1
-        Sampling step (s) of trajectories and collision checks, and the grid step of TTR start
-        times; ``horizon / dt`` must be an integer.
-    lane_change_duration : float, default: 4.0
-        Duration (s, at the current speed) of a lateral move by one lane width; shorter moves
-        take proportionally less, but at least ``min_lateral_duration``.
-    min_lateral_duration : float, default: 1.0
-        Shortest lateral move (s).
-    lane_anticipation : float, default: 1.0
-        The reference lane of a vehicle is the lane containing ``y + v sin(heading) *
-        lane_anticipation``: a TO already drifting across a lane marking keeps the lane it is
-        heading into.
-    path_speed_floor : float, default: 5.0
-        Lateral paths are laid out in space with length ``duration * max(v cos(heading),
-        path_speed_floor)``, so that slow or stopping vehicles do not move sideways on the spot.
-    """
-
-    predictions: tuple[Prediction, ...] = DEFAULT_PREDICTIONS
-    horizon: float = 5.0
-    dt: float = 0.1
-    lane_change_duration: float = 4.0
-    min_lateral_duration: float = 1.0
-    lane_anticipation: float = 1.0
-    path_speed_floor: float = 5.0
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "predictions", tuple(self.predictions))
-        _require(len(self.predictions) > 0, "predictions must not be empty")
-        for p in self.predictions:
-            _require(isinstance(p, Prediction), f"predictions must be Prediction, got {p!r}")
-        _require(len(set(self.names)) == len(self.names), "prediction names must be unique")
-        total = math.fsum(self.probabilities)
-        _require(abs(total - 1.0) <= 1e-9, f"prediction probabilities must sum to 1, got {total!r}")
-        for name in ("horizon", "dt", "lane_change_duration", "min_lateral_duration",
-                     "path_speed_floor"):
-            value = getattr(self, name)
-            _require(math.isfinite(value) and value > 0, f"{name} must be > 0, got {value!r}")
-        _require(math.isfinite(self.lane_anticipation) and self.lane_anticipation >= 0,
-                 f"lane_anticipation must be >= 0, got {self.lane_anticipation!r}")
-        steps = self.horizon / self.dt
-        _require(abs(steps - round(steps)) <= 1e-9 * max(1.0, steps),
-                 f"horizon / dt must be an integer, got {self.horizon!r} / {self.dt!r}")
-        _require(1 <= round(steps) <= 100_000,
-                 f"horizon / dt must lie in [1, 100000], got {round(steps)}")
-
-    @property
-    def names(self) -> tuple[str, ...]:
-        """Prediction names, in order."""
-        return tuple(p.name for p in self.predictions)
-
-    @property
-    def probabilities(self) -> np.ndarray:
-        """Prior probabilities, in order."""
-        return np.array([p.probability for p in self.predictions])
-
-    @property
-    def times(self) -> np.ndarray:
-        """Sample times 0, dt, ..., horizon (s)."""
-        return np.arange(round(self.horizon / self.dt) + 1) * self.dt
-
-
-@dataclass(frozen=True, slots=True)
-class EvasionSet:
-    """The EGO's evasive maneuvers and the resolution of the TTR search.
-
-    Parameters
-    ----------
-    maneuvers : tuple of str, default: ("brake", "left", "right")
-        A non-empty subset of :data:`MANEUVERS`, in any order (result codes index this tuple).
-    brake_acceleration : float, default: -8.0
-        Full braking (m/s²), applied instantaneously (no jerk ramp), to standstill.
-    lateral_acceleration : float, default: 5.0
-        Peak lateral acceleration (m/s²) of a steer by one lane width; fixes its duration
-        ``sqrt(10/√3 * width / lateral_acceleration)`` (2.0 s for 3.5 m at 5 m/s²).
-    min_steer_speed : float, default: 5.0
-        Steering is available only if the EGO's planned speed stays >= this (m/s) from the start
-        to the end of the steer.
-    bisection_steps : int, default: 4
-        Bisection steps refining the TTR below the grid step: resolution ``dt / 2**steps``.
-    """
-
-    maneuvers: tuple[str, ...] = MANEUVERS
-    brake_acceleration: float = -8.0
-    lateral_acceleration: float = 5.0
-    min_steer_speed: float = 5.0
-    bisection_steps: int = 4
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "maneuvers", tuple(self.maneuvers))
-        _require(len(self.maneuvers) > 0 and len(set(self.maneuvers)) == len(self.maneuvers)
-                 and set(self.maneuvers) <= set(MANEUVERS),
-                 f"maneuvers must be distinct names out of {', '.join(MANEUVERS)}, got "
-                 f"{self.maneuvers!r}")
-        _require(math.isfinite(self.brake_acceleration) and self.brake_acceleration < 0,
-                 f"brake_acceleration must be < 0, got {self.brake_acceleration!r}")
-        _require(math.isfinite(self.lateral_acceleration) and self.lateral_acceleration > 0,
-                 f"lateral_acceleration must be > 0, got {self.lateral_acceleration!r}")
-        _require(math.isfinite(self.min_steer_speed) and self.min_steer_speed >= 0,
-                 f"min_steer_speed must be >= 0, got {self.min_steer_speed!r}")
-        _require(isinstance(self.bisection_steps, int) and 0 <= self.bisection_steps <= 30,
-                 f"bisection_steps must be an integer in [0, 30], got {self.bisection_steps!r}")
-
-    def steer_duration(self, offset: float) -> float:
-        """Duration (s) of a lateral move by ``offset`` at peak ``lateral_acceleration``."""
-        return math.sqrt(_SMOOTHSTEP_PEAK_ACCEL * abs(offset) / self.lateral_acceleration)
-
-
-@dataclass(frozen=True, slots=True)
-class ReactionTime:
-    """Log-normal reaction/response time T; a TTR of τ ends in an accident with P(T > τ).
-
-    Parameters
-    ----------
-    median : float, default: 1.0
-        Median response time (s).
-    sigma : float, default: 0.5
-        Standard deviation of ln T.
-    """
-
-    median: float = 1.0
-    sigma: float = 0.5
-
-    def __post_init__(self) -> None:
-        _require(math.isfinite(self.median) and self.median > 0,
-                 f"reaction median must be > 0, got {self.median!r}")
-        _require(math.isfinite(self.sigma) and self.sigma > 0,
-                 f"reaction sigma must be > 0, got {self.sigma!r}")
-
-    def accident_probability(self, ttr: ArrayLike) -> np.ndarray:
-        """g(τ) = P(T > τ) = Φ(-(ln τ - ln median) / sigma); g(0) = 1, g(inf) = 0.
-
-        Examples
-        --------
-        >>> ReactionTime().accident_probability([0.0, 1.0, np.inf])
-        array([1. , 0.5, 0. ])
-        """
-        with np.errstate(divide="ignore"):
-            z = (np.log(np.asarray(ttr, dtype=float)) - math.log(self.median)) / self.sigma
-        return ndtr(-z)
-
-
-# -- result ------------------------------------------------------------------------------------
-
 @dataclass(frozen=True, slots=True, eq=False)
-class RiskResult:
+class RiskResult(JsonResult):
     """Risk of many scenes, with the per-prediction TTRs it is made of.
 
     Attributes
@@ -412,6 +104,21 @@ class RiskResult:
     reaction: ReactionTime
     method: str = "ttr"
 
+    def __repr__(self) -> str:
+        scenes, objects, predictions = self.ttr.shape
+        peak = f"{self.risk.max():.3g}" if self.risk.size else "-"
+        return (f"RiskResult({scenes} scenes, {objects} objects, {predictions} predictions, "
+                f"max risk {peak})")
+
+    def to_dict(self) -> dict[str, Any]:
+        """Per scene: risk, smallest TTR, dominant (object, prediction); and the settings."""
+        return {"method": self.method, "resolution": self.resolution,
+                "prediction_names": list(self.prediction_names),
+                "maneuver_names": list(self.maneuver_names),
+                "risk": self.risk, "ttr_min": self.ttr_min,
+                "dominant_object": self.dominant_object,
+                "dominant_prediction": self.dominant_prediction}
+
     @property
     def dominant_maneuver(self) -> np.ndarray:
         """Maneuver code of the dominant (object, prediction); -1 where there is none."""
@@ -420,95 +127,8 @@ class RiskResult:
         return np.where(self.dominant_object >= 0, self.maneuver[scenes, o, p], -1)
 
 
-# -- trajectories ------------------------------------------------------------------------------
-
-def _travel(v0: np.ndarray, a: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Distance and speed after time ``t`` at constant acceleration ``a``, speed floored at 0."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t_stop = np.where(a < 0, v0 / -a, np.inf)
-    te = np.minimum(t, t_stop)
-    return v0 * te + 0.5 * a * te * te, np.maximum(v0 + a * te, 0.0)
-
-
-@dataclass(frozen=True, slots=True)
-class _Path:
-    """Lateral path y(ξ) over longitudinal travel ξ: a quintic from the current lateral state to
-    a lane centre, reached with zero slope and curvature after length ``length``, then straight.
-    Stored in the normalised variable u = ξ / length: y = y0 + Σ_k b_k u^k, k = 1..5."""
-
-    y0: np.ndarray
-    b: tuple[np.ndarray, ...]
-    length: np.ndarray
-
-    def at(self, xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Lateral position y and slope dy/dξ after travel ``xi``."""
-        b1, b2, b3, b4, b5 = self.b
-        u = np.minimum(xi / self.length, 1.0)
-        y = self.y0 + u * (b1 + u * (b2 + u * (b3 + u * (b4 + u * b5))))
-        dydu = b1 + u * (2.0 * b2 + u * (3.0 * b3 + u * (4.0 * b4 + u * (5.0 * b5))))
-        return y, dydu / self.length
-
-
-def _path(y0: np.ndarray, heading: np.ndarray, curvature: np.ndarray, target: np.ndarray,
-          length: np.ndarray) -> _Path:
-    """Quintic with y(0) = y0, y'(0) = tan(heading), y''(0) = curvature / cos³(heading) and
-    y = target, y' = y'' = 0 at ξ = length (the standard quintic boundary-value solution)."""
-    h = target - y0
-    m = np.tan(heading) * length                  # b1 = y'(0) L
-    k = curvature / np.cos(heading) ** 3 * length * length  # y''(0) L²
-    b3 = (20.0 * h - 12.0 * m - 3.0 * k) / 2.0
-    b4 = (-30.0 * h + 16.0 * m + 3.0 * k) / 2.0
-    b5 = (12.0 * h - 6.0 * m - k) / 2.0
-    return _Path(y0, (m, k / 2.0, b3, b4, b5), length)
-
-
-def _lateral_plan(s: dict[str, np.ndarray], lane_change: np.ndarray, cfg: PredictionSet,
-                  lanes: Lanes) -> _Path:
-    """Path of vehicles ``s`` to their reference lane shifted by ``lane_change`` lanes."""
-    v_lon = s["v"] * np.cos(s["heading"])
-    anticipated = s["y"] + s["v"] * np.sin(s["heading"]) * cfg.lane_anticipation
-    target = lanes.centre_of(anticipated) + lane_change * lanes.width
-    duration = np.maximum(cfg.lane_change_duration * np.abs(target - s["y"]) / lanes.width,
-                          cfg.min_lateral_duration)
-    curvature = s["yaw_rate"] / np.maximum(s["v"], cfg.path_speed_floor)
-    length = duration * np.maximum(v_lon, cfg.path_speed_floor)
-    return _path(s["y"], s["heading"], curvature, target, length)
-
-
-def _direction(slope: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """cos and sin of the heading of a path with slope dy/dx."""
-    cos = 1.0 / np.sqrt(1.0 + slope * slope)
-    return cos, slope * cos
-
-
-def _unit(dx: np.ndarray, dy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """cos and sin of the direction (dx, dy); (1, 0) for a zero vector."""
-    norm = np.hypot(dx, dy)
-    zero = norm == 0
-    norm = np.where(zero, 1.0, norm)
-    return np.where(zero, 1.0, dx / norm), dy / norm
-
-
-def _overlap(a: tuple[np.ndarray, ...], b: tuple[np.ndarray, ...]) -> np.ndarray:
-    """Separating-axis test of oriented rectangles ``(x, y, cos, sin, half_length, half_width)``.
-
-    True where the rectangles overlap or touch; arrays broadcast. Exact for rectangles: two
-    convex polygons are disjoint iff their projections on one of the (here four) edge normals
-    are disjoint.
-    """
-    ax, ay, ac, as_, al, aw = a
-    bx, by, bc, bs, bl, bw = b
-    dx, dy = bx - ax, by - ay
-    c = np.abs(ac * bc + as_ * bs)     # |cos(θb - θa)|
-    s = np.abs(as_ * bc - ac * bs)     # |sin(θb - θa)|
-    separated = np.abs(dx * ac + dy * as_) > al + bl * c + bw * s
-    separated |= np.abs(dy * ac - dx * as_) > aw + bl * s + bw * c
-    separated |= np.abs(dx * bc + dy * bs) > bl + al * c + aw * s
-    separated |= np.abs(dy * bc - dx * bs) > bw + al * s + aw * c
-    return ~separated
-
-
 # -- TTR search ----------------------------------------------------------------------------------
+
 
 @dataclass(frozen=True, slots=True)
 class _Rows:
@@ -687,6 +307,7 @@ def _chunk(ego: dict[str, np.ndarray], obj: dict[str, np.ndarray], predictions: 
 
 
 # -- public API ----------------------------------------------------------------------------------
+
 
 def risk(ego: VehicleStates, objects: VehicleStates, *,
          predictions: PredictionSet | None = None, evasion: EvasionSet | None = None,

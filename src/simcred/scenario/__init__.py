@@ -1,36 +1,63 @@
-"""Scenario description of Wagner, Groh et al. (seed 002) sec. II-B: fit, JSON and OpenSCENARIO.
+"""Scenario description of Wagner, Groh et al. (seed 002) sec. II-B and its local variation (V).
 
 An object is a start position and two cubic splines of time, speed v(t) and heading θ(t); its
 positions follow from eq. (1) by one fixed quadrature, so that the description is unambiguous.
 :func:`fit_track` / :func:`fit_scenario` obtain the splines from measured positions;
 :func:`to_openscenario` exports to OpenSCENARIO 1.x and :func:`validate_openscenario` checks a file
-against the schema.
+against the schema. :func:`generate_variations` varies a traffic object's cut-in along a C²
+Bézier path (:class:`BezierPath`) and rejects implausible variations
+(:class:`PlausibilityLimits`).
+
+Modules: ``spline`` (time curves, the quadrature of eq. (1)), ``description`` (objects,
+JSON), ``fit`` (least squares, sections), ``openscenario`` (export), ``frenet`` (path frame),
+``bezier`` (the path), ``plausibility`` (limits), ``variation`` (drawing and refitting
+variations), ``variation_set`` (options and results).
 """
 
-from simcred.scenario.description import (
-    ObjectTrack,
-    ScenarioDescription,
-    Spline,
-    TrackStates,
-)
+from simcred.scenario.bezier import BezierPath, influence
+from simcred.scenario.description import ObjectTrack, ScenarioDescription
 from simcred.scenario.fit import ScenarioFit, StopReason, TrackFit, fit_scenario, fit_track
 from simcred.scenario.openscenario import (
     build_openscenario,
     to_openscenario,
     validate_openscenario,
 )
+from simcred.scenario.plausibility import PlausibilityLimits, Reason, check_plausibility
+from simcred.scenario.spline import Spline
+from simcred.scenario.variation import draw_displacements, generate_variations, vary_one
+from simcred.scenario.variation_set import (
+    Status,
+    Variation,
+    VariationOptions,
+    VariationRecord,
+    VariationSet,
+    load_variations,
+)
 
 __all__ = [
+    "BezierPath",
     "ObjectTrack",
+    "PlausibilityLimits",
+    "Reason",
     "ScenarioDescription",
     "ScenarioFit",
     "Spline",
+    "Status",
     "StopReason",
     "TrackFit",
-    "TrackStates",
+    "Variation",
+    "VariationOptions",
+    "VariationRecord",
+    "VariationSet",
     "build_openscenario",
+    "check_plausibility",
+    "draw_displacements",
     "fit_scenario",
     "fit_track",
+    "generate_variations",
+    "influence",
+    "load_variations",
     "to_openscenario",
     "validate_openscenario",
+    "vary_one",
 ]

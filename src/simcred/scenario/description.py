@@ -28,220 +28,21 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.interpolate import BSpline
 
-from simcred._json import SCHEMA_VERSION, dumps, envelope
+from simcred._json import SCHEMA_VERSION, JsonResult, envelope
 from simcred.errors import SimcredError
+from simcred.kinematics import Track
+from simcred.scenario.spline import DEGREE, Quadrature, Spline, in_span
 from simcred.traces import TIME, TraceSet
 
 KIND = "scenario_description"
-DEGREE = 3
-MAX_STEP = 0.05
-"""Largest step (s) of the integration grid of eq. (1)."""
-GAUSS_NODES = 4
-"""Gauss–Legendre nodes per integration interval (exact for polynomials of degree 7)."""
-_XI, _W = np.polynomial.legendre.leggauss(GAUSS_NODES)
-_SPAN_TOLERANCE = 1e-9  # relative to max(1 s, t1 - t0): times this close to the span are clamped
+
+
 COLUMNS = ("x", "y", "v", "heading")
 """Signals per object written by :meth:`ScenarioDescription.sample`, as ``<name>.<signal>``."""
 
 
 # -- splines --------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True, slots=True, eq=False)
-class Spline:
-    """A cubic spline of time on ``sections`` uniform sections of [t0, t1].
-
-    Stored as a clamped cubic B-spline: knots t0 (4 times), the ``sections - 1`` interior section
-    bounds ``t0 + k (t1 - t0) / sections``, t1 (4 times); ``sections + 3`` coefficients. The spline
-    is C² across section bounds. Equality is identity (floats are not compared); compare
-    :attr:`coefficients` explicitly.
-
-    Parameters
-    ----------
-    t0, t1 : float
-        The time span, ``t0 < t1``.
-    coefficients : array_like, shape (sections + 3,)
-        B-spline coefficients; at least 4 (one section).
-
-    Notes
-    -----
-    Evaluation outside [t0, t1] raises :class:`~simcred.errors.SimcredError`: there is no
-    extrapolation. Times within ``1e-9 · max(1 s, t1 - t0)`` (plus 4 ulp of the times) of the
-    span are clamped onto it, so that grids computed as ``t0 + k·dt`` reach ``t1`` despite
-    rounding.
-
-    Examples
-    --------
-    >>> s = Spline(0.0, 2.0, [1.0, 1.0, 1.0, 1.0, 1.0])
-    >>> s.sections, float(s(1.5)), float(s.derivative(1.5))
-    (2, 1.0, 0.0)
-    """
-
-    t0: float
-    t1: float
-    coefficients: np.ndarray
-    _bspline: BSpline = field(init=False, repr=False)
-
-    def __post_init__(self) -> None:
-        t0, t1 = float(self.t0), float(self.t1)
-        if not (math.isfinite(t0) and math.isfinite(t1) and t0 < t1):
-            raise SimcredError(f"spline span must be finite with t0 < t1, got [{t0!r}, {t1!r}]")
-        c = np.array(self.coefficients, dtype=np.float64)
-        if c.ndim != 1 or len(c) < DEGREE + 1:
-            raise SimcredError(f"spline needs a 1-D array of at least {DEGREE + 1} coefficients "
-                               f"(sections + 3), got shape {c.shape}")
-        if not np.all(np.isfinite(c)):
-            raise SimcredError("spline coefficients must be finite")
-        c.setflags(write=False)
-        object.__setattr__(self, "t0", t0)
-        object.__setattr__(self, "t1", t1)
-        object.__setattr__(self, "coefficients", c)
-        knots = spline_knots(t0, t1, len(c) - DEGREE)
-        object.__setattr__(self, "_bspline", BSpline(knots, c, DEGREE, extrapolate=False))
-
-    def __reduce__(self) -> tuple:
-        # Rebuilt through __init__, which copies the coefficients: Dask's out-of-band pickle
-        # buffers can arrive unaligned, and scipy's spline evaluation refuses those.
-        return (Spline, (self.t0, self.t1, self.coefficients))
-
-    @property
-    def sections(self) -> int:
-        return len(self.coefficients) - DEGREE
-
-    @property
-    def knots(self) -> np.ndarray:
-        return self._bspline.t
-
-    def __call__(self, t: ArrayLike) -> np.ndarray:
-        """Values at times ``t`` (any shape, inside [t0, t1])."""
-        return self._bspline(self._in_span(t))
-
-    def derivative(self, t: ArrayLike, order: int = 1) -> np.ndarray:
-        """The ``order``-th time derivative (1, 2 or 3) at times ``t``."""
-        if order not in (1, 2, 3):
-            raise SimcredError(f"derivative order must be 1, 2 or 3, got {order!r}")
-        return self._bspline(self._in_span(t), nu=order)
-
-    def design(self, t: ArrayLike) -> np.ndarray:
-        """The basis matrix ``B`` (len(t), sections + 3): ``self(t) == B @ self.coefficients``."""
-        return design_matrix(self.t0, self.t1, self.sections, self._in_span(t))
-
-    @classmethod
-    def least_squares(cls, t: ArrayLike, values: ArrayLike, *, t0: float, t1: float,
-                      sections: int, weights: ArrayLike | None = None) -> Spline:
-        """The spline on ``sections`` sections of [t0, t1] closest to ``values`` at ``t``.
-
-        Minimises Σ wᵢ (s(tᵢ) − valuesᵢ)²; the minimum-norm solution where the data do not pin
-        every coefficient down.
-        """
-        t = np.asarray(t, dtype=np.float64)
-        basis = design_matrix(t0, t1, sections, np.clip(t, t0, t1))
-        values = np.asarray(values, dtype=np.float64)
-        if weights is not None:
-            root = np.sqrt(np.asarray(weights, dtype=np.float64))
-            basis, values = basis * root[:, None], values * root
-        coefficients = np.linalg.lstsq(basis, values, rcond=None)[0]
-        return cls(t0, t1, coefficients)
-
-    def _in_span(self, t: ArrayLike) -> np.ndarray:
-        return in_span(t, self.t0, self.t1)
-
-
-def spline_knots(t0: float, t1: float, sections: int) -> np.ndarray:
-    """Clamped cubic knot vector on ``sections`` uniform sections of [t0, t1]."""
-    return np.concatenate([[t0] * DEGREE, np.linspace(t0, t1, sections + 1), [t1] * DEGREE])
-
-
-def design_matrix(t0: float, t1: float, sections: int, t: np.ndarray) -> np.ndarray:
-    """Dense B-spline basis matrix at times ``t`` (inside [t0, t1]), shape (len(t), sections+3)."""
-    t = np.asarray(t, dtype=np.float64)
-    flat = BSpline.design_matrix(t.ravel(), spline_knots(t0, t1, sections), DEGREE)
-    return flat.toarray().reshape(*t.shape, sections + DEGREE)
-
-
-def in_span(t: ArrayLike, t0: float, t1: float) -> np.ndarray:
-    """``t`` as floats, clamped onto [t0, t1] within the tolerance; SimcredError beyond it."""
-    t = np.asarray(t, dtype=np.float64)
-    tol = _SPAN_TOLERANCE * max(1.0, t1 - t0) + 4 * np.spacing(max(abs(t0), abs(t1)))
-    if t.size and not (np.all(np.isfinite(t)) and t.min() >= t0 - tol and t.max() <= t1 + tol):
-        bad = t[~(np.isfinite(t) & (t >= t0 - tol) & (t <= t1 + tol))].flat[0]
-        raise SimcredError(f"time {float(bad)!r} is outside the description's span "
-                           f"[{t0!r}, {t1!r}] (no extrapolation)")
-    return np.clip(t, t0, t1)
-
-
-# -- integration of eq. (1) -----------------------------------------------------------------------
-
-
-def integration_grid(t0: float, t1: float, sections: int) -> np.ndarray:
-    """The grid of eq. (1)'s quadrature: every section cut into q equal steps, q = ⌈H / 0.05 s⌉.
-
-    H = (t1 - t0) / sections. The grid has ``sections · q + 1`` points from t0 to t1, contains the
-    section bounds, and its step is at most :data:`MAX_STEP`.
-    """
-    q = max(1, math.ceil((t1 - t0) / sections / MAX_STEP - 1e-9))
-    return np.linspace(t0, t1, sections * q + 1)
-
-
-@dataclass(frozen=True, slots=True)
-class Quadrature:
-    """Gauss–Legendre nodes and weights that integrate from t0 to every query time.
-
-    ``full_*`` (intervals, nodes) cover the grid intervals; ``part_*`` (queries, nodes) cover
-    [g_i, t] for each query t, with ``index`` = i the grid interval that holds t. Then
-    ∫_{t0}^{t} f = cumsum over intervals < i of Σ w f + Σ w_part f_part.
-    """
-
-    grid: np.ndarray
-    full_nodes: np.ndarray
-    full_weights: np.ndarray
-    index: np.ndarray
-    part_nodes: np.ndarray
-    part_weights: np.ndarray
-
-    @classmethod
-    def build(cls, t0: float, t1: float, sections: int, t: np.ndarray) -> Quadrature:
-        grid = integration_grid(t0, t1, sections)
-        full_nodes, full_weights = _gauss(grid[:-1], grid[1:])
-        index = np.clip(np.searchsorted(grid, t, side="right") - 1, 0, len(grid) - 2)
-        part_nodes, part_weights = _gauss(grid[index], t)
-        return cls(grid, full_nodes, full_weights, index, part_nodes, part_weights)
-
-    def integrate(self, full_values: np.ndarray, part_values: np.ndarray) -> np.ndarray:
-        """∫_{t0}^{t} f for every query t, from f at the full and partial nodes.
-
-        Extra trailing axes (e.g. one per basis function) are integrated alongside.
-        """
-        extra = (slice(None), slice(None)) + (None,) * (full_values.ndim - 2)
-        per_interval = np.sum(self.full_weights[extra] * full_values, axis=1)
-        cumulative = np.concatenate([np.zeros((1, *per_interval.shape[1:])),
-                                     np.cumsum(per_interval, axis=0)])
-        partial = np.sum(self.part_weights[extra] * part_values, axis=1)
-        return cumulative[self.index] + partial
-
-
-def _gauss(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    half = 0.5 * (b - a)
-    nodes = (0.5 * (a + b))[:, None] + half[:, None] * _XI
-    return nodes, half[:, None] * _W
-
-
-# -- object tracks --------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True, slots=True, eq=False)
-class TrackStates:
-    """States of one object at times ``t``: eq. (1)'s x, y, v, θ and its rates a = v̇, ω = θ̇."""
-
-    t: np.ndarray
-    x: np.ndarray
-    y: np.ndarray
-    v: np.ndarray
-    heading: np.ndarray
-    acceleration: np.ndarray
-    yaw_rate: np.ndarray
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -271,6 +72,11 @@ class ObjectTrack:
     heading: Spline
     length: float = 4.5
     width: float = 1.8
+
+    def __repr__(self) -> str:
+        return (f"ObjectTrack(x0={self.x0:g}, y0={self.y0:g}, [{self.t0:g}, {self.t1:g}] s, "
+                f"{self.sections} sections)")
+
 
     def __post_init__(self) -> None:
         for name in ("x0", "y0", "length", "width"):
@@ -308,7 +114,7 @@ class ObjectTrack:
         return (self.x0 + quad.integrate(cx_full, cx_part),
                 self.y0 + quad.integrate(cy_full, cy_part))
 
-    def states(self, t: ArrayLike) -> TrackStates:
+    def states(self, t: ArrayLike) -> Track:
         """x, y, v, θ, a = v̇ and ω = θ̇ at times ``t`` (1-D, inside [t0, t1], any order).
 
         Positions integrate [1] eq. (1), ẋ = v cos θ, ẏ = v sin θ, from (x0, y0) at t0 with
@@ -326,7 +132,7 @@ class ObjectTrack:
         """
         t = self._times(t)
         x, y = self.positions(t)
-        return TrackStates(t=t, x=x, y=y, v=self.speed(t), heading=self.heading(t),
+        return Track(t=t, x=x, y=y, v=self.speed(t), heading=self.heading(t),
                            acceleration=self.speed.derivative(t),
                            yaw_rate=self.heading.derivative(t))
 
@@ -345,7 +151,7 @@ class ObjectTrack:
 
 
 @dataclass(frozen=True, slots=True, eq=False)
-class ScenarioDescription:
+class ScenarioDescription(JsonResult):
     """Objects with their tracks, [1] sec. II-B.
 
     Parameters
@@ -365,6 +171,11 @@ class ScenarioDescription:
     objects: Mapping[str, ObjectTrack]
     dt: float = 0.1
     metadata: Mapping[str, Any] = field(default_factory=dict)
+
+    def __repr__(self) -> str:
+        return (f"ScenarioDescription({', '.join(self.objects)}; [{self.t0:g}, {self.t1:g}] s, "
+                f"dt {self.dt:g})")
+
 
     def __post_init__(self) -> None:
         if not self.objects:
@@ -423,11 +234,11 @@ class ScenarioDescription:
 
     def equals(self, other: ScenarioDescription) -> bool:
         """Exact content equality: same JSON document."""
-        return self.to_json() == other.to_json()
+        return self.to_dict() == other.to_dict()
 
     # -- JSON ---------------------------------------------------------------------------------
 
-    def to_json(self) -> dict[str, Any]:
+    def to_dict(self) -> dict[str, Any]:
         """The JSON document (plain dicts, lists and floats; floats round-trip exactly)."""
         objects = {name: _track_to_json(track) for name, track in self.objects.items()}
         return envelope(KIND, {"dt": self.dt, "metadata": dict(self.metadata),
@@ -436,13 +247,13 @@ class ScenarioDescription:
     @classmethod
     def from_json(cls, document: Mapping[str, Any], *, source: str = "<memory>"
                   ) -> ScenarioDescription:
-        """Inverse of :meth:`to_json`; errors are one line naming ``source`` and the key."""
+        """Inverse of :meth:`to_dict`; errors are one line naming ``source`` and the key."""
         return _description_from_json(document, source)
 
     def write(self, path: str | Path) -> Path:
         """Write :meth:`to_json` to ``path`` (deterministic, indented JSON)."""
         path = Path(path)
-        path.write_text(dumps(self.to_json()), encoding="utf-8")
+        path.write_text(self.to_json(), encoding="utf-8")
         return path
 
     @classmethod

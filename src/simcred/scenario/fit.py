@@ -24,14 +24,10 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.optimize import least_squares
 
+from simcred._json import JsonResult
 from simcred.errors import OptionError, SimcredError
-from simcred.scenario.description import (
-    ObjectTrack,
-    Quadrature,
-    ScenarioDescription,
-    Spline,
-    design_matrix,
-)
+from simcred.scenario.description import ObjectTrack, ScenarioDescription
+from simcred.scenario.spline import Quadrature, Spline, design_matrix
 from simcred.traces import TIME, TraceSet
 
 THRESHOLD = 0.05
@@ -60,7 +56,7 @@ class StopReason(StrEnum):
 
 
 @dataclass(frozen=True, slots=True, eq=False)
-class TrackFit:
+class TrackFit(JsonResult):
     """The fit of one object.
 
     Attributes
@@ -93,13 +89,31 @@ class TrackFit:
     threshold: float
     min_gain: float
 
+    def __repr__(self) -> str:
+        return (f"TrackFit({self.sections} sections, rmse {self.rmse:.4g} m, "
+                f"{self.stop_reason})")
+
+    def to_dict(self) -> dict[str, Any]:
+        """The fit's numbers (the track itself: ``track``'s JSON in a description)."""
+        return {"sections": self.sections, "rmse": self.rmse, "max_error": self.max_error,
+                "stop_reason": str(self.stop_reason), "iterations": self.iterations,
+                "history": [list(step) for step in self.history],
+                "threshold": self.threshold, "min_gain": self.min_gain}
+
 
 @dataclass(frozen=True, slots=True, eq=False)
-class ScenarioFit:
+class ScenarioFit(JsonResult):
     """The fitted description and the fit of every object."""
 
     description: ScenarioDescription
     fits: Mapping[str, TrackFit]
+
+    def __repr__(self) -> str:
+        return f"ScenarioFit({', '.join(f'{k}: {v!r}' for k, v in self.fits.items())})"
+
+    def to_dict(self) -> dict[str, Any]:
+        """Per object, :meth:`TrackFit.to_dict`."""
+        return {name: fit.to_dict() for name, fit in self.fits.items()}
 
     @property
     def rmse(self) -> float:

@@ -27,10 +27,10 @@ from typing import Any
 import numpy as np
 
 from simcred.errors import OptionError, SimcredError
+from simcred.kinematics import Track
 from simcred.scenario.description import (
     ObjectTrack,
     ScenarioDescription,
-    TrackStates,
     sample_times,
 )
 
@@ -40,6 +40,11 @@ HEIGHT = 1.5
 """Height (m) of the exported bounding boxes (the description has none)."""
 MINOR_VERSION = 2
 """Default OpenSCENARIO minor version (1.2)."""
+
+
+#: Header date of an export whose inputs carry no date (the wall clock would break
+#: byte-identical reruns).
+NO_DATE = dt.datetime(1970, 1, 1)
 
 
 def to_openscenario(description: ScenarioDescription, path: str | Path, **options: Any) -> Path:
@@ -84,7 +89,9 @@ def build_openscenario(
     name, author : str
         File header.
     creation_date : datetime, optional
-        Header date; default now (UTC, whole seconds).
+        Header date. Default: the description's ``metadata["date"]`` (ISO 8601) if it has one,
+        else :data:`NO_DATE` (1970-01-01T00:00:00): never the wall clock, so the same
+        description gives the same file byte for byte.
 
     Returns
     -------
@@ -123,7 +130,7 @@ def build_openscenario(
     storyboard = xosc.StoryBoard(init, _at_time(xosc, end - start, "stop"))
     if followers:
         storyboard.add_story(xosc.Story("replay").add_act(act))
-    date = creation_date or dt.datetime.now(dt.UTC).replace(microsecond=0, tzinfo=None)
+    date = creation_date or _date_of(description)
     scenario = xosc.Scenario(name, author, xosc.ParameterDeclarations(), entities, storyboard,
                              xosc.RoadNetwork(roadfile=road_file), xosc.Catalog(),
                              osc_minor_version=osc_minor_version, creation_date=date)
@@ -156,7 +163,7 @@ def _vehicle(xosc: Any, name: str, track: ObjectTrack) -> Any:
     return xosc.Vehicle(name, xosc.VehicleCategory.car, box, front, rear, 70.0, 10.0, 10.0)
 
 
-def _position(xosc: Any, states: TrackStates, i: int) -> Any:
+def _position(xosc: Any, states: Track, i: int) -> Any:
     return xosc.WorldPosition(x=float(states.x[i]), y=float(states.y[i]),
                               h=float(states.heading[i]))
 
@@ -209,6 +216,18 @@ def _schema(minor: int) -> Any:
         raise SimcredError(f"{xsd}: OpenSCENARIO 1.{minor} schema not found (is "
                            "scenariogeneration installed with its schemas?)")
     return xmlschema.XMLSchema(str(xsd))
+
+
+def _date_of(description: ScenarioDescription) -> dt.datetime:
+    """The header date the inputs give: ``metadata["date"]``, else :data:`NO_DATE`."""
+    text = description.metadata.get("date")
+    if text is None:
+        return NO_DATE
+    try:
+        return dt.datetime.fromisoformat(str(text)).replace(microsecond=0, tzinfo=None)
+    except ValueError:
+        raise OptionError(f"description metadata 'date' is not an ISO 8601 date: {text!r}"
+                          ) from None
 
 
 def validate_openscenario(path: str | Path) -> None:

@@ -11,19 +11,13 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-import numpy as np
-
 from simcred.engine import Engine, Progress, engine
 from simcred.errors import OptionError
 from simcred.traces import TraceSet, concat
 
-#: An experiment simulates the runs with the given indices; run i may use only run_rng(seed, i).
+#: An experiment simulates the runs with the given indices; run i may use only
+#: ``simcred.seeds.stream(seed, i)``.
 Experiment = Callable[..., TraceSet]
-
-
-def run_rng(seed: int, run: int) -> np.random.Generator:
-    """The random stream of run ``run`` of the campaign with ``seed``."""
-    return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(run,)))
 
 
 def run_id(run: int) -> str:
@@ -66,8 +60,3 @@ class Campaign:
         return concat(parts, metadata={**parts[0].metadata, "runs": self.runs, "seed": self.seed},
                       source=f"simcred:{name}")
 
-
-def derive_seed(seed: int, *keys: int) -> int:
-    """A campaign seed derived from ``seed`` and integer ``keys`` (independent streams)."""
-    words = np.random.SeedSequence(seed, spawn_key=keys).generate_state(2, np.uint32)
-    return int(words[0]) << 32 | int(words[1])

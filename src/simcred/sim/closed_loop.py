@@ -58,6 +58,10 @@ class LoopRecord:
     mode: np.ndarray
 
 
+    def __repr__(self) -> str:
+        runs, steps = self.mode.shape
+        return f"LoopRecord({runs} runs, {steps} steps, {self.objects.shape[2]} objects)"
+
 def run_closed_loop(model: VehicleModel, ego_start: np.ndarray, objects: np.ndarray,
                     sensor: Sensor, driver: ADFunction, dt: float, noise: np.ndarray
                     ) -> LoopRecord:

@@ -4,7 +4,7 @@ Traffic objects follow their descriptions exactly (sampled at every step: a perf
 follower); the EGO starts from its described state at ``t0`` and is driven by the AD function
 through a vehicle model (KS by default) and a sensor model (ideal or scenario-based). All
 descriptions of one call share the time grid ``t0 + k dt`` of the first one and are simulated
-as one batch; run ``i`` draws its sensor noise from ``run_rng(seed, i)`` only.
+as one batch; run ``i`` draws its sensor noise from ``stream(seed, i)`` only.
 
 References
 ----------
@@ -19,12 +19,14 @@ from collections.abc import Sequence
 import numpy as np
 
 from simcred.errors import SimcredError
+from simcred.kinematics import MOTION_SIGNALS
 from simcred.scenario.description import ScenarioDescription
-from simcred.sim.campaign import run_id, run_rng
+from simcred.seeds import stream
+from simcred.sim.campaign import run_id
 from simcred.sim.closed_loop import LoopRecord, run_closed_loop
 from simcred.sim.driver import ADFunction, DriverConfig
-from simcred.sim.experiments.cutin import OBJECT_SIGNALS, vehicle_model
 from simcred.sim.sensors import IdealSensor, Sensor
+from simcred.sim.vehicles import vehicle_model
 from simcred.traces import TIME, TraceSet
 
 MODE_SIGNAL = "ad.mode"
@@ -63,7 +65,7 @@ def simulate_batch(batch: Sequence[ScenarioDescription], names: Sequence[str], t
     dt = float(t[1] - t[0])
     objects = np.stack([_object_states(d, names, t) for d in batch])
     start = np.array([_ego_start(d, ego) for d in batch])
-    noise = np.stack([run_rng(seed, i).standard_normal((len(t), len(names), 2))
+    noise = np.stack([stream(seed, i).standard_normal((len(t), len(names), 2))
                       for i in indices])
     return run_closed_loop(vehicle_model(vehicle), start, objects,
                            IdealSensor() if sensor is None else sensor,
@@ -91,7 +93,7 @@ def _object_states(description: ScenarioDescription, names: Sequence[str], t: np
         raise SimcredError(f"description spans [{description.t0}, {description.t1}] s, the "
                            f"batch needs [{t[0]}, {t[-1]}] s")
     sampled = description.sample(t)
-    return np.stack([np.column_stack([sampled[f"{n}.{s}"] for s in OBJECT_SIGNALS])
+    return np.stack([np.column_stack([sampled[f"{n}.{s}"] for s in MOTION_SIGNALS])
                      for n in names], axis=1)
 
 
@@ -105,10 +107,10 @@ def _traceset(record: LoopRecord, t: np.ndarray, names: Sequence[str], ego: str,
     runs = []
     for r in range(record.ego.shape[0]):
         run = {TIME: t}
-        run.update({f"{ego}.{s}": record.ego[r, :, j] for j, s in enumerate(OBJECT_SIGNALS)})
+        run.update({f"{ego}.{s}": record.ego[r, :, j] for j, s in enumerate(MOTION_SIGNALS)})
         for k, name in enumerate(names):
             run.update({f"{name}.{s}": record.objects[r, :, k, j]
-                        for j, s in enumerate(OBJECT_SIGNALS)})
+                        for j, s in enumerate(MOTION_SIGNALS)})
         run[MODE_SIGNAL] = record.mode[r].astype(float)
         runs.append(run)
     return TraceSet.from_runs(runs, run_ids=run_ids, source="resimulation")

@@ -33,6 +33,7 @@ from typing import Protocol
 
 import numpy as np
 
+from simcred._json import JsonResult
 from simcred.errors import SimcredError
 
 X, Y, V, HEADING = range(4)
@@ -142,7 +143,7 @@ class TrackerSensor:
 
 
 @dataclass(frozen=True, slots=True)
-class OffsetDelaySensor:
+class OffsetDelaySensor(JsonResult):
     """Scenario-based sensor model ([1] §IV): offset(range), delayed velocity/heading, noise.
 
     Position = truth + (offset + offset_per_metre · range) along the line of sight + noise;
@@ -184,7 +185,7 @@ class OffsetDelaySensor:
         speed, heading = _speed_heading(memory.values[:, 0])
         return np.column_stack([xy, speed, heading])
 
-    def to_json(self) -> dict[str, float]:
+    def to_dict(self) -> dict[str, float]:
         return {"offset": self.offset, "offset_per_metre": self.offset_per_metre,
                 "delay": self.delay, "position_sd": self.position_sd, **self.fit}
 

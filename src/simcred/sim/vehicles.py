@@ -30,6 +30,8 @@ from typing import TYPE_CHECKING, ClassVar, Protocol
 import numpy as np
 from numpy.typing import ArrayLike
 
+from simcred.errors import OptionError
+
 if TYPE_CHECKING:
     from vehiclemodels.vehicle_parameters import VehicleParameters
 
@@ -338,3 +340,17 @@ class SingleTrack(_CommonRoadModel):
             np.where(crawl, yaw_acc_ks, yaw_acc),
             np.where(crawl, slip_rate_ks, slip_rate),
         ], axis=1)
+
+
+#: The vehicle models an EGO can be simulated with, by their CLI names.
+VEHICLE_MODELS: dict[str, Callable[[], VehicleModel]] = {"ks": KinematicSingleTrack,
+                                                         "st": SingleTrack}
+
+
+def vehicle_model(name: str) -> VehicleModel:
+    """The EGO vehicle model called ``name`` ("ks" or "st")."""
+    try:
+        return VEHICLE_MODELS[name]()
+    except KeyError:
+        raise OptionError(f"unknown vehicle model {name!r} "
+                          f"(choose one of: {', '.join(VEHICLE_MODELS)})") from None

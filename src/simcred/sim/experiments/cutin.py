@@ -33,15 +33,13 @@ import numpy as np
 from simcred._json import plain
 from simcred.errors import OptionError
 from simcred.io.measurement import Measurement
-from simcred.sim.campaign import run_rng
+from simcred.kinematics import MOTION_SIGNALS
+from simcred.seeds import stream
 from simcred.sim.closed_loop import LoopRecord, run_closed_loop
 from simcred.sim.driver import ADFunction, DriverConfig
 from simcred.sim.sensors import TrackerSensor
-from simcred.sim.vehicles import KinematicSingleTrack, SingleTrack, VehicleModel
+from simcred.sim.vehicles import VEHICLE_MODELS, vehicle_model
 from simcred.traces import TraceSet
-
-OBJECT_SIGNALS = ("x", "y", "v", "heading")
-VEHICLE_MODELS = {"ks": KinematicSingleTrack, "st": SingleTrack}
 
 
 @dataclass(frozen=True, slots=True)
@@ -94,15 +92,6 @@ class CutInConfig:
         return int(round(self.duration / self.dt)) + 1
 
 
-def vehicle_model(name: str) -> VehicleModel:
-    """The EGO vehicle model called ``name`` ("ks" or "st")."""
-    try:
-        return VEHICLE_MODELS[name]()
-    except KeyError:
-        raise OptionError(f"unknown vehicle model {name!r} "
-                          f"(choose one of: {', '.join(VEHICLE_MODELS)})") from None
-
-
 def scripted_object(script: CutInScript, t: np.ndarray) -> np.ndarray:
     """The TO's true state ``(len(t), 4)``: x, y, v, heading (EGO starts at the origin)."""
     braking = np.clip(t - script.brake_start, 0.0,
@@ -123,7 +112,7 @@ def drive(config: CutInConfig, seed: int) -> LoopRecord:
     """Run the manufactured universe once."""
     t = np.arange(config.steps) * config.dt
     truth = scripted_object(config.script, t)[None, :, None, :]
-    noise = run_rng(seed, 0).standard_normal((1, config.steps, 1, 2))
+    noise = stream(seed, 0).standard_normal((1, config.steps, 1, 2))
     ego_start = np.array([[0.0, 0.0, config.ego_speed, 0.0]])
     return run_closed_loop(vehicle_model(config.ego_model), ego_start, truth, config.sensor,
                            ADFunction(config.driver), config.dt, noise)
@@ -140,7 +129,7 @@ def simulate(seed: int = 0, config: CutInConfig | None = None) -> Measurement:
     """
     chosen = CutInConfig() if config is None else config
     record = drive(chosen, seed)
-    rng = run_rng(seed, 1)
+    rng = stream(seed, 1)
     ego, to = record.ego[0, :, :4], record.objects[0, :, 0]
     gt = {"t": record.t, **_columns("ego", _dgps(ego, chosen.dgps, rng)),
           **_columns("to", _dgps(to, chosen.dgps, rng))}
@@ -161,4 +150,4 @@ def _dgps(states: np.ndarray, noise: DGPSNoise, rng: np.random.Generator) -> np.
 
 
 def _columns(name: str, states: np.ndarray) -> dict[str, np.ndarray]:
-    return {f"{name}.{signal}": states[:, j] for j, signal in enumerate(OBJECT_SIGNALS)}
+    return {f"{name}.{signal}": states[:, j] for j, signal in enumerate(MOTION_SIGNALS)}

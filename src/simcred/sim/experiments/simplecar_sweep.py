@@ -19,7 +19,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from simcred.sim.campaign import run_id, run_rng
+from simcred.seeds import stream
+from simcred.sim.campaign import run_id
 from simcred.sim.vehicles import SimpleCar, rk4_step
 from simcred.traces import TraceSet
 
@@ -40,7 +41,7 @@ def draw_runs(indices: Sequence[int], seed: int, lam: float) -> tuple[np.ndarray
     """Per run, from its own stream: τ ~ U[λ − 0.01, λ] and (x0, y0) ~ N(0, 10²)."""
     tau, start = np.empty(len(indices)), np.empty((len(indices), 2))
     for k, i in enumerate(indices):
-        rng = run_rng(seed, i)
+        rng = stream(seed, i)
         tau[k] = rng.uniform(lam - 0.01, lam)
         start[k] = rng.normal(0.0, START_STD, size=2)
     return tau, start

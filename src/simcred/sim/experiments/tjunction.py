@@ -35,7 +35,7 @@ a parked car (shapely, one prepared MultiPolygon per run); the sensor range is u
 Categories ([1] η1, η2, η3): ``no-occlusion`` (never parked cars), ``occlusion`` (always),
 ``random`` (parked cars with probability 0.5 per run).
 
-Randomness: run ``i`` draws, from :func:`~simcred.sim.campaign.run_rng` ``(seed, i)`` only, first
+Randomness: run ``i`` draws, from :func:`~simcred.seeds.stream` ``(seed, i)`` only, first
 :data:`N_UNIFORMS` uniforms (every per-run parameter, the same draws in every category), then the
 lateral noise. So a run does not depend on the batch it is simulated in, and the same seed gives
 the same EGO and cyclist in every category (common random numbers).
@@ -59,7 +59,8 @@ import numpy as np
 import shapely
 
 from simcred.errors import OptionError
-from simcred.sim.campaign import run_id, run_rng
+from simcred.seeds import stream
+from simcred.sim.campaign import run_id
 from simcred.sim.vehicles import SimpleCar, rk4_step
 from simcred.traces import TraceSet
 
@@ -254,12 +255,12 @@ class Runs:
     @classmethod
     def draw(cls, indices: Sequence[int], seed: int, category: str, draws: Distributions,
              lane_width: float, n_noise: int) -> Runs:
-        """Run ``i`` draws from ``run_rng(seed, i)``: :data:`N_UNIFORMS` uniforms, then
+        """Run ``i`` draws from ``stream(seed, i)``: :data:`N_UNIFORMS` uniforms, then
         ``n_noise`` standard normals."""
         u = np.empty((len(indices), N_UNIFORMS))
         noise = np.empty((len(indices), n_noise))
         for k, i in enumerate(indices):
-            rng = run_rng(seed, i)
+            rng = stream(seed, i)
             u[k] = rng.random(N_UNIFORMS)
             noise[k] = rng.standard_normal(n_noise)
         chance = {"no-occlusion": 0.0, "occlusion": 1.0, "random": draws.random_parked}[category]
@@ -319,7 +320,7 @@ def simulate(
     Parameters
     ----------
     indices : sequence of int
-        Run indices; run ``i`` is named ``run_id(i)`` and draws from ``run_rng(seed, i)`` only.
+        Run indices; run ``i`` is named ``run_id(i)`` and draws from ``stream(seed, i)`` only.
     seed : int
         Campaign seed.
     category : {"no-occlusion", "occlusion", "random"}

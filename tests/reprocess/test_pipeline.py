@@ -41,7 +41,7 @@ def test_error_stats_are_numpys_statistics(values):
     assert (stats.q25, stats.median, stats.q75, stats.low, stats.high, stats.mean, stats.std,
             stats.n) == pytest.approx(expected, rel=1e-12, abs=1e-9)
     assert stats.low <= stats.q25 <= stats.median <= stats.q75 <= stats.high
-    assert stats.to_json()["n"] == values.size
+    assert stats.to_dict()["n"] == values.size
 
 
 @pytest.mark.parametrize("eps", [1e-6, 0.01, 0.3])
@@ -132,7 +132,7 @@ def test_nothing_happening_is_no_reaction():
     r = reaction(T, np.full_like(T, 0.2), np.full_like(T, 20.0), np.zeros_like(T),
                  np.full_like(T, -1.0))
     assert math.isnan(r.time) and math.isnan(r.speed_at_reaction) and r.manoeuvre == "none"
-    assert r.to_json()["time"] is None and r.to_json()["manoeuvre"] == "none"
+    assert r.to_dict()["time"] is None and r.to_dict()["manoeuvre"] == "none"
 
 
 def at(time, manoeuvre="brake"):

@@ -11,7 +11,8 @@ import pyproj
 import pytest
 
 from simcred.errors import TraceSetError
-from simcred.io.a9 import A9Recording, heading_offset, lane_changer, lane_offset, read_a9
+from simcred.io.a9 import A9Recording, heading_offset, read_a9
+from simcred.io.a9_lanes import lane_changer, lane_offset
 
 SUBDIR = Path("data") / "real" / "osc-generator-a9"
 CANDIDATES = [Path(__file__).resolve().parents[2] / "shared" / SUBDIR,

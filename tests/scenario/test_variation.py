@@ -11,16 +11,17 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.interpolate import CubicSpline
 
-from simcred._json import dumps
 from simcred.errors import SimcredError
-from simcred.scenario import ScenarioDescription, TrackStates, fit_track
-from simcred.scenario.variation import (
+from simcred.kinematics import Track
+from simcred.scenario import (
     BezierPath,
     PlausibilityLimits,
     Reason,
+    ScenarioDescription,
     Status,
     VariationOptions,
     check_plausibility,
+    fit_track,
     generate_variations,
     influence,
     load_variations,
@@ -242,7 +243,7 @@ def test_variation_i_does_not_depend_on_n_batching_or_order(description):
         if alone.kept:
             assert same(alone, by_index[i])
     assert [r.index for r in ten.records] == list(range(10))
-    assert dumps(five.to_json()) == dumps(generate_variations(description, 5, SEED).to_json())
+    assert five.to_json() == generate_variations(description, 5, SEED).to_json()
 
 
 def test_different_seeds_and_indices_differ(description):
@@ -257,7 +258,7 @@ def test_different_seeds_and_indices_differ(description):
 def test_displacements_follow_the_truncated_normal(description):
     options = VariationOptions(sigma_lon=0.3, sigma_lat=0.3, truncation=2.0)
     result = generate_variations(description, 1, SEED, options=options)
-    from simcred.scenario.variation import draw_displacements
+    from simcred.scenario import draw_displacements
 
     z = np.concatenate([draw_displacements(SEED, i, 4, options) for i in range(2000)]) / 0.3
     assert np.abs(z).max() <= 2.0
@@ -271,10 +272,10 @@ def test_displacements_follow_the_truncated_normal(description):
 # -- 6: plausibility -------------------------------------------------------------------------------
 
 
-def states_from_positions(t, x, y) -> TrackStates:
+def states_from_positions(t, x, y) -> Track:
     vx, vy = np.gradient(x, t), np.gradient(y, t)
     v, heading = np.hypot(vx, vy), np.unwrap(np.arctan2(vy, vx))
-    return TrackStates(t=t, x=x, y=y, v=v, heading=heading, acceleration=np.gradient(v, t),
+    return Track(t=t, x=x, y=y, v=v, heading=heading, acceleration=np.gradient(v, t),
                        yaw_rate=np.gradient(heading, t))
 
 
@@ -294,7 +295,7 @@ def test_each_limit_names_its_reason():
     ones = np.ones_like(t)
 
     def states(v=20.0, heading=0.0, acceleration=0.0, yaw_rate=0.0):
-        return TrackStates(t=t, x=t, y=t, v=v * ones, heading=heading * ones,
+        return Track(t=t, x=t, y=t, v=v * ones, heading=heading * ones,
                            acceleration=acceleration * ones, yaw_rate=yaw_rate * ones)
 
     assert check_plausibility(states(acceleration=-9.5)) == [Reason.LONGITUDINAL_ACCELERATION]
@@ -339,7 +340,7 @@ def test_infeasible_variations_are_rejected_and_counted(description):
 def test_json_is_deterministic_exact_and_loads_back(description, tmp_path):
     result = generate_variations(description, 6, SEED,
                                  options=VariationOptions(sigma_lon=1.0, sigma_lat=0.6))
-    text = dumps(result.to_json())
+    text = result.to_json()
     document = json.loads(text)
     assert document["kind"] == "variation_set" and document["seed"] == SEED
     assert document["generated"] == 6 and document["kept"] == result.kept
@@ -352,14 +353,14 @@ def test_json_is_deterministic_exact_and_loads_back(description, tmp_path):
     for variation in result.variations:
         assert loaded[variation.index].equals(variation.description)
     with pytest.raises(SimcredError, match="not a variations document") as exc:
-        load_variations(description.to_json())
+        load_variations(description.to_dict())
     one_line(exc)
 
 
 def test_unseeded_set_records_its_entropy(description):
     result = generate_variations(description, 2, None)
     replay = generate_variations(description, 2, result.seed)
-    assert dumps(result.to_json()) == dumps(replay.to_json())
+    assert result.to_json() == replay.to_json()
 
 
 # -- validation ------------------------------------------------------------------------------------

@@ -270,7 +270,7 @@ def test_json_round_trip_is_exact(data, sections, t0, span, x0, y0):
                         Spline(t0, t1, data.draw(coefficients)))
     original = ScenarioDescription({"to": track}, dt=data.draw(st.floats(1e-4, 10.0)),
                                    metadata={"source": "hypothesis"})
-    text = json.dumps(original.to_json(), allow_nan=False)
+    text = json.dumps(original.to_dict(), allow_nan=False)
     back = ScenarioDescription.from_json(json.loads(text))
     assert back.equals(original)
     got = back.objects["to"]
@@ -322,7 +322,7 @@ def _break(document: dict, how: str) -> dict | str:
 ])
 def test_malformed_json_names_the_file(tmp_path, description, how, needle):
     path = tmp_path / "bad.json"
-    document = _break(description.to_json(), how)
+    document = _break(description.to_dict(), how)
     path.write_text(json.dumps(document))  # NaN is written as the token NaN
     with pytest.raises(SimcredError) as exc:
         ScenarioDescription.read(path)
@@ -406,3 +406,20 @@ def test_openscenario_options(tmp_path, description):
                              road_file="road.xodr")
     validate_openscenario(replay)
     assert replay.read_text().count("<FollowTrajectoryAction") == 2
+
+
+def test_openscenario_export_is_byte_identical_on_rerun(tmp_path, description):
+    first = to_openscenario(description, tmp_path / "a.xosc").read_bytes()
+    second = to_openscenario(description, tmp_path / "b.xosc").read_bytes()
+    assert first == second
+    assert b'date="1970-01-01T00:00:00"' in first  # no date in the inputs: NO_DATE
+
+
+def test_openscenario_date_comes_from_the_description(tmp_path, description):
+    dated = ScenarioDescription(description.objects, dt=description.dt,
+                                metadata={"date": "2024-05-06T07:08:09"})
+    assert b'date="2024-05-06T07:08:09"' in to_openscenario(dated, tmp_path / "a.xosc"
+                                                            ).read_bytes()
+    with pytest.raises(SimcredError, match="not an ISO 8601 date"):
+        to_openscenario(ScenarioDescription(description.objects, dt=description.dt,
+                                            metadata={"date": "yesterday"}), tmp_path / "b.xosc")

@@ -26,7 +26,7 @@ from simcred.cli import run  # noqa: E402
 from simcred.errors import SimcredError  # noqa: E402
 from simcred.report.html import MAX_VIOLATIONS, render_report, write_report  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SECTIONS = ("seed-000", "seed-002", "seed-003", "provenance")
 FIGURES = {
     "000": ["fig5_inputs.png", "fig6_xy.png", "fig7_xy_heading.png", "table3_bound.png",

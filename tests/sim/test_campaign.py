@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from simcred.cli import run
-from simcred.sim.campaign import Campaign, derive_seed
+from simcred.seeds import derive_seed
+from simcred.sim.campaign import Campaign
 from simcred.sim.experiments import simplecar_sweep
 from simcred.traces import TraceSet
 

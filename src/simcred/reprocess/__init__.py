@@ -1,0 +1,38 @@
+"""The reprocessing pipeline of Wagner, Groh et al. (seed 002) Fig. 1: measurement → fit →
+resimulation → refit → risk, reaction and the error of every step; and the variation campaign.
+
+Modules: ``representation`` (typed names GT, SD, rGT, rSD, [sb], fit(…)), ``pipeline``
+(:func:`reprocess`), ``errors`` (Fig. 4), ``reaction`` (eqs. 4-7), ``inputs`` (what ``simcred
+reprocess`` reads), ``output`` (what it writes, figures aside), ``vary`` (sec. V campaign).
+"""
+
+from simcred.reprocess.errors import ErrorStats, decompose
+from simcred.reprocess.inputs import read_measurement
+from simcred.reprocess.output import write
+from simcred.reprocess.pipeline import ReprocessConfig, Reprocessed, reprocess
+from simcred.reprocess.reaction import Reaction, ReactionCriteria, reaction
+from simcred.reprocess.representation import GT, SD, Rep, Sensor, Source
+from simcred.reprocess.vary import Campaign, Outcome, VaryConfig, run_campaign, write_campaign
+
+__all__ = [
+    "GT",
+    "SD",
+    "Campaign",
+    "ErrorStats",
+    "Outcome",
+    "Reaction",
+    "ReactionCriteria",
+    "Rep",
+    "ReprocessConfig",
+    "Reprocessed",
+    "Sensor",
+    "Source",
+    "VaryConfig",
+    "decompose",
+    "read_measurement",
+    "reaction",
+    "reprocess",
+    "run_campaign",
+    "write",
+    "write_campaign",
+]

@@ -1,0 +1,137 @@
+"""The inputs of a risk assessment: the vehicles' states in many scenes and the road's lanes.
+
+See :mod:`simcred.risk.ttr` for the method and its references.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from simcred.errors import OptionError, SimcredError
+
+_STATE_FIELDS = ("x", "y", "v", "heading", "acceleration", "yaw_rate", "length", "width")
+# peak |d²p/dτ²| of the quintic smoothstep p(τ) = 10τ³ - 15τ⁴ + 6τ⁵, at τ = (3 ∓ √3)/6
+
+
+def _require(condition: bool, message: str) -> None:
+    """Raise a one-line :class:`OptionError` unless ``condition``."""
+    if not condition:
+        raise OptionError(message)
+
+
+# -- inputs ------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class VehicleStates:
+    """States of vehicles in many scenes: arrays of one common shape, scalars broadcast.
+
+    Parameters
+    ----------
+    x, y : array_like
+        Position of the vehicle's centre (m); the road runs along +x, y points left.
+    v : array_like
+        Speed (m/s), >= 0.
+    heading : array_like
+        Heading (rad) relative to the road, in (-π/2, π/2): all traffic drives along +x.
+    acceleration : array_like, default: 0
+        Longitudinal acceleration (m/s²).
+    yaw_rate : array_like, default: 0
+        Yaw rate (rad/s); sets the initial curvature of the predicted paths.
+    length, width : array_like, default: 4.5, 1.8
+        Size of the vehicle's rectangle (m), > 0.
+    name : str, default: "vehicle"
+        Names the vehicle in error messages (``ego.v[3] must be finite``).
+
+    Notes
+    -----
+    Shape ``(scenes,)`` for the EGO; ``(scenes,)`` (one TO per scene) or ``(scenes, objects)``
+    for the TOs. Fields are stored as read-only float arrays broadcast to the common shape.
+    Equality is identity.
+    """
+
+    x: ArrayLike
+    y: ArrayLike
+    v: ArrayLike
+    heading: ArrayLike
+    acceleration: ArrayLike = 0.0
+    yaw_rate: ArrayLike = 0.0
+    length: ArrayLike = 4.5
+    width: ArrayLike = 1.8
+    name: str = "vehicle"
+
+    def __post_init__(self) -> None:
+        arrays = []
+        for f in _STATE_FIELDS:
+            try:
+                arrays.append(np.asarray(getattr(self, f), dtype=float))
+            except (TypeError, ValueError):
+                raise SimcredError(f"{self.name}.{f} must be numeric") from None
+        try:
+            arrays = np.broadcast_arrays(*arrays)
+        except ValueError:
+            shapes = ", ".join(f"{f} {a.shape}" for f, a in zip(_STATE_FIELDS, arrays, strict=True))
+            raise SimcredError(f"{self.name}: fields do not broadcast to one shape: {shapes}"
+                               ) from None
+        if arrays[0].ndim > 2:
+            raise SimcredError(f"{self.name}: states must be 0-, 1- or 2-D (scenes[, objects]), "
+                               f"got shape {arrays[0].shape}")
+        for f, a in zip(_STATE_FIELDS, arrays, strict=True):
+            _check_values(f"{self.name}.{f}", a)
+            a = np.array(a)  # own copy: broadcast views share memory with the caller
+            a.setflags(write=False)
+            object.__setattr__(self, f, a)
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        """The common shape of the fields."""
+        return self.x.shape
+
+    def as_dict(self) -> dict[str, np.ndarray]:
+        """The fields by name (without ``name``)."""
+        return {f: getattr(self, f) for f in _STATE_FIELDS}
+
+
+def _check_values(label: str, a: np.ndarray) -> None:
+    """One-line error naming the first offending element of state field ``label``."""
+    field = label.rsplit(".", 1)[1]
+    rules = {"v": (a < 0, "must be >= 0"),
+             "heading": (np.abs(a) >= np.pi / 2, "must lie in (-pi/2, pi/2): traffic drives +x"),
+             "length": (a <= 0, "must be > 0"), "width": (a <= 0, "must be > 0")}
+    bad, message = ~np.isfinite(a), "must be finite"
+    if not bad.any() and field in rules:
+        bad, message = rules[field]
+    if bad.any():
+        where = np.unravel_index(int(np.argmax(bad)), a.shape) if a.ndim else ()
+        index = f"[{', '.join(map(str, where))}]" if where else ""
+        raise SimcredError(f"{label}{index} {message}, got {float(a[where])}")
+
+
+@dataclass(frozen=True, slots=True)
+class Lanes:
+    """Straight parallel lanes along +x.
+
+    Parameters
+    ----------
+    width : float, default: 3.5
+        Lane width (m); also the lateral offset of a lane change and of an evasive steer.
+    centre : float, default: 0.0
+        y of one lane centre (the EGO's lane in the main use case); the others lie at
+        ``centre + k * width`` for every integer k. Road edges are not modelled.
+    """
+
+    width: float = 3.5
+    centre: float = 0.0
+
+    def __post_init__(self) -> None:
+        _require(math.isfinite(self.width) and self.width > 0, "lanes.width must be > 0")
+        _require(math.isfinite(self.centre), "lanes.centre must be finite")
+
+    def centre_of(self, y: ArrayLike) -> np.ndarray:
+        """Centre of the lane that contains lateral position ``y``."""
+        k = np.round((np.asarray(y, dtype=float) - self.centre) / self.width)
+        return self.centre + k * self.width
