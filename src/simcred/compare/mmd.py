@@ -63,6 +63,7 @@ class Estimator(StrEnum):
 class Test(StrEnum):
     __test__ = False  # not a pytest test class
 
+    RUNS = "runs"  # run-level permutation test (simcred.compare.runs)
     BOUND = "bound"
     PERMUTATION = "permutation"
 
@@ -98,6 +99,7 @@ class MMDTestResult:
     pvalue: float | None = None
     bandwidth: float | None = None
     n_resamples: int | None = None
+    adjusted_pvalue: float | None = None
 
 
 def bound_threshold(m: int, n: int, alpha: float, estimator: Estimator) -> float:
