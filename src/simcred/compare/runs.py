@@ -183,7 +183,7 @@ def run_level_test(counts: RunCounts, in_a: np.ndarray, grid_of, spec: RunTestSp
         Source of the permutations.
     """
     in_a = np.asarray(in_a, dtype=bool)
-    states = _StateModels.build(counts, grid_of, spec, n_bins)
+    states = StateModels.build(counts, grid_of, spec, n_bins)
     stats = _permuted_statistics(counts, in_a, states, spec, rng)
     z, in_family = _standardise(stats, states.evidence, spec.one_sided)
     chain = z[:, in_family].sum(axis=1) if spec.chain is ChainStatistic.SUM \
@@ -238,7 +238,7 @@ def _row_max(z: np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True, slots=True, eq=False)
-class _StateModels:
+class StateModels:
     """Per block: kernel operator, pooled bandwidth, totals; and the one-sided evidence value."""
 
     operators: tuple[KernelOperator, ...]
@@ -248,7 +248,7 @@ class _StateModels:
     evidence: float
 
     @classmethod
-    def build(cls, counts: RunCounts, grid_of, spec: RunTestSpec, n_bins) -> _StateModels:
+    def build(cls, counts: RunCounts, grid_of, spec: RunTestSpec, n_bins) -> StateModels:
         column_totals = np.asarray(counts.matrix.sum(axis=1)).ravel()
         operators, bandwidths = [], []
         for lo, hi in zip(counts.bounds[:-1], counts.bounds[1:], strict=True):
@@ -263,7 +263,7 @@ class _StateModels:
         return cls(tuple(operators), np.array(bandwidths), totals, column_totals, evidence)
 
 
-def _permuted_statistics(counts: RunCounts, in_a: np.ndarray, states: _StateModels,
+def _permuted_statistics(counts: RunCounts, in_a: np.ndarray, states: StateModels,
                          spec: RunTestSpec, rng: np.random.Generator) -> np.ndarray:
     """(P + 1, blocks) statistics; row 0 is the observed assignment, NaN = one side empty."""
     total = spec.permutations + 1
@@ -276,10 +276,19 @@ def _permuted_statistics(counts: RunCounts, in_a: np.ndarray, states: _StateMode
         assignment = rng.permuted(np.broadcast_to(pattern, (size, n_runs)), axis=1)
         if start == 0:
             assignment[0] = in_a
-        side_a = counts.matrix @ np.ascontiguousarray(assignment.T, dtype=np.float64)
-        for b, (lo, hi) in enumerate(zip(counts.bounds[:-1], counts.bounds[1:], strict=True)):
-            out[start:start + size, b] = _statistic(side_a[lo:hi], states.column_totals[lo:hi],
-                                                    states.operators[b], spec.estimator)
+        out[start:start + size] = assignment_statistics(counts, states, assignment,
+                                                        spec.estimator)
+    return out
+
+
+def assignment_statistics(counts: RunCounts, states: StateModels, assignment: np.ndarray,
+                          estimator: Estimator) -> np.ndarray:
+    """(k, blocks) statistics of k assignments of runs to A (bool, shape (k, runs))."""
+    side_a = counts.matrix @ np.ascontiguousarray(assignment.T, dtype=np.float64)
+    out = np.empty((len(assignment), len(counts.blocks)))
+    for b, (lo, hi) in enumerate(zip(counts.bounds[:-1], counts.bounds[1:], strict=True)):
+        out[:, b] = _statistic(side_a[lo:hi], states.column_totals[lo:hi], states.operators[b],
+                               estimator)
     return out
 
 
