@@ -199,3 +199,34 @@ def test_clear_difference_is_found_with_all_options():
                     {"history": 2}, {"time_bins": 3}):
         result = compare(a, b, features=FEATURES, bins=4, permutations=199, seed=2, **options)
         assert result.chain.pvalue <= 0.01 and result.distance > 0, options
+
+
+@pytest.mark.parametrize("kernel", list(Kernel))
+@pytest.mark.parametrize("estimator", list(Estimator))
+def test_large_state_path_equals_dense_path(kernel, estimator, monkeypatch):
+    """Above DENSE_LIMIT distinct states, per-transition statistics and median bandwidths come
+    from blockwise integer levels; they equal the dense computation."""
+    from simcred.compare import mmd
+
+    rng = np.random.default_rng(8)
+    grid = np.unique(rng.integers(0, 9, size=(300, 3)), axis=0).astype(float)
+    cx = rng.integers(0, 4, size=(7, len(grid)))
+    cy = rng.integers(0, 4, size=(7, len(grid)))
+    dense = mmd.batch_statistics(grid, cx, cy, kernel, estimator, (9, 9, 9))
+    monkeypatch.setattr(mmd, "DENSE_LIMIT", 50)
+    monkeypatch.setattr(kernels, "DENSE_LIMIT", 50)
+    monkeypatch.setattr(kernels, "ROW_BLOCK", 32)
+    large = mmd.batch_statistics(grid, cx, cy, kernel, estimator, (9, 9, 9))
+    np.testing.assert_allclose(large[0], dense[0], rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(large[1], dense[1], rtol=1e-12, equal_nan=True)
+
+
+def test_median_bandwidths_in_chunks_equal_one_chunk(monkeypatch):
+    rng = np.random.default_rng(9)
+    grid = np.unique(rng.integers(0, 6, size=(40, 2)), axis=0).astype(float)
+    cx = rng.integers(0, 5, size=(20, len(grid)))
+    cy = rng.integers(0, 5, size=(20, len(grid)))
+    dist = kernels.distances(grid, Kernel.GAUSSIAN)
+    whole = kernels.median_bandwidths(dist, cx, cy)
+    monkeypatch.setattr(kernels, "PAIR_BUDGET", dist.size * 3)
+    np.testing.assert_array_equal(kernels.median_bandwidths(dist, cx, cy), whole)

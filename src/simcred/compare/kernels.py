@@ -15,6 +15,9 @@ from enum import StrEnum
 
 import numpy as np
 
+#: Elements of the (rows × U²) pair-weight array formed at once by :func:`median_bandwidths`.
+PAIR_BUDGET = 2**22
+
 
 class Kernel(StrEnum):
     GAUSSIAN = "gaussian"
@@ -70,8 +73,12 @@ def median_bandwidths(
     levels, index = np.unique(dist, return_inverse=True)
     order = np.argsort(index.ravel(), kind="stable")
     starts = np.searchsorted(index.ravel()[order], np.arange(len(levels)))
-    pair_weights = (counts_x[:, :, None] * counts_y[:, None, :]).reshape(len(counts_x), -1)
-    weights = np.add.reduceat(pair_weights[:, order], starts, axis=1)
+    chunk = max(1, PAIR_BUDGET // dist.size)  # rows per chunk: never B × U² at once
+    weights = np.concatenate([
+        np.add.reduceat((x[:, :, None] * y[:, None, :]).reshape(len(x), -1)[:, order], starts,
+                        axis=1)
+        for x, y in ((counts_x[i:i + chunk], counts_y[i:i + chunk])
+                     for i in range(0, len(counts_x), chunk))])
     sigma = weighted_medians(levels, weights)
     zero = sigma == 0
     if zero.any():
@@ -117,6 +124,45 @@ def integer_levels(grid_a: np.ndarray, grid_b: np.ndarray, kernel: Kernel) -> np
     return (diff * diff).sum(axis=2)
 
 
+def level_histograms(grid: np.ndarray, left: np.ndarray, right: np.ndarray,
+                     kernel: Kernel) -> np.ndarray:
+    """Per row b, the weight ``Σ left[b, i]·right[b, j]`` of every integer distance level.
+
+    ``grid`` (U, F) holds integer bin vectors; ``left``, ``right`` are (B, U) counts. Computed in
+    row blocks of :data:`ROW_BLOCK` states: memory O(ROW_BLOCK · U), never B × U².
+    """
+    span = grid.max(axis=0) - grid.min(axis=0)
+    top = int(span.sum() if kernel is Kernel.LAPLACE else (span * span).sum())
+    out = np.zeros((len(left), top + 1))
+    for lo in range(0, len(grid), ROW_BLOCK):
+        levels = integer_levels(grid[lo:lo + ROW_BLOCK], grid, kernel).ravel()
+        for b in range(len(left)):
+            weights = (left[b, lo:lo + ROW_BLOCK, None] * right[b, None, :]).ravel()
+            out[b] += np.bincount(levels, weights, minlength=top + 1)
+    return out
+
+
+def median_of_levels(histograms: np.ndarray, kernel: Kernel) -> np.ndarray:
+    """Median distance per row of level histograms, with the zero-median rule (NaN: none)."""
+    values = np.arange(histograms.shape[1], dtype=np.float64)
+    if kernel is not Kernel.LAPLACE:
+        values = np.sqrt(values)  # levels are squared Euclidean distances
+    sigma = weighted_medians(values, histograms)
+    zero = sigma == 0
+    if zero.any():
+        nonzero = histograms[zero].copy()
+        nonzero[:, 0] = 0
+        sigma[zero] = weighted_medians(values, nonzero)
+    sigma[sigma == 0] = np.nan
+    return sigma
+
+
+def cross_bandwidths(grid: np.ndarray, counts_x: np.ndarray, counts_y: np.ndarray,
+                     kernel: Kernel) -> np.ndarray:
+    """:func:`median_bandwidths` in bounded memory, on integer bin vectors."""
+    return median_of_levels(level_histograms(grid, counts_x, counts_y, kernel), kernel)
+
+
 def pooled_bandwidth(grid: np.ndarray, totals: np.ndarray, kernel: Kernel) -> float | None:
     """Median of the pairwise distances within the pooled sample, from counts, in O(ROW_BLOCK·U).
 
@@ -130,27 +176,13 @@ def pooled_bandwidth(grid: np.ndarray, totals: np.ndarray, kernel: Kernel) -> fl
     The pooled sample does not change when runs are reassigned between the sets, so this
     bandwidth is the same for every permutation.
     """
-    totals = np.asarray(totals, dtype=np.float64)
-    if totals.sum() < 2 or len(totals) < 2:
+    totals = np.asarray(totals, dtype=np.float64)[None, :]
+    if totals.sum() < 2 or totals.shape[1] < 2:
         return None
-    histogram = np.zeros(1, dtype=np.float64)
-    for lo in range(0, len(grid), ROW_BLOCK):
-        levels = integer_levels(grid[lo:lo + ROW_BLOCK], grid, kernel)
-        weights = totals[lo:lo + ROW_BLOCK, None] * totals[None, :]
-        rows = np.arange(levels.shape[0])
-        weights[rows, lo + rows] -= totals[lo:lo + ROW_BLOCK]
-        counted = np.bincount(levels.ravel(), weights.ravel())
-        if len(counted) > len(histogram):
-            histogram = np.pad(histogram, (0, len(counted) - len(histogram)))
-        histogram[: len(counted)] += counted
-    values = np.arange(len(histogram), dtype=np.float64)
-    if kernel is not Kernel.LAPLACE:
-        values = np.sqrt(values)
-    sigma = float(weighted_medians(values, histogram[None, :])[0])
-    if sigma == 0:
-        histogram[0] = 0
-        sigma = float(weighted_medians(values, histogram[None, :])[0])
-    return None if not np.isfinite(sigma) or sigma == 0 else sigma
+    histogram = level_histograms(grid, totals, totals, kernel)
+    histogram[0, 0] -= totals.sum()  # pairs of an element with itself
+    sigma = float(median_of_levels(histogram, kernel)[0])
+    return None if np.isnan(sigma) else sigma
 
 
 class KernelOperator:

@@ -45,7 +45,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from simcred.compare.kernels import Kernel, KernelOperator, pooled_bandwidth
-from simcred.compare.mmd import Estimator
+from simcred.compare.mmd import Estimator, kernel_statistics
 
 #: Elements of one dense (columns × batch) or (runs × batch) array of a permutation batch.
 BATCH_BUDGET = 2**22
@@ -302,20 +302,8 @@ def _statistic(a: np.ndarray, totals: np.ndarray, kernel: KernelOperator,
     m = a.sum(axis=0)
     n = totals.sum() - m
     small = (m < estimator.min_samples) | (n < estimator.min_samples)
-    m_safe, n_safe = np.where(small, 2.0, m), np.where(small, 2.0, n)
-    b = totals[:, None] - a
-    if estimator is Estimator.BIASED:
-        d = a / m_safe - b / n_safe
-        quadratic = np.einsum("ub,ub->b", d, kernel.apply(d))
-        value = np.sqrt(np.where(quadratic < QUADRATIC_FLOOR, 0.0, quadratic))
-    else:
-        diag = kernel.diagonal()
-        ka, kb = kernel.apply(a), kernel.apply(b)
-        xx = np.einsum("ub,ub->b", a, ka) - diag @ a
-        yy = np.einsum("ub,ub->b", b, kb) - diag @ b
-        xy = np.einsum("ub,ub->b", a, kb)
-        value = xx / (m_safe * (m_safe - 1)) + yy / (n_safe * (n_safe - 1)) \
-            - 2 * xy / (m_safe * n_safe)
+    with np.errstate(invalid="ignore", divide="ignore"):  # empty sides: NaN below
+        value = kernel_statistics(kernel, a, totals[:, None] - a, estimator, QUADRATIC_FLOOR)
     value[small] = np.nan
     return value
 
