@@ -97,15 +97,17 @@ class RunCounts:
     def from_codes(cls, codes: np.ndarray, offsets: np.ndarray, n_states: int) -> RunCounts:
         """Count start states and within-run transitions of state ``codes`` split by ``offsets``."""
         n_runs = len(offsets) - 1
-        run_of_row = np.repeat(np.arange(n_runs, dtype=np.int64), np.diff(offsets))
-        valid = np.ones(len(codes) - 1, dtype=bool)
-        valid[offsets[1:-1] - 1] = False  # no transition from a run's last step to the next run
         size = np.int64(n_states)
-        keys = np.concatenate([codes[offsets[:-1]],  # block START: origin START + 1 = 0
-                               (codes[:-1][valid] + 1) * size + codes[1:][valid]])
-        runs = np.concatenate([np.arange(n_runs, dtype=np.int64), run_of_row[:-1][valid]])
-        del run_of_row, valid
+        last = offsets[1:] - 1  # a run's last row starts no transition
+        starts = codes[offsets[:-1]]
+        keys = (codes[:-1] + 1) * size + codes[1:]  # block START is origin START + 1 = 0
+        keys[last[:-1]] = -1
+        keys = np.concatenate([starts, keys[keys >= 0]])
+        lengths = np.diff(offsets) - 1
+        runs = np.concatenate([np.arange(n_runs, dtype=np.int64),
+                               np.repeat(np.arange(n_runs, dtype=np.int64), lengths)])
         columns, column_of, run_of, count = _pair_counts(keys, runs, n_runs)
+        del keys, runs
         order = np.lexsort((run_of, column_of))  # already sorted unless the fallback ran
         matrix = sp.csr_matrix((count[order].astype(np.float64), run_of[order],
                                 np.r_[0, np.cumsum(np.bincount(column_of,
@@ -136,8 +138,11 @@ def _pair_counts(keys: np.ndarray, runs: np.ndarray, n_runs: int):
     One sort of ``key · runs + run`` when that fits into int64, else two.
     """
     if len(keys) and (int(keys.max()) + 1) * n_runs < 2**62:
-        combined, count = np.unique(keys * np.int64(n_runs) + runs, return_counts=True)
+        combined = keys * np.int64(n_runs)
+        combined += runs
+        combined, count = np.unique(combined, return_counts=True)
         key, run_of = np.divmod(combined, np.int64(n_runs))
+        del combined
         new = np.r_[True, key[1:] != key[:-1]]
         return key[new], np.cumsum(new) - 1, run_of, count
     columns, inverse = np.unique(keys, return_inverse=True)
