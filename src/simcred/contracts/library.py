@@ -206,6 +206,15 @@ class Library:
     def uncontrolled(self, component: str) -> set[str]:
         return {p.variable for p in self.ports(component) if p.direction == "input"}
 
+    def components(self) -> list[str]:
+        """The components of the architecture (all components if none is given)."""
+        return self.spec.architecture or list(self.spec.components)
+
+    def environment(self) -> set[str]:
+        """Ports of the architecture that no component drives: what a test case may assume."""
+        ports = {p.variable for c in self.components() for p in self.ports(c)}
+        return ports - set().union(*(self.controlled(c) for c in self.components()))
+
     # -- validation ---------------------------------------------------------------------------
 
     def validate(self) -> None:
