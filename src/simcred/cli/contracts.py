@@ -166,8 +166,12 @@ def contracts_quotient(
     as_json: Json = False,
 ) -> None:
     """The requirement on the missing model(s): C_tc / (composition of the given models)."""
-    from simcred.contracts.configure import missing_model_requirement, missing_ports
-    from simcred.contracts.expr import to_text
+    from simcred.contracts import readable
+    from simcred.contracts.configure import (
+        missing_model_requirement,
+        missing_ports,
+        uncovered_assumptions,
+    )
     from simcred.contracts.library import Library
     from simcred.contracts.project import project
 
@@ -182,13 +186,20 @@ def contracts_quotient(
     projected = project(requirement, missing_ports(lib, pairs), types=lib.types)
     if projected is not None:
         requirement = projected
+    uncovered = uncovered_assumptions(lib, test_case, pairs)
     document = {"test_case": test_case, "given": pairs,
                 "projected_onto_ports": projected is not None,
-                "assumption": to_text(requirement.assumption),
-                "guarantee": to_text(requirement.guarantee)}
-    _emit(document, as_json, escape(f"requirement for the missing model(s):\n  assume:    "
-                                    f"{document['assumption']}\n  guarantee: "
-                                    f"{document['guarantee']}"))
+                "assumption": readable.text(readable.within(requirement.assumption,
+                                                            types=lib.types)),
+                "guarantee": readable.text(readable.within(
+                    requirement.guarantee, requirement.assumption, types=lib.types)),
+                "uncovered": uncovered}
+    summary = (f"requirement for the missing model(s):\n  assume:    {document['assumption']}"
+               f"\n  guarantee: {document['guarantee']}")
+    for item in uncovered:
+        summary += (f"\nno missing model can help: {item['model']} assumes "
+                    f"'{item['clause']}', but the test case allows {_point(item['at'])}")
+    _emit(document, as_json, escape(summary))
 
 
 @app.command("monitor")

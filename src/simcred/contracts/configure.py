@@ -30,7 +30,7 @@ from simcred.contracts.algebra import (
     compose_all,
     valid,
 )
-from simcred.contracts.expr import conjoin, evaluate
+from simcred.contracts.expr import conjoin, evaluate, variables
 from simcred.contracts.library import Library, LibraryError
 from simcred.contracts.search import branch_and_bound, interval_problem
 
@@ -208,3 +208,21 @@ def missing_ports(library: Library, given: dict[str, str]) -> set[str]:
     """Variables of the ports of the components not in ``given`` (what a missing model sees)."""
     components = library.spec.architecture or list(library.spec.components)
     return {p.variable for c in components if c not in given for p in library.ports(c)}
+
+
+def uncovered_assumptions(library: Library, test_case: str, given: dict[str, str],
+                          *, timeout_ms: int = DEFAULT_TIMEOUT_MS) -> list[dict]:
+    """The given models whose assumption the test case does not guarantee, with the clause and
+    an operating point of the test case outside it: why a quotient's guarantee is ``false``
+    (no missing model can make up for a given model used outside its validity domain)."""
+    target = library.test_case(test_case)
+    out = []
+    for model in given.values():
+        contract = library.model_contracts[model]
+        verdict = valid([target.assumption], contract.assumption, types=library.types,
+                        timeout_ms=timeout_ms)
+        if verdict.status is Status.FAILS:
+            names = variables(contract.assumption)
+            out.append({"model": model, "clause": verdict.clauses[0] if verdict.clauses else "",
+                        "at": {k: v for k, v in verdict.counterexample.items() if k in names}})
+    return out

@@ -173,9 +173,26 @@ def to_text(e: Expr) -> str:
     return _text(e, 0)
 
 
+def decimal_text(value: Fraction) -> str | None:
+    """The exact decimal of ``value`` (``0.25``) when it has one (denominator 2^a 5^b)."""
+    value = Fraction(value)
+    d, twos, fives = value.denominator, 0, 0
+    while d % 2 == 0:
+        d, twos = d // 2, twos + 1
+    while d % 5 == 0:
+        d, fives = d // 5, fives + 1
+    if d != 1:
+        return None
+    places = max(twos, fives)
+    digits = str(abs(value.numerator) * 10 ** places // value.denominator).rjust(places + 1, "0")
+    text = digits if places == 0 else f"{digits[:-places]}.{digits[-places:]}"
+    return ("-" if value < 0 else "") + text
+
+
 def _number_text(value: Fraction) -> str:
-    return str(value.numerator) if value.denominator == 1 else f"({value.numerator}/" \
-        f"{value.denominator})"
+    """Exact text of a non-negative literal: a decimal where there is one, else ``(p/q)``."""
+    text = decimal_text(value)
+    return text if text is not None else f"({value.numerator}/{value.denominator})"
 
 
 def _text(e: Expr, outer: int) -> str:
@@ -342,7 +359,7 @@ def parse(text: str, *, declared: Mapping[str, Any] | None = None, where: str = 
     (``MAX_*``) are checked before anything else can recurse or overflow.
 
     >>> to_text(parse("0 <= ego.v <= 30 and abs(a) < 2.5"))
-    '0 <= ego.v and ego.v <= 30 and abs(a) < (5/2)'
+    '0 <= ego.v and ego.v <= 30 and abs(a) < 2.5'
     """
     prefix = f"{where}: " if where else ""
     if not isinstance(text, str) or not text.strip():

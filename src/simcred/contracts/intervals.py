@@ -15,7 +15,16 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from fractions import Fraction
 
-from simcred.contracts.expr import Arith, Bool, Compare, Expr, Num, Var, conjuncts
+from simcred.contracts.expr import (
+    Arith,
+    Bool,
+    Compare,
+    Expr,
+    Num,
+    Var,
+    conjuncts,
+    decimal_text,
+)
 
 _FLIP = {"<=": ">=", "<": ">", ">=": "<=", ">": "<", "==": "=="}
 
@@ -61,18 +70,9 @@ REAL_LINE = Interval()
 
 
 def decimal(value: Fraction) -> str:
-    """A rational as a short decimal when it has one (``0.25``), else ``p/q``."""
+    """A rational as its exact decimal when it has one (``0.25``), else ``p/q``."""
     value = Fraction(value)
-    if value.denominator == 1:
-        return str(value.numerator)
-    d = value.denominator
-    for prime in (2, 5):
-        while d % prime == 0:
-            d //= prime
-    if d != 1:
-        return f"{value.numerator}/{value.denominator}"
-    text = f"{float(value):.17g}"
-    return text if Fraction(text) == value else f"{value.numerator}/{value.denominator}"
+    return decimal_text(value) or f"{value.numerator}/{value.denominator}"
 
 
 def _tighter(a, a_open, b, b_open, pick):
