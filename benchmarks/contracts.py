@@ -175,7 +175,8 @@ def bench_dag(seeds) -> list[dict]:
     for seed in seeds:
         lib, table, goal = dag_library(seed)
         seconds, result = best_of(lambda lib=lib: configure(lib, "tc"), 3)
-        enum_seconds, (best, total) = best_of(lambda: enumerate_dag(table, goal), 1)
+        enum_seconds, (best, total) = best_of(
+            lambda table=table, goal=goal: enumerate_dag(table, goal), 1)
         optimal = (best is None and result.cost is None) or (
             best is not None and result.cost is not None and abs(result.cost - best) < 1e-6)
         rows.append({"case": f"(c) 12 components × 4–6 models, seed {seed}", "setups": total,

@@ -18,7 +18,18 @@ from __future__ import annotations
 
 from fractions import Fraction
 
-from simcred.contracts.expr import Arith, Bool, Compare, Expr, Logic, Num, Var, conjoin, decimal_text, to_text
+from simcred.contracts.expr import (
+    Arith,
+    Bool,
+    Compare,
+    Expr,
+    Logic,
+    Num,
+    Var,
+    conjoin,
+    decimal_text,
+    to_text,
+)
 from simcred.contracts.intervals import REAL_LINE, Interval
 
 _FLIP = {"<=": ">=", "<": ">", ">=": "<=", ">": "<", "==": "==", "!=": "!="}
@@ -103,7 +114,10 @@ def _negation(inner: Expr) -> Expr:
     return Logic("not", (inner,))
 
 
-def within(e: Expr, context: Expr = Bool(True), *, types=None, timeout_ms: int = 2_000
+TRUE = Bool(True)
+
+
+def within(e: Expr, context: Expr = TRUE, *, types=None, timeout_ms: int = 2_000
            ) -> Expr:
     """``e`` simplified where ``context`` holds: conjuncts implied by the context and the other
     conjuncts are dropped, disjuncts that contradict the context too, recursively; the result
