@@ -63,11 +63,14 @@ def factor(source, target, *, where: str = "") -> Fraction:
     if source.dimensionality != target.dimensionality:
         raise ExpressionError(f"{where}: cannot convert {_name(source)} to {_name(target)}")
     try:
-        value = registry.Quantity(Fraction(1), source).to(target).magnitude
+        one, two = (Fraction(registry.Quantity(Fraction(k), source).to(target).magnitude)
+                    for k in (1, 2))
     except Exception:  # offset units (degC) in a product
+        one, two = None, None
+    if one is None or two != 2 * one:  # an offset (degF → degC): not a factor
         raise ExpressionError(f"{where}: cannot convert {_name(source)} to {_name(target)} "
-                              "inside an assertion (a unit with an offset)") from None
-    return Fraction(value)
+                              "inside an assertion (a unit with an offset)")
+    return one
 
 
 def _name(u) -> str:
