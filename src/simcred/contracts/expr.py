@@ -199,7 +199,11 @@ def _text(e: Expr, outer: int) -> str:
     if isinstance(e, Num):
         return _number_text(e.value) if e.value >= 0 else f"(-{_number_text(-e.value)})"
     if isinstance(e, Quantity):
-        return f"{_text(Num(e.value), 9)} [{e.unit}]"
+        sign, size = ("-" if e.value < 0 else ""), abs(e.value)
+        exact = decimal_text(size)
+        if exact is not None:
+            return f"{sign}{exact} [{e.unit}]" if not sign else f"(-{exact} [{e.unit}])"
+        return f"({sign}{size.numerator} [{e.unit}] / {size.denominator})"
     if isinstance(e, Bool):
         return "true" if e.value else "false"
     if isinstance(e, Var):
@@ -330,6 +334,8 @@ def _fold(children) -> Expr:
             raise ExpressionError("division by zero")
         if op == "/" and isinstance(expr, Num) and isinstance(operand, Num):
             expr = Num(expr.value / operand.value)  # a rational literal such as 1/3
+        elif op == "/" and isinstance(expr, Quantity) and isinstance(operand, Num):
+            expr = Quantity(expr.value / operand.value, expr.unit)  # (1 [m] / 3)
         else:
             expr = Arith(str(op), (expr, operand))
     return expr
