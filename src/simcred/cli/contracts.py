@@ -48,7 +48,8 @@ def _verdict_summary(verdict) -> str:
                                                               if verdict.reason else "")]
     if verdict.counterexample:
         lines.append("counterexample: " + escape(_point(verdict.counterexample)))
-    lines += [f"  clause: {escape(c)}" for c in verdict.clauses]
+    label = {"holds": "proof uses", "fails": "violated"}.get(verdict.status.value, "clause")
+    lines += [f"  {label}: {escape(c)}" for c in verdict.clauses]
     return "\n".join(lines)
 
 

@@ -90,14 +90,29 @@ def _by_intervals(library, test_case, target, choices, problem, timeout_ms):
     method = (f"interval propagation, branch-and-bound ({found.nodes} partial setups expanded "
               f"of {setups:,} setups)")
     if found.setup is None:
-        return Configuration(test_case, Status.FAILS, None, None, None, found.nodes, [],
+        cheapest = {c: models[0] for c, models in choices.items()}
+        example = setup_refines(library, cheapest, target, timeout_ms=timeout_ms)
+        points, why = [], ""
+        if example.status is Status.FAILS:
+            points = [{k: float(v) for k, v in example.counterexample.items()}]
+            why = (f"; e.g. the cheapest setup ({', '.join(cheapest.values())}) fails at "
+                   f"{_point_text(example.counterexample)}: "
+                   f"{', '.join(example.clauses) or 'an assumption of a model'}")
+        return Configuration(test_case, Status.FAILS, None, None, example, found.nodes, points,
                              f"no setup refines the test case (decided exactly over all "
-                             f"{setups:,} setups by interval propagation)", method)
+                             f"{setups:,} setups by interval propagation){why}", method)
     proof = setup_refines(library, found.setup, target, timeout_ms=timeout_ms)
     if proof.status is not Status.HOLDS:  # cannot happen (module docs of search); be safe
         return None
     return Configuration(test_case, Status.HOLDS, found.setup, found.cost, proof, found.nodes,
                          [], "", method + "; optimal by the bound, proven with z3")
+
+
+def _point_text(point) -> str:
+    from simcred.contracts.intervals import decimal
+
+    return ", ".join(f"{k} = {v if isinstance(v, bool) else decimal(v)}"
+                     for k, v in point.items())
 
 
 def _by_cegis(library, test_case, target, choices, timeout_ms, max_iterations):
