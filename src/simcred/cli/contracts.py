@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated
 
@@ -53,6 +54,19 @@ def _verdict_summary(verdict) -> str:
     return "\n".join(lines)
 
 
+@contextmanager
+def _about(library: Path):
+    """Errors raised without a file (a temporal clause reaching z3) name the library."""
+    from simcred.contracts.expr import ExpressionError
+
+    try:
+        yield
+    except ExpressionError as exc:
+        message = str(exc)
+        raise ExpressionError(message if message.startswith(str(library))
+                              else f"{library}: {message}") from None
+
+
 def _worst(statuses) -> int:
     """Exit code of several verdicts: 1 if any fails, else 3 if any is unknown, else 0."""
     statuses = set(statuses)
@@ -77,6 +91,7 @@ def contracts_check(library: LibraryPath, timeout_ms: Timeout = 10_000,
     """Names, units, composability, port scope, non-vacuity; compatibility and consistency of
     every model contract and every test case. Exit 0 ok, 1 a check fails, 3 undecided."""
     from simcred.contracts.algebra import compatible, consistent
+    from simcred.contracts.expr import is_temporal
     from simcred.contracts.library import Library
 
     lib = Library.read(library)
@@ -84,6 +99,9 @@ def contracts_check(library: LibraryPath, timeout_ms: Timeout = 10_000,
     rows, lines = [], []
     for name, contract in lib.model_contracts.items():
         component = lib.spec.models[name].implements
+        if is_temporal(contract.assumption) or is_temporal(contract.guarantee):
+            lines.append(f"{name} ({component}): temporal, checked on runs by monitors only")
+            continue
         compat = compatible(contract, lib.controlled(component), **options)
         consist = consistent(contract, lib.uncontrolled(component), **options)
         rows.append({"model": name, "component": component, "compatible": compat.to_dict(),
@@ -95,6 +113,9 @@ def contracts_check(library: LibraryPath, timeout_ms: Timeout = 10_000,
     environment = lib.environment()
     cases = []
     for name, contract in lib.test_case_contracts.items():
+        if is_temporal(contract.assumption) or is_temporal(contract.guarantee):
+            lines.append(f"test case {name}: temporal, checked on runs by monitors only")
+            continue
         consist = consistent(contract, environment, **options)
         cases.append({"test_case": name, "assumption_satisfiable": True,
                       "consistent": consist.to_dict()})
@@ -123,8 +144,9 @@ def contracts_refines(
     from simcred.contracts.library import Library
 
     lib = Library.read(library)
-    verdict = refines(lib.contract(refining), lib.contract(refined), types=lib.types,
-                      timeout_ms=timeout_ms)
+    with _about(library):
+        verdict = refines(lib.contract(refining), lib.contract(refined), types=lib.types,
+                          timeout_ms=timeout_ms)
     _emit(verdict.to_dict(), as_json,
           f"{escape(refining)} ≼ {escape(refined)}: {_verdict_summary(verdict)}")
     raise typer.Exit(EXIT_CODES[verdict.status.value])
@@ -142,7 +164,9 @@ def contracts_configure(
     from simcred.contracts.configure import configure
     from simcred.contracts.library import Library
 
-    result = configure(Library.read(library), test_case, timeout_ms=timeout_ms)
+    lib = Library.read(library)
+    with _about(library):
+        result = configure(lib, test_case, timeout_ms=timeout_ms)
     if result.setup and result.status.value == "holds":
         setup = ", ".join(f"{c} = {m}" for c, m in result.setup.items())
         summary = (f"[green]{escape(test_case)}: cheapest valid setup[/green] {escape(setup)} "

@@ -181,8 +181,8 @@ class Library:
             whole = parts[0]
             for part in parts[1:]:
                 whole = whole.conjoin(part)
-            ranges = {p: (Fraction(v.range[0]), Fraction(v.range[1]))
-                      for p, v in m.parameters.items()}
+            ranges = {p: (Fraction(repr(v.range[0])), Fraction(repr(v.range[1])))
+                      for p, v in m.parameters.items()}  # the decimals as written
             whole = eliminate(whole, ranges, types=self.types,
                               where=f"{self.source}: models.{n}.parameters")
             out[n] = Contract(whole.assumption, whole.guarantee, n)

@@ -54,7 +54,9 @@ def eliminate(contract: Contract, ranges: Mapping[str, tuple[Fraction, Fraction]
         raise ExpressionError(f"{where}: cannot eliminate the parameter(s) {', '.join(used)} "
                               "(use them linearly: e.g. 'v <= 40 m/s * mu', not "
                               "'v * mu <= 40 m/s')")
-    # the same contract, with the guarantee simplified where the assumption holds
+    # the same contract in readable form: the assumption tidied, the guarantee simplified where
+    # the assumption holds (readable.within: equivalences only)
+    a = within(a, types=types)
     return Contract(a, within(g, a, types=types), contract.name)
 
 
