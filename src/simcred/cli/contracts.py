@@ -25,7 +25,8 @@ contracts_app = typer.Typer(help="Contracts of simulation models (Braun et al.):
                                  "configure, quotient.")
 app.add_typer(contracts_app, name="contracts")
 LibraryPath = Annotated[Path, typer.Argument(metavar="LIB.yaml", help="Contract library (YAML).")]
-Timeout = Annotated[int, typer.Option(help="Solver time limit per query [ms]; beyond it the "
+Timeout = Annotated[int, typer.Option(min=1, max=3_600_000,
+                                      help="Solver time limit per query [ms]; beyond it the "
                                            "answer is 'unknown' (exit 3).")]
 EXIT_CODES = {"holds": 0, "fails": 1, "unknown": 3}
 
@@ -33,9 +34,11 @@ EXIT_CODES = {"holds": 0, "fails": 1, "unknown": 3}
 
 def _value(v) -> str:
     """A counterexample value as a short decimal (the exact rational is in the JSON)."""
-    from simcred.contracts.intervals import decimal
+    from simcred.contracts.expr import decimal_text
 
-    return str(v).lower() if isinstance(v, bool) else decimal(v)
+    if isinstance(v, bool):
+        return str(v).lower()
+    return decimal_text(v) or f"{float(v):.6g}"
 
 
 def _point(point) -> str:
