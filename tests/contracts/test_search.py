@@ -118,7 +118,7 @@ def test_outside_the_fragment_cegis_is_used():
     ("x != 1", None),
 ])
 def test_boxes_of_assertions(text, expected):
-    from simcred.contracts.expr import parse
+    from simcred.contracts.parse import parse
 
     found = box(parse(text))
     assert (None if found is None else {k: v.text(k) for k, v in found.items()}) == expected

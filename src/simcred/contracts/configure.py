@@ -30,7 +30,8 @@ from simcred.contracts.algebra import (
     compose_all,
     valid,
 )
-from simcred.contracts.expr import conjoin, evaluate, variables
+from simcred.contracts.evaluate import evaluate
+from simcred.contracts.expr import conjoin, variables
 from simcred.contracts.library import Library, LibraryError
 from simcred.contracts.search import branch_and_bound, interval_problem
 
