@@ -32,12 +32,11 @@ from simcred.contracts.expr import (
     disjoin,
     implies,
     negate,
-    parse,
     to_text,
-    to_z3,
     variables,
-    z3_variables,
 )
+from simcred.contracts.parse import parse
+from simcred.contracts.smt import to_z3, z3_variables
 
 DEFAULT_TIMEOUT_MS = 10_000
 
@@ -66,9 +65,15 @@ class Verdict:
         def plain(v):
             return v if isinstance(v, bool | int) else float(v)
 
+        def exact(v):
+            return v if isinstance(v, bool | int) else str(Fraction(v))
+
+        example = self.counterexample
         return {"verdict": self.status.value,
-                "counterexample": None if self.counterexample is None
-                else {k: plain(v) for k, v in self.counterexample.items()},
+                "counterexample": None if example is None
+                else {k: plain(v) for k, v in example.items()},
+                "counterexample_exact": None if example is None
+                else {k: exact(v) for k, v in example.items()},
                 "clauses": list(self.clauses), "reason": self.reason}
 
 
@@ -82,11 +87,15 @@ class Contract:
 
     @classmethod
     def from_strings(cls, assumption: str, guarantee: str, *, name: str = "",
-                     declared: Mapping[str, Any] | None = None, where: str = "") -> Contract:
-        """``Contract.from_strings("0 <= v <= 30", "e <= 0.1")``."""
+                     declared: Mapping[str, Any] | None = None, where: str = "",
+                     types: Mapping[str, str] | None = None,
+                     units: Mapping[str, str] | None = None) -> Contract:
+        """``Contract.from_strings("0 <= v <= 30", "e <= 0.1")``; ``types`` and ``units`` as
+        in :func:`~simcred.contracts.expr.parse`."""
         where = where or name or "contract"
-        return cls(parse(assumption, declared=declared, where=f"{where}: assumption"),
-                   parse(guarantee, declared=declared, where=f"{where}: guarantee"), name)
+        options = {"declared": declared, "types": types, "units": units}
+        return cls(parse(assumption, where=f"{where}: assumption", **options),
+                   parse(guarantee, where=f"{where}: guarantee", **options), name)
 
     @property
     def variables(self) -> frozenset[str]:

@@ -1,58 +1,32 @@
-"""The assertion language: a small safe grammar (lark, never ``eval``) and one AST, two back ends.
+"""The assertion language's AST: one tree for every back end, and its exact text.
 
 Assertions are arithmetic over declared variables (``+ - * / ^``, ``abs``, ``min``, ``max``,
-numbers), comparisons (chains like ``0 <= v <= 30`` allowed) and ``and``, ``or``, ``not``,
-``implies``, ``true``, ``false``. Variable names may be dotted (``ego.v``). Numbers are parsed
-exactly (``Fraction``), so ``x <= 0.2`` refines itself.
+numbers, numbers with units), comparisons (chains like ``0 <= v <= 30`` allowed), ``and``,
+``or``, ``not``, ``implies``, ``true``, ``false`` and bounded temporal operators. Variable names
+may be dotted (``ego.v``). Numbers are exact (``Fraction``), so ``x <= 0.2`` refines itself.
 
-Back ends: :func:`to_z3` (reasoning, exact rationals) and :func:`evaluate` (vectorised numpy over
-columns of recorded runs), plus :func:`margin`, the signed distance to violation (STL-style
-robustness: positive where an assertion holds, negative where it is violated).
+Modules: :mod:`.parse` (text → AST, with limits), :mod:`.units` (dimensional analysis),
+:mod:`.smt` (AST → z3), :mod:`.evaluate` (AST → numpy values and robustness over runs).
 """
 
 from __future__ import annotations
 
-import operator
-from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from fractions import Fraction
-from functools import cache
-from typing import Any
-
-import numpy as np
-from lark import Lark, Token, Transformer, v_args
-from lark.exceptions import LarkError, UnexpectedInput
 
 from simcred.errors import SimcredError
 
-GRAMMAR = r"""
-?start: implication
-?implication: disjunction ("implies" implication)?
-?disjunction: conjunction ("or" conjunction)*
-?conjunction: negation ("and" negation)*
-?negation: "not" negation -> logical_not
-         | comparison
-?comparison: sum (COMPARE sum)*
-?sum: product (ADD product)*
-?product: unary (MUL unary)*
-?unary: "-" unary -> negative
-      | power
-?power: atom ("^" unary)?
-?atom: NUMBER -> number
-     | "true" -> true
-     | "false" -> false
-     | FUNCTION "(" implication ("," implication)* ")" -> call
-     | NAME -> variable
-     | "(" implication ")"
-COMPARE: "<=" | ">=" | "==" | "!=" | "<" | ">"
-ADD: "+" | "-"
-MUL: "*" | "/"
-FUNCTION.2: /(abs|min|max)(?=\s*\()/
-NAME: /(?!(and|or|not|implies|true|false)\b)[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*/
-NUMBER: /\d+(\.\d*)?([eE][+-]?\d+)?|\.\d+([eE][+-]?\d+)?/
-%import common.WS
-%ignore WS
-"""
+_MOVED = {"parse": "parse", "to_z3": "smt", "z3_variables": "smt", "evaluate": "evaluate",
+          "margin": "evaluate"}
+
+
+def __getattr__(name: str):
+    """``expr.parse`` etc. still work (they moved to their own modules)."""
+    if name in _MOVED:
+        import importlib
+
+        return getattr(importlib.import_module(f"simcred.contracts.{_MOVED[name]}"), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 class ExpressionError(SimcredError):
@@ -73,8 +47,20 @@ class Bool:
 
 
 @dataclass(frozen=True, slots=True)
+class Quantity:
+    """A literal with a unit (``100 km/h``); :func:`simcred.contracts.units.resolve` turns it
+    into a :class:`Num` in the unit of what it is compared with or added to."""
+
+    value: Fraction
+    unit: str
+
+
+@dataclass(frozen=True, slots=True)
 class Var:
+    """A variable; ``boolean`` for variables declared ``bool`` (a condition, not a number)."""
+
     name: str
+    boolean: bool = False
 
 
 @dataclass(frozen=True, slots=True)
@@ -100,22 +86,39 @@ class Logic:
     args: tuple[Expr, ...]
 
 
-Expr = Num | Bool | Var | Arith | Compare | Logic
-BOOLEAN = (Bool, Compare, Logic)
+@dataclass(frozen=True, slots=True)
+class Temporal:
+    """A bounded temporal operator (monitors only; see :mod:`simcred.contracts.temporal`):
+    ``always``, ``eventually``, ``historically``, ``once`` (one operand), ``until``, ``since``
+    (two), with the window [lo, hi] in seconds; ``previous`` (one operand, no window)."""
+
+    op: str
+    lo: Fraction
+    hi: Fraction
+    args: tuple[Expr, ...]
+
+
+Expr = Num | Quantity | Bool | Var | Arith | Compare | Logic | Temporal
+BOOLEAN = (Bool, Compare, Logic, Temporal)
+TEMPORAL_OPS = ("always", "eventually", "historically", "once", "previous", "until", "since")
+
+# Limits that keep every later step (recursion, z3, exact arithmetic) bounded; see docs.
+MAX_TEXT = 10_000  # characters of one assertion
+MAX_DEPTH = 200  # nesting of operations (a sum of n terms nests n - 1 deep)
+MAX_DEGREE = 16  # polynomial degree of any term
+MAX_DIGITS = 40  # digits of a number literal
+MAX_EXPONENT = 100  # |e| of a number literal's decimal exponent
 
 
 def is_boolean(e: Expr) -> bool:
-    return isinstance(e, BOOLEAN)
+    return isinstance(e, BOOLEAN) or (isinstance(e, Var) and e.boolean)
 
 
 def variables(e: Expr) -> frozenset[str]:
     """Names of the variables ``e`` mentions."""
     if isinstance(e, Var):
         return frozenset((e.name,))
-    if isinstance(e, Num | Bool):
-        return frozenset()
-    children = (e.left, e.right) if isinstance(e, Compare) else e.args
-    return frozenset().union(*(variables(c) for c in children))
+    return frozenset().union(*(variables(c) for c in children(e)))
 
 
 def conjuncts(e: Expr) -> tuple[Expr, ...]:
@@ -143,6 +146,32 @@ def implies(a: Expr, b: Expr) -> Expr:
     return Logic("implies", (a, b))
 
 
+def children(e: Expr) -> tuple[Expr, ...]:
+    """The operands of ``e`` (none for leaves)."""
+    if isinstance(e, Compare):
+        return (e.left, e.right)
+    return e.args if isinstance(e, Arith | Logic | Temporal) else ()
+
+
+def is_temporal(e: Expr) -> bool:
+    """Whether ``e`` uses a temporal operator anywhere."""
+    return isinstance(e, Temporal) or any(is_temporal(c) for c in children(e))
+
+
+
+def degree(e: Expr) -> int:
+    """Polynomial degree of ``e`` (a quotient counts as the product of its operands)."""
+    if isinstance(e, Var):
+        return 0 if e.boolean else 1
+    if isinstance(e, Num | Quantity | Bool):
+        return 0
+    if isinstance(e, Arith) and e.op in ("*", "/"):
+        return degree(e.args[0]) + degree(e.args[1])
+    if isinstance(e, Arith) and e.op == "^":
+        return degree(e.args[0]) * int(e.args[1].value)
+    return max(degree(c) for c in children(e))
+
+
 # -- printing -----------------------------------------------------------------------------------
 
 _PRECEDENCE = {"implies": 1, "or": 2, "and": 3, "not": 4, "compare": 5, "+": 6, "-": 6, "*": 7,
@@ -154,20 +183,57 @@ def to_text(e: Expr) -> str:
     return _text(e, 0)
 
 
+def decimal_text(value: Fraction) -> str | None:
+    """The exact decimal of ``value`` (``0.25``) when it has one (denominator 2^a 5^b)."""
+    value = Fraction(value)
+    d, twos, fives = value.denominator, 0, 0
+    while d % 2 == 0:
+        d, twos = d // 2, twos + 1
+    while d % 5 == 0:
+        d, fives = d // 5, fives + 1
+    if d != 1:
+        return None
+    places = max(twos, fives)
+    digits = str(abs(value.numerator) * 10 ** places // value.denominator).rjust(places + 1, "0")
+    text = digits if places == 0 else f"{digits[:-places]}.{digits[-places:]}"
+    return ("-" if value < 0 else "") + text
+
+
+def _window_text(value: Fraction) -> str:
+    exact = decimal_text(value)
+    return exact if exact is not None else str(float(value))
+
+
 def _number_text(value: Fraction) -> str:
-    return str(value.numerator) if value.denominator == 1 else f"({value.numerator}/" \
-        f"{value.denominator})"
+    """Exact text of a non-negative literal: a decimal where there is one, else ``(p/q)``."""
+    text = decimal_text(value)
+    return text if text is not None else f"({value.numerator}/{value.denominator})"
 
 
 def _text(e: Expr, outer: int) -> str:
     if isinstance(e, Num):
         return _number_text(e.value) if e.value >= 0 else f"(-{_number_text(-e.value)})"
+    if isinstance(e, Quantity):
+        sign, size = ("-" if e.value < 0 else ""), abs(e.value)
+        exact = decimal_text(size)
+        if exact is not None:
+            return f"{sign}{exact} [{e.unit}]" if not sign else f"(-{exact} [{e.unit}])"
+        return f"({sign}{size.numerator} [{e.unit}] / {size.denominator})"
     if isinstance(e, Bool):
         return "true" if e.value else "false"
     if isinstance(e, Var):
         return e.name
     if isinstance(e, Arith) and e.op in ("abs", "min", "max"):
         return f"{e.op}({', '.join(_text(a, 0) for a in e.args)})"
+    if isinstance(e, Temporal):
+        window = f"[{_window_text(e.lo)}, {_window_text(e.hi)}]"
+        if e.op == "previous":
+            prec, text = 4, f"previous {_text(e.args[0], 4)}"
+        elif e.op in ("until", "since"):
+            prec, text = 2, f"{_text(e.args[0], 3)} {e.op}{window} {_text(e.args[1], 3)}"
+        else:
+            prec, text = 4, f"{e.op}{window} {_text(e.args[0], 4)}"
+        return f"({text})" if prec < outer else text
     if isinstance(e, Compare):
         prec, text = 5, f"{_text(e.left, 6)} {e.op} {_text(e.right, 6)}"
     elif e.op == "neg":
@@ -185,293 +251,3 @@ def _text(e: Expr, outer: int) -> str:
             text = f" {e.op} ".join([_text(e.args[0], prec)]
                                     + [_text(a, right) for a in e.args[1:]])
     return f"({text})" if prec < outer or (prec == outer == 5) else text
-
-
-# -- parsing ------------------------------------------------------------------------------------
-
-
-@cache
-def _parser() -> Lark:
-    return Lark(GRAMMAR, parser="lalr", propagate_positions=True)
-
-
-@v_args(meta=True)
-class _ToAst(Transformer):
-    def number(self, meta, children):
-        return Num(Fraction(str(children[0])))
-
-    def true(self, meta, children):
-        return Bool(True)
-
-    def false(self, meta, children):
-        return Bool(False)
-
-    def variable(self, meta, children):
-        return Var(str(children[0]))
-
-    def call(self, meta, children):
-        name, args = str(children[0]), tuple(children[1:])
-        if name == "abs" and len(args) != 1:
-            raise ExpressionError(f"abs takes 1 argument, got {len(args)}")
-        if name in ("min", "max") and len(args) < 2:
-            raise ExpressionError(f"{name} takes at least 2 arguments, got {len(args)}")
-        return Arith(name, tuple(_arith(a, name) for a in args))
-
-    def negative(self, meta, children):
-        operand = _arith(children[0], "-")
-        return Num(-operand.value) if isinstance(operand, Num) else Arith("neg", (operand,))
-
-    def power(self, meta, children):
-        base, exponent = _arith(children[0], "^"), _arith(children[1], "^")
-        if not (isinstance(exponent, Num) and exponent.value.denominator == 1
-                and 0 <= exponent.value <= 16):
-            raise ExpressionError("the exponent of ^ must be a whole number from 0 to 16")
-        return Arith("^", (base, exponent))
-
-    def sum(self, meta, children):
-        return _fold(children)
-
-    product = sum
-
-    def comparison(self, meta, children):
-        terms = [_arith(c, "a comparison") for c in children[0::2]]
-        ops = [str(op) for op in children[1::2]]
-        return conjoin(*(Compare(op, a, b) for op, a, b in zip(ops, terms, terms[1:],
-                                                                strict=False)))
-
-    def logical_not(self, meta, children):
-        return Logic("not", (_boolean(children[0], "not"),))
-
-    def conjunction(self, meta, children):
-        return _flat("and", [_boolean(c, "and") for c in children])
-
-    def disjunction(self, meta, children):
-        return _flat("or", [_boolean(c, "or") for c in children])
-
-    def implication(self, meta, children):
-        return Logic("implies", tuple(_boolean(c, "implies") for c in children))
-
-
-def _flat(op: str, operands: list[Expr]) -> Expr:
-    """An n-ary ``and``/``or`` with nested operands of the same operator spliced in."""
-    flat = [a for o in operands for a in (o.args if isinstance(o, Logic) and o.op == op
-                                          else (o,))]
-    return Logic(op, tuple(flat))
-
-
-def _fold(children) -> Expr:
-    expr = _arith(children[0], str(children[1]))
-    for op, operand in zip(children[1::2], children[2::2], strict=True):
-        operand = _arith(operand, str(op))
-        if op == "/" and isinstance(operand, Num) and operand.value == 0:
-            raise ExpressionError("division by zero")
-        if op == "/" and isinstance(expr, Num) and isinstance(operand, Num):
-            expr = Num(expr.value / operand.value)  # a rational literal such as 1/3
-        else:
-            expr = Arith(str(op), (expr, operand))
-    return expr
-
-
-def _arith(e: Expr, where: str) -> Expr:
-    if is_boolean(e):
-        raise ExpressionError(f"{where} needs a number, got the condition '{to_text(e)}'")
-    return e
-
-
-def _boolean(e: Expr, where: str) -> Expr:
-    if not is_boolean(e):
-        raise ExpressionError(f"{where} needs a condition, got the number '{to_text(e)}'")
-    return e
-
-
-def parse(text: str, *, declared: Mapping[str, Any] | None = None, where: str = "") -> Expr:
-    """Parse an assertion; ``declared`` (if given) must contain every variable it uses.
-
-    >>> to_text(parse("0 <= ego.v <= 30 and abs(a) < 2.5"))
-    '0 <= ego.v and ego.v <= 30 and abs(a) < (5/2)'
-    """
-    prefix = f"{where}: " if where else ""
-    if not isinstance(text, str) or not text.strip():
-        raise ExpressionError(f"{prefix}empty assertion")
-    try:
-        tree = _parser().parse(text)
-    except UnexpectedInput as exc:
-        raise ExpressionError(
-            f"{prefix}line {exc.line}, column {exc.column}: unexpected "
-            f"{_describe(exc, text)} in '{text.strip()}'") from None
-    except LarkError as exc:
-        raise ExpressionError(f"{prefix}cannot parse '{text.strip()}' ({exc})") from None
-    try:
-        expr = _ToAst().transform(tree)
-    except LarkError as exc:  # errors raised inside the transformer come wrapped
-        cause = exc.__context__ if isinstance(exc.__context__, ExpressionError) else exc
-        raise ExpressionError(f"{prefix}{cause} in '{text.strip()}'") from None
-    if not is_boolean(expr):
-        raise ExpressionError(f"{prefix}'{text.strip()}' is a number, not a condition")
-    if declared is not None:
-        unknown = sorted(variables(expr) - set(declared))
-        if unknown:
-            raise ExpressionError(f"{prefix}undeclared variable '{unknown[0]}' in "
-                                  f"'{text.strip()}'")
-    return expr
-
-
-def _describe(exc: UnexpectedInput, text: str) -> str:
-    token = getattr(exc, "token", None)
-    if isinstance(token, Token) and token.type == "$END":
-        return "end of input"
-    if token is not None:
-        return f"'{token}'"
-    char = getattr(exc, "char", None)
-    return f"'{char}'" if char else "input"
-
-
-# -- z3 back end --------------------------------------------------------------------------------
-
-
-def z3_variables(names, types: Mapping[str, str] | None = None) -> dict[str, Any]:
-    """z3 constants for ``names``: ``Real`` unless ``types`` says ``int`` or ``bool``."""
-    import z3
-
-    makers = {"real": z3.Real, "int": z3.Int, "bool": z3.Bool}
-    types = types or {}
-    return {n: makers[types.get(n, "real")](n) for n in sorted(names)}
-
-
-def to_z3(e: Expr, env: Mapping[str, Any]):
-    """The z3 term of ``e`` with variables taken from ``env`` (exact rational numbers)."""
-    import z3
-
-    if isinstance(e, Num):
-        return z3.RealVal(f"{e.value.numerator}/{e.value.denominator}")
-    if isinstance(e, Bool):
-        return z3.BoolVal(e.value)
-    if isinstance(e, Var):
-        return env[e.name]
-    if isinstance(e, Compare):
-        left, right = to_z3(e.left, env), to_z3(e.right, env)
-        return _Z3_COMPARE[e.op](left, right)
-    args = [to_z3(a, env) for a in e.args]
-    if isinstance(e, Logic):
-        return {"and": lambda: z3.And(*args), "or": lambda: z3.Or(*args),
-                "not": lambda: z3.Not(args[0]),
-                "implies": lambda: z3.Implies(args[0], args[1])}[e.op]()
-    return _z3_arith(e.op, args, e)
-
-
-_Z3_COMPARE: dict[str, Callable] = {
-    "<=": lambda a, b: a <= b, ">=": lambda a, b: a >= b, "<": lambda a, b: a < b,
-    ">": lambda a, b: a > b, "==": lambda a, b: a == b, "!=": lambda a, b: a != b}
-
-
-def _z3_arith(op: str, args, e: Arith):
-    import z3
-
-    if op == "neg":
-        return -args[0]
-    if op == "abs":
-        return z3.If(args[0] >= 0, args[0], -args[0])
-    if op in ("min", "max"):
-        out = args[0]
-        for a in args[1:]:
-            out = z3.If(a < out, a, out) if op == "min" else z3.If(a > out, a, out)
-        return out
-    if op == "^":
-        out = z3.RealVal(1)
-        for _ in range(int(e.args[1].value)):
-            out = out * args[0]
-        return out
-    a, b = args
-    return _Z3_BINARY[op](a, b)  # only the one term asked for (building all four was 4x slower)
-
-
-_Z3_BINARY: dict[str, Callable] = {"+": operator.add, "-": operator.sub, "*": operator.mul,
-                                   "/": operator.truediv}
-
-
-# -- numpy back end -----------------------------------------------------------------------------
-
-
-def evaluate(e: Expr, columns: Mapping[str, Any]) -> Any:
-    """Vectorised value of ``e``: booleans for conditions, numbers for terms.
-
-    ``columns`` maps each variable to an array (or scalar). Object arrays of ``Fraction`` give an
-    exact evaluation.
-    """
-    if isinstance(e, Num):
-        return e.value if _exact(columns) else float(e.value)
-    if isinstance(e, Bool):
-        return np.bool_(e.value)
-    if isinstance(e, Var):
-        return columns[e.name]
-    if isinstance(e, Compare):
-        return _NP_COMPARE[e.op](evaluate(e.left, columns), evaluate(e.right, columns))
-    args = [evaluate(a, columns) for a in e.args]
-    if isinstance(e, Logic):
-        if e.op == "not":
-            return np.logical_not(args[0])
-        if e.op == "implies":
-            return np.logical_or(np.logical_not(args[0]), args[1])
-        combine = np.logical_and if e.op == "and" else np.logical_or
-        out = args[0]
-        for a in args[1:]:
-            out = combine(out, a)
-        return out
-    return _np_arith(e.op, args, e)
-
-
-def _exact(columns: Mapping[str, Any]) -> bool:
-    return any(np.asarray(v).dtype == object for v in columns.values())
-
-
-_NP_COMPARE: dict[str, Callable] = {
-    "<=": np.less_equal, ">=": np.greater_equal, "<": np.less, ">": np.greater,
-    "==": np.equal, "!=": np.not_equal}
-
-
-def _np_arith(op: str, args, e: Arith):
-    if op == "neg":
-        return np.negative(args[0])
-    if op == "abs":
-        return np.abs(args[0])
-    if op in ("min", "max"):
-        combine = np.minimum if op == "min" else np.maximum
-        out = args[0]
-        for a in args[1:]:
-            out = combine(out, a)
-        return out
-    if op == "^":
-        out = args[1] ** 0  # the number 1: a Fraction when the evaluation is exact
-        for _ in range(int(e.args[1].value)):
-            out = out * args[0]
-        return out
-    a, b = args
-    return {"+": np.add, "-": np.subtract, "*": np.multiply, "/": np.true_divide}[op](a, b)
-
-
-def margin(e: Expr, columns: Mapping[str, Any]) -> Any:
-    """Signed distance to violation of the condition ``e`` (robustness semantics).
-
-    ``a <= b`` has margin ``b - a``; ``and`` the minimum, ``or`` the maximum of its operands';
-    ``not`` flips the sign; ``a implies b`` is ``not a or b``. Equalities have margin
-    ``-|a - b|`` (0 when they hold); ``true``/``false`` are ±inf.
-    """
-    if isinstance(e, Bool):
-        return np.inf if e.value else -np.inf
-    if isinstance(e, Compare):
-        a, b = evaluate(e.left, columns), evaluate(e.right, columns)
-        if e.op in ("<=", "<"):
-            return np.subtract(b, a)
-        if e.op in (">=", ">"):
-            return np.subtract(a, b)
-        gap = np.abs(np.subtract(a, b))
-        return -gap if e.op == "==" else gap
-    if e.op == "not":
-        return np.negative(margin(e.args[0], columns))
-    if e.op == "implies":
-        return np.maximum(np.negative(margin(e.args[0], columns)), margin(e.args[1], columns))
-    combine = np.minimum if e.op == "and" else np.maximum
-    out = margin(e.args[0], columns)
-    for a in e.args[1:]:
-        out = combine(out, margin(a, columns))
-    return out
