@@ -30,13 +30,9 @@ echo
 echo "== 6. the report"
 "$simcred" report "$out/all"
 echo
-echo "== 7. a real A9 recording (sensor data only), reprocessed"
-a9="$(dirname "$0")/../../shared/data/real/osc-generator-a9/trajectories_file.csv"
-if [ -f "$a9" ]; then
-  "$simcred" reprocess "$a9" --out "$out/a9" --threshold 0.1
-else
-  echo "(skipped: $a9 not found)"
-fi
+echo "== 7. a real A9 recording (sensor data only, shipped in simcred.data), reprocessed"
+a9="$("$simcred" data path a9/trajectories_file.csv)"
+"$simcred" reprocess "$a9" --out "$out/a9" --threshold 0.1
 echo
 echo "Outputs in $out/: compare-*/, matrix/, all/ (paper000/, paper002/, paper003/, claims.json), a9/"
 echo

@@ -11,7 +11,14 @@ from collections.abc import Sequence
 
 import typer
 
-from simcred.cli import compare, contracts, paper, reprocess, simulate  # noqa: F401  (registers)
+from simcred.cli import (  # noqa: F401  (importing registers the commands)
+    compare,
+    contracts,
+    data,
+    paper,
+    reprocess,
+    simulate,
+)
 from simcred.cli._app import app, err_console
 
 __all__ = ["app", "entry", "run"]
