@@ -141,7 +141,7 @@ def test_cli_sumo_following(real, tmp_path, capsys):
     assert code == 0
     idm = TraceSet.read(tmp_path / "o" / "IDM.parquet")
     assert np.array_equal(idm.column("v_leader"), real.column("v_leader"))
-    assert (tmp_path / "o" / "Krauss_sigma_0_0_tau_1_2.parquet").is_file()
+    assert (tmp_path / "o" / "Krauss_sigma_0_tau_1_2.parquet").is_file()
     assert run(["simulate", "sumo-following", str(src), "--out", str(tmp_path / "p"),
                 "--models", "Gipps"]) == 2
     assert "must be one of" in capsys.readouterr().err
