@@ -18,6 +18,7 @@ from simcred.cli import (  # noqa: F401  (importing registers the commands)
     paper,
     reprocess,
     simulate,
+    study,
 )
 from simcred.cli._app import app, err_console
 
