@@ -85,6 +85,9 @@ class StudyOptions:
         edges = sorted(self.bands)
         if any(a[1] > b[0] for a, b in zip(edges, edges[1:], strict=False)):
             raise OptionError(f"speed bands overlap: {self.bands}")
+        if self.test == "permutation" and (self.permutations + 1) * self.alpha < 1:
+            raise OptionError(f"{self.permutations} permutations cannot reject at alpha="
+                              f"{self.alpha}: give at least {int(np.ceil(1 / self.alpha)) - 1}")
         if not self.sample_step > 0:
             raise OptionError(f"sample step must be positive, got {self.sample_step}")
         if self.min_runs < 2:
