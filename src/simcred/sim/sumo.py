@@ -146,21 +146,35 @@ def _network() -> Path:
     global _workdir
     if _workdir is not None and (_workdir / "road.net.xml").is_file():
         return _workdir / "road.net.xml"
-    import sumo
-
     _workdir = Path(tempfile.mkdtemp(prefix="simcred-sumo-"))
     atexit.register(shutil.rmtree, _workdir, True)
     (_workdir / "road.nod.xml").write_text(
         f'<nodes><node id="a" x="0" y="0"/><node id="b" x="{ROAD_LENGTH}" y="0"/></nodes>')
     (_workdir / "road.edg.xml").write_text(
         f'<edges><edge id="road" from="a" to="b" numLanes="1" speed="{ROAD_SPEED}"/></edges>')
-    netconvert = Path(sumo.SUMO_HOME) / "bin" / "netconvert"
-    done = subprocess.run([str(netconvert), "-n", "road.nod.xml", "-e", "road.edg.xml",
+    done = subprocess.run([_netconvert(), "-n", "road.nod.xml", "-e", "road.edg.xml",
                            "-o", "road.net.xml", "--no-turnarounds", "true"],
                           cwd=_workdir, capture_output=True, text=True)
     if done.returncode != 0:
         raise RuntimeError(f"netconvert failed: {done.stderr.strip()}")
     return _workdir / "road.net.xml"
+
+
+def _netconvert() -> str:
+    """SUMO's netconvert from the eclipse-sumo wheel (found through its metadata, not by importing
+    a module named ``sumo``, which a script of that name would shadow), else from PATH."""
+    from importlib.metadata import PackageNotFoundError, distribution
+
+    try:
+        path = Path(str(distribution("eclipse-sumo").locate_file("sumo/bin/netconvert")))
+        if path.is_file():
+            return str(path)
+    except PackageNotFoundError:
+        pass
+    found = shutil.which("netconvert")
+    if found is None:
+        raise RuntimeError("SUMO's netconvert not found: install eclipse-sumo")
+    return found
 
 
 def episode_seed(seed: int, run_id: str) -> int:
