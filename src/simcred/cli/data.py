@@ -22,7 +22,7 @@ def data_path(
     """Print the path of a shipped data file or folder."""
     from simcred import data
 
-    out_console.print(str(data.path(name)), highlight=False, soft_wrap=True)
+    typer.echo(str(data.path(name)))  # plain: a path is not rich markup
 
 
 @data_app.command("list")
@@ -31,7 +31,7 @@ def data_list() -> None:
     from simcred import data
 
     for name in data.names():
-        out_console.print(name, highlight=False)
+        typer.echo(name)
 
 
 @data_app.command("openacc")
