@@ -132,3 +132,13 @@ def test_write_and_cli(small, tmp_path, capsys):
     assert (tmp_path / "c" / "matrix.png").is_file() and (tmp_path / "c" / "maps").is_dir()
     assert run(["study", "car-following", "--out", str(tmp_path / "d"), "--bands", "0..10"]) == 2
     assert "LOW-HIGH" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("command", [["study", "car-following"], ["simulate", "sumo-following"],
+                                     ["data", "openacc"]])
+def test_help_shows_units(command, capsys):
+    from simcred.cli import run
+
+    assert run([*command, "--help"]) == 0
+    text = capsys.readouterr().out
+    assert "[m/s]" in text and "[m]" in text
