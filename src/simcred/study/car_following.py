@@ -43,7 +43,7 @@ from simcred.errors import OptionError
 from simcred.io.openacc import ACC, HUMAN, UNITS, EpisodeRules, read_openacc, recording_files
 from simcred.sim.campaign import derive_seed
 from simcred.sim.sumo import replay, sumo_version
-from simcred.study.verdict import METHODS, ChainVerdict, chain_verdict, check_test
+from simcred.study.verdict import METHODS, CellVerdict, chain_verdict, check_test
 from simcred.traces import RUN_INFO, TraceSet, take
 
 BASELINE = "human vs human (random split)"
@@ -149,7 +149,7 @@ class Cell:
     status: str
     a: Summary | None
     b: Summary | None
-    verdict: ChainVerdict | None = None
+    verdict: CellVerdict | None = None
     comparison: Comparison | None = None
 
     @property
@@ -289,7 +289,7 @@ def _provenance(source: Path | None, options: StudyOptions, human: TraceSet, acc
 
 
 def _compare(a: TraceSet, b: TraceSet, options: StudyOptions, row: int, band: int
-             ) -> tuple[Comparison, ChainVerdict]:
+             ) -> tuple[Comparison, CellVerdict]:
     result = compare(a, b, features=options.features, bins=options.bins, test=options.test,
                      alpha=options.alpha, permutations=options.permutations,
                      seed=derive_seed(options.seed, _COMPARE, row, band),

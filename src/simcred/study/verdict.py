@@ -39,7 +39,7 @@ METHODS = {
 
 
 @dataclass(frozen=True, slots=True)
-class ChainVerdict:
+class CellVerdict:
     """The chain-level decision of one comparison.
 
     ``pvalue`` is None when nothing could be tested (no start state seen in both sets).
@@ -71,7 +71,7 @@ def fisher(pvalues: list[float]) -> float | None:
     return float(chi2.sf(statistic, 2 * len(pvalues)))
 
 
-def chain_verdict(result: Comparison, test: str, alpha: float) -> ChainVerdict:
+def chain_verdict(result: Comparison, test: str, alpha: float) -> CellVerdict:
     """The chain-level verdict of ``result`` under ``test`` (see the module doc)."""
     pvalues = [s.result.pvalue for s in result.states if s.result.pvalue is not None]
     smallest = min(pvalues) if pvalues else None
@@ -80,6 +80,6 @@ def chain_verdict(result: Comparison, test: str, alpha: float) -> ChainVerdict:
         pvalue = float(chain.pvalue)
     else:
         pvalue = fisher(pvalues)
-    return ChainVerdict(pvalue=pvalue, rejected=pvalue is not None and pvalue <= alpha,
+    return CellVerdict(pvalue=pvalue, rejected=pvalue is not None and pvalue <= alpha,
                         alpha=alpha, method=METHODS[test], n_tested=len(result.states),
                         min_state_pvalue=smallest)
