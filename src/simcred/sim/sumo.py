@@ -129,9 +129,15 @@ _workdir: Path | None = None
 
 
 def _libsumo():
-    os.environ.setdefault("LIBSUMO_AS_TRACI", "quiet")  # silences libsumo's pyarrow-version notice
-    import libsumo
+    """libsumo, imported without its stdout notice about the pyarrow version it was built with
+    (simcred uses none of SUMO's file outputs, and replays followed by Parquet writing in one
+    process are tested). LIBSUMO_AS_TRACI=quiet would also silence it, but that variable makes
+    every later ``import traci`` load libsumo instead."""
+    import contextlib
+    import io
 
+    with contextlib.redirect_stdout(io.StringIO()):
+        import libsumo
     return libsumo
 
 
