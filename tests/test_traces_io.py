@@ -350,10 +350,12 @@ def test_txt_file_is_not_a_trace_set(tmp_path):
     assert "runs.txt" in message and "not a trace set" in message
 
 
-def test_csv_file_path_is_not_a_trace_set(tmp_path):
+def test_csv_file_path_is_one_long_format_run(tmp_path):
+    # a single CSV file is the long format (simcred.io.longformat): one run named by its stem
     path = write_csv(tmp_path / "run_1.csv", "t,x\n0,0\n1,1\n")
-    message = read_error(path)
-    assert "run_1.csv" in message and "not a trace set" in message
+    traces = TraceSet.read(path)
+    assert traces.run_ids == ("run_1",) and traces.signals == ("x",)
+    assert traces.column("x").tolist() == [0.0, 1.0]
 
 
 # -- 3. bad input: Parquet ------------------------------------------------------------------------

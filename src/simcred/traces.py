@@ -192,17 +192,19 @@ class TraceSet:
     # -- files --------------------------------------------------------------------------------
 
     @classmethod
-    def read(cls, path: str | Path) -> TraceSet:
-        """Read a directory of CSV files (one per run) or one Parquet file with a ``run`` column."""
+    def read(cls, path: str | Path, **options: Any) -> TraceSet:
+        """Read any supported format (CSV directory, Parquet, long format, SUMO FCD, CommonRoad,
+        OSI); ``options`` such as ``run_column=`` go to the reader (:func:`simcred.io.read`)."""
         from simcred.io import read_traceset
 
-        return read_traceset(path)
+        return read_traceset(path, **options)
 
-    def write(self, path: str | Path) -> Path:
-        """Write as a CSV directory, or as Parquet when ``path`` ends in ``.parquet``/``.pq``."""
+    def write(self, path: str | Path, **options: Any) -> Path:
+        """Write in the format ``path`` implies (:func:`simcred.io.write`): a CSV directory,
+        Parquet for ``.parquet``/``.pq``, a long CSV for ``.csv``, OSI for ``.osi``/``.mcap``."""
         from simcred.io import write_traceset
 
-        return write_traceset(self, path)
+        return write_traceset(self, path, **options)
 
     # -- validation ---------------------------------------------------------------------------
 

@@ -14,6 +14,7 @@ import typer
 from simcred.cli import (  # noqa: F401  (importing registers the commands)
     compare,
     contracts,
+    convert,
     data,
     paper,
     reprocess,
