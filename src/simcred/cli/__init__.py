@@ -11,7 +11,16 @@ from collections.abc import Sequence
 
 import typer
 
-from simcred.cli import compare, contracts, convert, paper, reprocess, simulate  # noqa: F401  (registers)
+from simcred.cli import (  # noqa: F401  (importing registers the commands)
+    compare,
+    contracts,
+    convert,
+    data,
+    paper,
+    reprocess,
+    simulate,
+    study,
+)
 from simcred.cli._app import app, error_line, plain_help
 
 plain_help(app)

@@ -104,3 +104,52 @@ def simulate_cutin(
         say(f"wrote {out}: GT and SD, {measurement.sd.n_rows} samples each")
 
 
+
+
+SumoModels = Annotated[str, typer.Option(
+    "--models", help="Comma-separated SUMO car-following models (Krauss, IDM, EIDM, ACC, CACC, "
+    "IIDM, KraussPS, Wiedemann, W99); vType attributes after a colon, separated by '+': "
+    "IDM:tau=1.2+accel=1.5.")]
+
+
+def _sumo_models(text: str) -> list[str]:
+    return [part.strip().replace("+", ",") for part in text.split(",") if part.strip()]
+
+
+@simulate_app.command("sumo-following")
+@one_line_errors
+def simulate_sumo_following(
+    traces: Annotated[Path, typer.Argument(help="Car-following episodes: a trace set (CSV "
+                                                "directory or Parquet) with signals gap \\[m], "
+                                                "v \\[m/s] (follower) and v_leader \\[m/s].")],
+    out: Annotated[Path, typer.Option(help="Directory for <model>.parquet per model and "
+                                           "sumo-following.json (provenance).")],
+    models: SumoModels = "Krauss,IDM,EIDM",
+    seed: Annotated[int, typer.Option(help="Campaign seed: episode r runs with SUMO --seed from "
+                                           "SeedSequence(seed, hash(r)).")] = 0,
+    chunk_size: Annotated[int, typer.Option(help="Episodes per task.")] = 50,
+    workers: Workers = None,
+    scheduler: Scheduler = None,
+    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing OUT (never "
+                                                                "the input).")] = False,
+) -> None:
+    """Replay the recorded leaders in SUMO; each model drives the follower (lane changes off).
+
+    The leader's recorded speed \\[m/s] is imposed every step; the follower starts from the
+    recorded gap \\[m] and speed \\[m/s]. Outputs: gap \\[m], dv \\[m/s] (leader −
+    follower), v \\[m/s], a \\[m/s²], v_leader \\[m/s] on the input's time stamps \\[s].
+    """
+    from simcred.outputs import output_dir
+    from simcred.sim.sumo import replay, write_replays
+    from simcred.traces import TraceSet
+
+    with output_dir(out, [traces], overwrite=overwrite) as partial:
+        source = TraceSet.read(traces)
+        results = replay(source, _sumo_models(models), seed=seed, workers=workers,
+                         scheduler=scheduler, chunk_size=chunk_size,
+                         progress=progress("SUMO episodes (chunks)"))
+        written = write_replays(results, partial, options={"models": models, "seed": seed,
+                                                           "chunk_size": chunk_size})
+    if not State.quiet:
+        out_console.print(f"wrote {out}/: {', '.join(p.name for p in written)}: "
+                          f"{source.n_runs} episodes x {len(results)} models")
