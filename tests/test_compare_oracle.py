@@ -43,6 +43,7 @@ def test_matches_literal_oracle(seed, kernel, estimator):
     b = random_walk_set(rng, runs=int(rng.integers(30, 60)), drift=0.3 * seed)
     bins = int(rng.integers(3, 7))
     result = compare(a, b, features=FEATURES, bins=bins, kernel=kernel, estimator=estimator,
+                     test="bound",
                      continue_on_start_difference=bool(seed % 2))
     oracle = literal_compare(runs_of(a, FEATURES), runs_of(b, FEATURES), bins, kernel,
                              estimator=estimator, continue_on_start_difference=bool(seed % 2))
@@ -55,7 +56,7 @@ def test_matches_oracle_with_rejections(kernel):
     rng = np.random.default_rng(7)
     a = ar_set(rng, runs=150, phi=0.8)
     b = ar_set(rng, runs=120, phi=-0.8)
-    result = compare(a, b, features=FEATURES, bins=4, kernel=kernel)
+    result = compare(a, b, features=FEATURES, bins=4, kernel=kernel, test="bound")
     oracle = literal_compare(runs_of(a, FEATURES), runs_of(b, FEATURES), 4, kernel)
     assert_same(result, oracle)
     assert len(result.rejected_states) > 0
@@ -68,7 +69,7 @@ def test_stops_when_start_distributions_differ():
     for run in far:
         run["x"] = run["x"] + 100.0
     b = type(a).from_runs(far)
-    result = compare(a, b, features=FEATURES, bins=4)
+    result = compare(a, b, features=FEATURES, bins=4, test="bound")
     oracle = literal_compare(runs_of(a, FEATURES), runs_of(b, FEATURES), 4, "gaussian")
     assert result.start.rejected and result.stopped and result.distance is None
     assert_same(result, oracle)

@@ -40,7 +40,8 @@ def test_stopped_pairs_are_null_and_empty(tmp_path):
     rng = np.random.default_rng(2)
     a, b = (ar_set(rng, runs=200, phi=0.5) for _ in range(2))
     far = TraceSet.from_runs([{**a.run(i), "x": a.run(i)["x"] + 50} for i in range(200)])
-    result = matrix([a, b, far], names=["a", "b", "far"], features=["x", "y"], bins=4)
+    result = matrix([a, b, far], names=["a", "b", "far"], features=["x", "y"], bins=4,
+                    test="bound")
     assert np.isnan(result.distances[0, 2]) and np.isnan(result.distances[2, 1])
     doc = json.loads(result.to_json())
     assert doc["distances"][0][2] is None

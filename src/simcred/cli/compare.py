@@ -24,6 +24,7 @@ from simcred.compare import compare as compare_sets
 from simcred.compare import matrix as matrix_of_sets
 from simcred.compare.kernels import Kernel
 from simcred.compare.mmd import Estimator, Test
+from simcred.compare.runs import ChainStatistic, Multiplicity, OneSided
 from simcred.errors import OptionError
 
 
@@ -48,7 +49,27 @@ Bins = Annotated[str, typer.Option(help="Equal-frequency bins per feature (≥ 2
 KernelOpt = Annotated[Kernel, typer.Option(help="MMD kernel.")]
 EstimatorOpt = Annotated[Estimator, typer.Option(help="MMD estimator: the paper's biased "
                                                       "MMD_b or the unbiased MMD²_u.")]
-TestOpt = Annotated[Test, typer.Option(help="The paper's bound test or a permutation test.")]
+TestOpt = Annotated[Test, typer.Option(
+    help="runs: run-level permutation test with a chain verdict (whole runs reassigned, valid "
+         "when transitions within a run are dependent); bound / permutation: the paper's "
+         "per-transition tests.")]
+MultiplicityOpt = Annotated[Multiplicity | None, typer.Option(
+    help="Per-state verdicts of the runs test: family-wise (max-T), FDR (Benjamini-Hochberg) or "
+         "uncorrected. Default: fwer for --test runs, none otherwise.")]
+ChainOpt = Annotated[ChainStatistic, typer.Option(
+    "--chain", help="Chain statistic of the runs test: sum or max of standardised state "
+                    "statistics.")]
+OneSidedOpt = Annotated[OneSided, typer.Option(
+    "--one-sided", help="Runs test: a state reached by one set only counts as evidence of a "
+                        "difference, or as neutral.")]
+History = Annotated[int, typer.Option(help="States are the last K binned feature vectors "
+                                           "(1 = the paper's first-order chain).")]
+TimeBins = Annotated[int | None, typer.Option(
+    "--time-bins", help="Split time since run start into N equal-frequency windows that become "
+                        "part of the state (N >= 2).")]
+Resample = Annotated[float | None, typer.Option(
+    help="Resample every run to this period in seconds (linear interpolation); needed when the "
+         "sets have different sample periods.")]
 Alpha = Annotated[float, typer.Option(help="Level of each test, in (0, 1).")]
 Permutations = Annotated[int, typer.Option(help="Resamples of the permutation test.")]
 Continue = Annotated[bool, typer.Option("--continue-on-start-difference",
@@ -61,12 +82,15 @@ StopEarly = Annotated[bool, typer.Option(
 
 
 def _options(features, bins, kernel, estimator, test, alpha, permutations, seed,
-             continue_on_start_difference, stop_early) -> dict:
+             continue_on_start_difference, stop_early, multiplicity=None, chain=ChainStatistic.SUM,
+             one_sided=OneSided.EVIDENCE, history=1, time_bins=None, resample=None) -> dict:
     return dict(features=_split(features), bins=_bins(bins), kernel=kernel.value,
                 estimator=estimator.value, test=test.value, alpha=alpha,
                 permutations=permutations, seed=seed,
                 continue_on_start_difference=continue_on_start_difference,
-                stop_early=stop_early)
+                stop_early=stop_early, multiplicity=None if multiplicity is None
+                else multiplicity.value, chain=chain.value, one_sided=one_sided.value,
+                history=history, time_bins=time_bins, resample=resample)
 
 
 @app.command()
@@ -80,21 +104,39 @@ def compare(
     bins: Bins = "10",
     kernel: KernelOpt = Kernel.GAUSSIAN,
     estimator: EstimatorOpt = Estimator.BIASED,
-    test: TestOpt = Test.BOUND,
+    test: TestOpt = Test.RUNS,
     alpha: Alpha = 0.01,
     permutations: Permutations = 999,
     seed: Seed = None,
+    multiplicity: MultiplicityOpt = None,
+    chain: ChainOpt = ChainStatistic.SUM,
+    one_sided: OneSidedOpt = OneSided.EVIDENCE,
+    history: History = 1,
+    time_bins: TimeBins = None,
+    resample: Resample = None,
+    baseline: Annotated[int, typer.Option(
+        help="Runs test: random half-splits of A compared with each other (the distance's "
+             "same-model baseline); 0 = none.")] = 10,
+    bootstrap: Annotated[int, typer.Option(
+        help="Runs test: bootstrap replicates for a 95 % interval of the distance; 0 = "
+             "none.")] = 0,
+    relevance: Annotated[bool, typer.Option(
+        help="Runs test: chain test per feature alone and per feature left out.")] = False,
     continue_on_start_difference: Continue = False,
     stop_early: StopEarly = True,
     out: Annotated[Path | None, typer.Option(help="Directory for comparison.json and "
                                                   "state_map.png.")] = None,
     as_json: Json = False,
 ) -> None:
-    """Compare two trace sets: the fraction of distinguishable transitions (Neurohr et al.)."""
-    result = compare_sets(a, b, progress=progress("testing states"),
+    """Compare two trace sets: a chain verdict and the fraction of distinguishable transitions
+    (Neurohr et al.)."""
+    extra = dict(baseline=baseline, bootstrap=bootstrap, relevance=relevance) \
+        if test is Test.RUNS else {}
+    result = compare_sets(a, b, progress=progress("testing states"), **extra,
                           **_options(features, bins, kernel, estimator, test, alpha,
                                      permutations, seed, continue_on_start_difference,
-                                     stop_early))
+                                     stop_early, multiplicity, chain, one_sided, history,
+                                     time_bins, resample))
     if out is not None:
         from simcred.report.figures import state_map
 
@@ -111,6 +153,8 @@ def _print_comparison(result, out: Path | None) -> None:
     table = Table(title=f"{result.inputs[0].source}  vs  {result.inputs[1].source}")
     table.add_column("quantity")
     table.add_column("value", justify="right")
+    if result.chain is not None:
+        _chain_rows(table, result)
     start = result.start
     verdict = "differ" if start.rejected else "equal (H0 kept)"
     table.add_row("start distributions", f"{verdict}, MMD {start.statistic:.4g}")
@@ -121,9 +165,40 @@ def _print_comparison(result, out: Path | None) -> None:
     distance = "stopped (start distributions differ)" if result.stopped \
         else f"{100 * result.distance:.2f} %"
     table.add_row("distance", distance)
+    if result.interval is not None:
+        table.add_row(f"distance {100 * result.interval.level:.0f} % interval",
+                      f"{100 * result.interval.low:.2f} – {100 * result.interval.high:.2f} %")
     out_console.print(table)
+    if result.relevance:
+        _print_relevance(result)
     if out is not None:
         out_console.print(f"wrote {out / 'comparison.json'} and {out / 'state_map.png'}")
+
+
+def _chain_rows(table: Table, result) -> None:
+    """The chain verdict and the baseline first: what a reader needs to judge the distance."""
+    chain, options = result.chain, result.options
+    verdict = "DIFFERENT processes" if chain.rejected else "no difference detected"
+    table.add_row("chain verdict (run-level)",
+                  f"{verdict}: p = {chain.pvalue:.4g} (α = {options.alpha:g}, "
+                  f"{chain.permutations} permutations)")
+    distance = f"{100 * result.distance:.2f} %"
+    if result.baseline is not None:
+        base = result.baseline
+        table.add_row(f"distance vs same-model baseline ({options.multiplicity})",
+                      f"{distance} where {len(base.distances)} splits of A give "
+                      f"{100 * base.low:.2f}–{100 * base.high:.2f} %")
+    table.add_section()
+
+
+def _print_relevance(result) -> None:
+    table = Table(title="feature relevance (chain p-value)")
+    for column in ("feature", "alone", "left out"):
+        table.add_column(column, justify="right" if column != "feature" else "left")
+    for row in result.relevance:
+        without = "–" if row.without_pvalue is None else f"{row.without_pvalue:.4g}"
+        table.add_row(row.feature, f"{row.alone_pvalue:.4g}", without)
+    out_console.print(table)
 
 
 @app.command()
@@ -137,10 +212,16 @@ def matrix(
     bins: Bins = "10",
     kernel: KernelOpt = Kernel.GAUSSIAN,
     estimator: EstimatorOpt = Estimator.BIASED,
-    test: TestOpt = Test.BOUND,
+    test: TestOpt = Test.RUNS,
     alpha: Alpha = 0.01,
     permutations: Permutations = 999,
     seed: Seed = None,
+    multiplicity: MultiplicityOpt = None,
+    chain: ChainOpt = ChainStatistic.SUM,
+    one_sided: OneSidedOpt = OneSided.EVIDENCE,
+    history: History = 1,
+    time_bins: TimeBins = None,
+    resample: Resample = None,
     continue_on_start_difference: Continue = False,
     stop_early: StopEarly = True,
     workers: Workers = None,
@@ -154,7 +235,8 @@ def matrix(
                             progress=progress("comparing pairs"),
                             **_options(features, bins, kernel, estimator, test, alpha,
                                        permutations, seed, continue_on_start_difference,
-                                     stop_early))
+                                       stop_early, multiplicity, chain, one_sided, history,
+                                       time_bins, resample))
     if out is not None:
         from simcred.report.figures import distance_heatmap
 

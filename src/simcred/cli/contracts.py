@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+from rich.markup import escape
 from rich.table import Table
 
 from simcred.cli._app import (
@@ -29,42 +30,82 @@ EXIT_CODES = {"holds": 0, "fails": 1, "unknown": 3}
 
 
 
+def _value(v) -> str:
+    """A counterexample value as a short decimal (the exact rational is in the JSON)."""
+    from simcred.contracts.intervals import decimal
+
+    return str(v).lower() if isinstance(v, bool) else decimal(v)
+
+
+def _point(point) -> str:
+    return ", ".join(f"{k} = {_value(v)}" for k, v in point.items())
+
+
 def _verdict_summary(verdict) -> str:
+    """Markup-safe text of a verdict: status, reason, counterexample, clauses."""
     color = {"holds": "green", "fails": "red", "unknown": "yellow"}[verdict.status.value]
-    lines = [f"[{color}]{verdict.status.value}[/{color}]" + (f" — {verdict.reason}"
+    lines = [f"[{color}]{verdict.status.value}[/{color}]" + (f" — {escape(verdict.reason)}"
                                                               if verdict.reason else "")]
     if verdict.counterexample:
-        lines.append("counterexample: " + ", ".join(f"{k} = {float(v):g}" for k, v in
-                                                   verdict.counterexample.items()))
-    lines += [f"  clause: {c}" for c in verdict.clauses]
+        lines.append("counterexample: " + escape(_point(verdict.counterexample)))
+    lines += [f"  clause: {escape(c)}" for c in verdict.clauses]
     return "\n".join(lines)
+
+
+def _worst(statuses) -> int:
+    """Exit code of several verdicts: 1 if any fails, else 3 if any is unknown, else 0."""
+    statuses = set(statuses)
+    return 1 if "fails" in statuses else 3 if "unknown" in statuses else 0
+
+
+def _receptivity(name: str, label: str, verdict, ports: str) -> str:
+    """Why a receptivity check failed, in words."""
+    if verdict.status.value == "holds":
+        return f"{name}: {label} holds"
+    if verdict.status.value == "unknown":
+        return f"{name}: {label} unknown ({verdict.reason})"
+    return (f"{name}: {label} FAILS — at {_point(verdict.counterexample)} no value of the other "
+            f"variables satisfies '{verdict.clauses[0] if verdict.clauses else ''}' (it "
+            f"constrains {ports})")
 
 
 @contracts_app.command("check")
 @one_line_errors
 def contracts_check(library: LibraryPath, timeout_ms: Timeout = 10_000,
                     as_json: Json = False) -> None:
-    """Syntax, units, composability; compatibility and consistency of every model contract."""
+    """Names, units, composability, port scope, non-vacuity; compatibility and consistency of
+    every model contract and every test case. Exit 0 ok, 1 a check fails, 3 undecided."""
     from simcred.contracts.algebra import compatible, consistent
     from simcred.contracts.library import Library
 
     lib = Library.read(library)
-    rows = []
+    options = {"types": lib.types, "timeout_ms": timeout_ms}
+    rows, lines = [], []
     for name, contract in lib.model_contracts.items():
         component = lib.spec.models[name].implements
-        rows.append({"model": name, "component": component,
-                     "compatible": compatible(contract, lib.controlled(component),
-                                              types=lib.types, timeout_ms=timeout_ms).to_dict(),
-                     "consistent": consistent(contract, lib.uncontrolled(component),
-                                              types=lib.types, timeout_ms=timeout_ms).to_dict()})
-    ok = all(r[k]["verdict"] == "holds" for r in rows for k in ("compatible", "consistent"))
-    summary = "\n".join(f"{r['model']} ({r['component']}): compatible "
-                         f"{r['compatible']['verdict']}, consistent {r['consistent']['verdict']}"
-                         for r in rows)
+        compat = compatible(contract, lib.controlled(component), **options)
+        consist = consistent(contract, lib.uncontrolled(component), **options)
+        rows.append({"model": name, "component": component, "compatible": compat.to_dict(),
+                     "consistent": consist.to_dict()})
+        lines += [_receptivity(f"{name} ({component})", "compatible", compat,
+                               "the component's outputs"),
+                  _receptivity(f"{name} ({component})", "consistent", consist,
+                               "the component's inputs")]
+    environment = lib.environment()
+    cases = []
+    for name, contract in lib.test_case_contracts.items():
+        consist = consistent(contract, environment, **options)
+        cases.append({"test_case": name, "assumption_satisfiable": True,
+                      "consistent": consist.to_dict()})
+        lines.append(_receptivity(f"test case {name}", "consistent", consist,
+                                  "the environment"))
+    statuses = [r[k]["verdict"] for r in rows for k in ("compatible", "consistent")]
+    statuses += [c["consistent"]["verdict"] for c in cases]
     _emit({"library": str(library), "syntax": "ok", "units": "ok", "composability": "ok",
-           "models": rows}, as_json, f"{library}: syntax, units and composability ok\n{summary}")
-    if not ok:
-        raise typer.Exit(1)
+           "port_scope": "ok", "models": rows, "test_cases": cases}, as_json,
+          escape(f"{library}: syntax, units, composability, port scope and non-vacuity ok\n"
+                 + "\n".join(lines)))
+    raise typer.Exit(_worst(statuses))
 
 
 @contracts_app.command("refines")
@@ -83,7 +124,8 @@ def contracts_refines(
     lib = Library.read(library)
     verdict = refines(lib.contract(refining), lib.contract(refined), types=lib.types,
                       timeout_ms=timeout_ms)
-    _emit(verdict.to_dict(), as_json, f"{refining} ≼ {refined}: {_verdict_summary(verdict)}")
+    _emit(verdict.to_dict(), as_json,
+          f"{escape(refining)} ≼ {escape(refined)}: {_verdict_summary(verdict)}")
     raise typer.Exit(EXIT_CODES[verdict.status.value])
 
 
@@ -102,11 +144,15 @@ def contracts_configure(
     result = configure(Library.read(library), test_case, timeout_ms=timeout_ms)
     if result.setup and result.status.value == "holds":
         setup = ", ".join(f"{c} = {m}" for c, m in result.setup.items())
-        summary = (f"[green]{test_case}: cheapest valid setup[/green] {setup} (cost "
-                   f"{result.cost:g}; {result.iterations} candidate(s) checked)\n"
+        summary = (f"[green]{escape(test_case)}: cheapest valid setup[/green] {escape(setup)} "
+                   f"(cost {result.cost:g}; {escape(result.method)})\n"
                    + _verdict_summary(result.proof))
     else:
-        summary = f"[red]{test_case}: {result.status.value}[/red] — {result.reason}"
+        summary = (f"[red]{escape(test_case)}: {result.status.value}[/red] — "
+                   f"{escape(result.reason)}")
+    if result.counterexamples:
+        summary += "\npoints that ruled out cheaper setups:\n" + "\n".join(
+            f"  {escape(_point(p))}" for p in result.counterexamples[:10])
     _emit(result.to_dict(), as_json, summary)
     raise typer.Exit(EXIT_CODES[result.status.value])
 
@@ -120,12 +166,16 @@ def contracts_quotient(
     as_json: Json = False,
 ) -> None:
     """The requirement on the missing model(s): C_tc / (composition of the given models)."""
-    from simcred.contracts.configure import missing_model_requirement, missing_ports
-    from simcred.contracts.expr import to_text
+    from simcred.contracts import readable
+    from simcred.contracts.configure import (
+        missing_model_requirement,
+        missing_ports,
+        uncovered_assumptions,
+    )
     from simcred.contracts.library import Library
     from simcred.contracts.project import project
 
-    pairs = {}
+    pairs: dict[str, str] = {}
     for item in given:
         component, sep, model = item.partition("=")
         if not sep or not component or not model:
@@ -136,12 +186,20 @@ def contracts_quotient(
     projected = project(requirement, missing_ports(lib, pairs), types=lib.types)
     if projected is not None:
         requirement = projected
+    uncovered = uncovered_assumptions(lib, test_case, pairs)
     document = {"test_case": test_case, "given": pairs,
                 "projected_onto_ports": projected is not None,
-                "assumption": to_text(requirement.assumption),
-                "guarantee": to_text(requirement.guarantee)}
-    _emit(document, as_json, f"requirement for the missing model(s):\n  assume:    "
-          f"{document['assumption']}\n  guarantee: {document['guarantee']}")
+                "assumption": readable.text(readable.within(requirement.assumption,
+                                                            types=lib.types)),
+                "guarantee": readable.text(readable.within(
+                    requirement.guarantee, requirement.assumption, types=lib.types)),
+                "uncovered": uncovered}
+    summary = (f"requirement for the missing model(s):\n  assume:    {document['assumption']}"
+               f"\n  guarantee: {document['guarantee']}")
+    for item in uncovered:
+        summary += (f"\nno missing model can help: {item['model']} assumes "
+                    f"'{item['clause']}', but the test case allows {_point(item['at'])}")
+    _emit(document, as_json, escape(summary))
 
 
 @app.command("monitor")
@@ -172,7 +230,7 @@ def monitor_runs(
             raise OptionError(f"test case '{test_case}' has no valid setup: {result.reason}")
         models = list(result.setup.values())
     else:
-        models = [item.partition("=")[2].strip() or item.strip() for item in setup.split(",")]
+        models = _setup_models(lib, setup)
     contracts = {m: lib.contract(m) for m in models}
     report = monitor(TraceSet.read(runs), contracts)
     if out is not None:
@@ -180,14 +238,30 @@ def monitor_runs(
     if as_json:
         sys.stdout.write(report.to_json())
     elif not State.quiet:
-        table = Table(title=f"{runs}: {report.samples} samples, {report.clauses} clauses, "
-                            f"{len(report.violations)} violation(s)")
+        table = Table(title=escape(f"{runs}: {report.samples} samples, {report.clauses} "
+                                   f"clauses, {len(report.violations)} violation(s)"))
         for column in ("model", "kind", "clause", "run", "steps", "t [s]", "margin"):
             table.add_column(column)
         for v in report.violations:
-            table.add_row(v.contract, v.kind, v.clause, v.run, f"{v.first_step}–{v.last_step}",
-                          f"{v.t_start:g}–{v.t_end:g}", f"{v.margin:.4g}")
+            table.add_row(*map(escape, (v.contract, v.kind, v.clause, v.run)),
+                          f"{v.first_step}–{v.last_step}", f"{v.t_start:g}–{v.t_end:g}",
+                          f"{v.margin:.4g}")
         out_console.print(table)
     raise typer.Exit(0 if report.passed else 1)
 
 
+def _setup_models(lib, setup: str) -> list[str]:
+    """The models of ``--setup COMPONENT=MODEL,...``; each must implement its component."""
+    models = []
+    for item in setup.split(","):
+        component, sep, model = (part.strip() for part in item.partition("="))
+        if not sep or not component or not model:
+            raise OptionError(f"--setup: expected COMPONENT=MODEL, got {item.strip()!r}")
+        spec = lib.spec.models.get(model)
+        if spec is None or spec.implements != component:
+            known = ", ".join(lib.candidates(component)) if component in lib.spec.components \
+                else f"no component '{component}'"
+            raise OptionError(f"--setup: '{model}' is not a model of component '{component}' "
+                              f"(models: {known})")
+        models.append(model)
+    return models

@@ -15,6 +15,9 @@ from enum import StrEnum
 
 import numpy as np
 
+#: Elements of the (rows × U²) pair-weight array formed at once by :func:`median_bandwidths`.
+PAIR_BUDGET = 2**22
+
 
 class Kernel(StrEnum):
     GAUSSIAN = "gaussian"
@@ -70,8 +73,12 @@ def median_bandwidths(
     levels, index = np.unique(dist, return_inverse=True)
     order = np.argsort(index.ravel(), kind="stable")
     starts = np.searchsorted(index.ravel()[order], np.arange(len(levels)))
-    pair_weights = (counts_x[:, :, None] * counts_y[:, None, :]).reshape(len(counts_x), -1)
-    weights = np.add.reduceat(pair_weights[:, order], starts, axis=1)
+    chunk = max(1, PAIR_BUDGET // dist.size)  # rows per chunk: never B × U² at once
+    weights = np.concatenate([
+        np.add.reduceat((x[:, :, None] * y[:, None, :]).reshape(len(x), -1)[:, order], starts,
+                        axis=1)
+        for x, y in ((counts_x[i:i + chunk], counts_y[i:i + chunk])
+                     for i in range(0, len(counts_x), chunk))])
     sigma = weighted_medians(levels, weights)
     zero = sigma == 0
     if zero.any():
@@ -95,3 +102,127 @@ def gram(
         return np.exp(-dist / sigma)  # [1] eq. (4)
     scale = float(sum((b - 1) ** 2 for b in n_bins))  # max <x, y> on the grid, [1] eq. (5)
     return (vectors @ vectors.T) / scale
+
+
+# -- run-level tests: one fixed bandwidth per state, kernel applied in bounded memory ------------
+
+#: Largest number of distinct states whose full kernel matrix is formed at once; above it the
+#: kernel is applied in row blocks, so memory stays O(block · U) instead of O(U²).
+DENSE_LIMIT = 1024
+#: Rows per block when the kernel is applied blockwise.
+ROW_BLOCK = 256
+
+
+def integer_levels(grid_a: np.ndarray, grid_b: np.ndarray, kernel: Kernel) -> np.ndarray:
+    """Distances between integer bin vectors as exact integers: ‖·‖₂² (Gaussian) or ‖·‖₁.
+
+    ``grid_a`` (I, F) and ``grid_b`` (J, F) hold bin indices; the result is (I, J) int64.
+    """
+    diff = grid_a[:, None, :].astype(np.int64) - grid_b[None, :, :].astype(np.int64)
+    if kernel is Kernel.LAPLACE:
+        return np.abs(diff).sum(axis=2)
+    return (diff * diff).sum(axis=2)
+
+
+def level_histograms(grid: np.ndarray, left: np.ndarray, right: np.ndarray,
+                     kernel: Kernel) -> np.ndarray:
+    """Per row b, the weight ``Σ left[b, i]·right[b, j]`` of every integer distance level.
+
+    ``grid`` (U, F) holds integer bin vectors; ``left``, ``right`` are (B, U) counts. Computed in
+    row blocks of :data:`ROW_BLOCK` states: memory O(ROW_BLOCK · U), never B × U².
+    """
+    span = grid.max(axis=0) - grid.min(axis=0)
+    top = int(span.sum() if kernel is Kernel.LAPLACE else (span * span).sum())
+    out = np.zeros((len(left), top + 1))
+    for lo in range(0, len(grid), ROW_BLOCK):
+        levels = integer_levels(grid[lo:lo + ROW_BLOCK], grid, kernel).ravel()
+        for b in range(len(left)):
+            weights = (left[b, lo:lo + ROW_BLOCK, None] * right[b, None, :]).ravel()
+            out[b] += np.bincount(levels, weights, minlength=top + 1)
+    return out
+
+
+def median_of_levels(histograms: np.ndarray, kernel: Kernel) -> np.ndarray:
+    """Median distance per row of level histograms, with the zero-median rule (NaN: none)."""
+    values = np.arange(histograms.shape[1], dtype=np.float64)
+    if kernel is not Kernel.LAPLACE:
+        values = np.sqrt(values)  # levels are squared Euclidean distances
+    sigma = weighted_medians(values, histograms)
+    zero = sigma == 0
+    if zero.any():
+        nonzero = histograms[zero].copy()
+        nonzero[:, 0] = 0
+        sigma[zero] = weighted_medians(values, nonzero)
+    sigma[sigma == 0] = np.nan
+    return sigma
+
+
+def cross_bandwidths(grid: np.ndarray, counts_x: np.ndarray, counts_y: np.ndarray,
+                     kernel: Kernel) -> np.ndarray:
+    """:func:`median_bandwidths` in bounded memory, on integer bin vectors."""
+    return median_of_levels(level_histograms(grid, counts_x, counts_y, kernel), kernel)
+
+
+def pooled_bandwidth(grid: np.ndarray, totals: np.ndarray, kernel: Kernel) -> float | None:
+    """Median of the pairwise distances within the pooled sample, from counts, in O(ROW_BLOCK·U).
+
+    The pooled sample has ``totals[u]`` copies of state ``grid[u]``; its ``N(N-1)`` ordered pairs
+    of distinct elements have distance levels with weights ``totals[i]·totals[j]`` (``i ≠ j``) and
+    ``totals[i]·(totals[i]-1)`` (``i = j``, distance 0). The median follows ``numpy.median`` (mean
+    of the two middle elements) on the distances (square roots of the ‖·‖₂² levels for the
+    Gaussian kernel). Zero-median rule as for :func:`median_bandwidths`. None when the sample has
+    fewer than two elements or only one state (every kernel then gives MMD = 0).
+
+    The pooled sample does not change when runs are reassigned between the sets, so this
+    bandwidth is the same for every permutation.
+    """
+    totals = np.asarray(totals, dtype=np.float64)[None, :]
+    if totals.sum() < 2 or totals.shape[1] < 2:
+        return None
+    histogram = level_histograms(grid, totals, totals, kernel)
+    histogram[0, 0] -= totals.sum()  # pairs of an element with itself
+    sigma = float(median_of_levels(histogram, kernel)[0])
+    return None if np.isnan(sigma) else sigma
+
+
+class KernelOperator:
+    """``d ↦ K d`` for the kernel matrix over ``U`` distinct states, in bounded memory.
+
+    Up to :data:`DENSE_LIMIT` states the matrix is formed once; above, it is recomputed in row
+    blocks of :data:`ROW_BLOCK` on every application (memory O(ROW_BLOCK · U), never
+    batch × U²). The linear kernel never forms it: ``K d = V (Vᵀ d) / scale``.
+    """
+
+    def __init__(self, grid: np.ndarray, kernel: Kernel, sigma: float | None,
+                 n_bins: tuple[int, ...]) -> None:
+        self.grid, self.kernel, self.sigma = grid, kernel, sigma
+        self.vectors = grid.astype(np.float64)
+        self.scale = float(sum((b - 1) ** 2 for b in n_bins)) or 1.0
+        self.dense = None
+        if kernel.has_bandwidth and len(grid) <= DENSE_LIMIT:
+            self.dense = self._rows(0, len(grid))
+
+    def _rows(self, lo: int, hi: int) -> np.ndarray:
+        if self.sigma is None:  # one single state or a one-element sample: any kernel is 1
+            return np.ones((hi - lo, len(self.grid)))
+        levels = integer_levels(self.grid[lo:hi], self.grid, self.kernel).astype(np.float64)
+        if self.kernel is Kernel.GAUSSIAN:
+            return np.exp(-levels / (2.0 * self.sigma * self.sigma))  # [1] eq. (3)
+        return np.exp(-levels / self.sigma)  # [1] eq. (4)
+
+    def diagonal(self) -> np.ndarray:
+        if self.kernel is Kernel.LINEAR:
+            return (self.vectors * self.vectors).sum(axis=1) / self.scale
+        return np.ones(len(self.grid))
+
+    def apply(self, d: np.ndarray) -> np.ndarray:
+        """``K @ d`` for ``d`` of shape (U, batch)."""
+        if self.kernel is Kernel.LINEAR:
+            return self.vectors @ (self.vectors.T @ d) / self.scale  # [1] eq. (5)
+        if self.dense is not None:
+            return self.dense @ d
+        out = np.empty_like(d, dtype=np.float64)
+        for lo in range(0, len(self.grid), ROW_BLOCK):
+            hi = min(lo + ROW_BLOCK, len(self.grid))
+            out[lo:hi] = self._rows(lo, hi) @ d
+        return out

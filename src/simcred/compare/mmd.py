@@ -41,7 +41,15 @@ from enum import StrEnum
 
 import numpy as np
 
-from simcred.compare.kernels import Kernel, distances, gram, median_bandwidths
+from simcred.compare.kernels import (
+    DENSE_LIMIT,
+    Kernel,
+    KernelOperator,
+    cross_bandwidths,
+    distances,
+    gram,
+    median_bandwidths,
+)
 
 KERNEL_BOUND = 1.0
 #: Relative tolerance when counting permuted statistics ≥ the observed one (float ties).
@@ -63,6 +71,7 @@ class Estimator(StrEnum):
 class Test(StrEnum):
     __test__ = False  # not a pytest test class
 
+    RUNS = "runs"  # run-level permutation test (simcred.compare.runs)
     BOUND = "bound"
     PERMUTATION = "permutation"
 
@@ -98,6 +107,7 @@ class MMDTestResult:
     pvalue: float | None = None
     bandwidth: float | None = None
     n_resamples: int | None = None
+    adjusted_pvalue: float | None = None
 
 
 def bound_threshold(m: int, n: int, alpha: float, estimator: Estimator) -> float:
@@ -128,6 +138,26 @@ def statistics(
     return xx / (m * (m - 1)) + yy / (n * (n - 1)) - 2 * xy / (m * n)
 
 
+def kernel_statistics(kernel: KernelOperator, x: np.ndarray, y: np.ndarray,
+                      estimator: Estimator, floor: float = 0.0) -> np.ndarray:
+    """Statistic per column of counts ``x``, ``y`` (U, B), with ``K`` applied by an operator.
+
+    Same formulas as :func:`statistics`; never forms more of ``K`` than the operator does.
+    ``floor``: ``MMD_b²`` below it counts as 0 (rounding noise of an exact 0).
+    """
+    m, n = x.sum(axis=0), y.sum(axis=0)
+    if estimator is Estimator.BIASED:
+        d = x / m - y / n
+        quadratic = np.einsum("ub,ub->b", d, kernel.apply(d))
+        return np.sqrt(np.where(quadratic <= floor, 0.0, quadratic))
+    diag = kernel.diagonal()
+    kx, ky = kernel.apply(x), kernel.apply(y)
+    xx = np.einsum("ub,ub->b", x, kx) - diag @ x
+    yy = np.einsum("ub,ub->b", y, ky) - diag @ y
+    xy = np.einsum("ub,ub->b", x, ky)
+    return xx / (m * (m - 1)) + yy / (n * (n - 1)) - 2 * xy / (m * n)
+
+
 def _quadratic(a: np.ndarray, kernel_matrix: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Row-wise ``a[i] @ K @ b[i]``."""
     return np.einsum("bu,bu->b", a @ kernel_matrix, b)
@@ -141,7 +171,13 @@ def batch_statistics(
     estimator: Estimator,
     n_bins: tuple[int, ...],
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Statistics and bandwidths for each row of counts, each with its own median bandwidth."""
+    """Statistics and bandwidths for each row of counts, each with its own median bandwidth.
+
+    Above ``DENSE_LIMIT`` distinct states the kernel matrix is never formed (memory
+    O(ROW_BLOCK · U), see :class:`KernelOperator`).
+    """
+    if len(vectors) > DENSE_LIMIT:
+        return _large_batch_statistics(vectors, counts_x, counts_y, kernel, estimator, n_bins)
     if not kernel.has_bandwidth:
         k = gram(vectors, None, kernel, 0.0, n_bins)
         return statistics(k, counts_x, counts_y, estimator), np.full(len(counts_x), np.nan)
@@ -152,6 +188,21 @@ def batch_statistics(
         rows = sigma == value
         k = gram(vectors, dist, kernel, float(value), n_bins)
         out[rows] = statistics(k, counts_x[rows], counts_y[rows], estimator)
+    return out, sigma
+
+
+def _large_batch_statistics(vectors, counts_x, counts_y, kernel, estimator, n_bins):
+    grid = np.rint(vectors).astype(np.int64)
+    x, y = counts_x.astype(np.float64), counts_y.astype(np.float64)
+    if not kernel.has_bandwidth:
+        operator = KernelOperator(grid, kernel, None, n_bins)
+        return kernel_statistics(operator, x.T, y.T, estimator), np.full(len(x), np.nan)
+    sigma = cross_bandwidths(grid, x, y, kernel)
+    out = np.zeros(len(x))
+    for value in np.unique(sigma[~np.isnan(sigma)]):
+        rows = sigma == value
+        operator = KernelOperator(grid, kernel, float(value), n_bins)
+        out[rows] = kernel_statistics(operator, x[rows].T, y[rows].T, estimator)
     return out, sigma
 
 

@@ -104,7 +104,7 @@ def matrix(
     if len(labels) != len(loaded) or len(set(labels)) != len(labels):
         raise OptionError(f"names must be {len(loaded)} unique labels, got {list(labels)}")
     settings = comparison_options(loaded, **options)
-    prepared = [Prepared.of(s, settings.features) for s in loaded]
+    prepared = [Prepared.of(s, settings.features, settings.resample) for s in loaded]
     pairs = list(combinations(range(len(loaded)), 2))
     shared_values = {"sets": prepared, "options": settings}
     if runner is not None:

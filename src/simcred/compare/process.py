@@ -18,8 +18,17 @@ import numpy as np
 
 from simcred.compare.chains import ChainCounts, aligned, successor_counts
 from simcred.compare.discretize import StateSpace
+from simcred.compare.encoding import (
+    EncodedRuns,
+    check_history,
+    check_time_bins,
+    encode,
+    state_space,
+)
 from simcred.compare.kernels import Kernel
 from simcred.compare.mmd import Estimator, Test, mmd_test
+from simcred.compare.resample import check_periods, check_resample
+from simcred.compare.resample import resample as resample_runs
 from simcred.compare.result import (
     Comparison,
     ComparisonOptions,
@@ -27,6 +36,7 @@ from simcred.compare.result import (
     StateTest,
     UntestableState,
 )
+from simcred.compare.runs import ChainStatistic, Multiplicity, OneSided
 from simcred.engine import Progress
 from simcred.errors import OptionError
 from simcred.traces import TraceSet
@@ -42,10 +52,19 @@ def compare(
     bins: int | Sequence[int] = 10,
     kernel: str = "gaussian",
     estimator: str = "biased",
-    test: str = "bound",
+    test: str = "runs",
     alpha: float = 0.01,
     permutations: int = 999,
     seed: int | np.random.Generator | None = None,
+    multiplicity: str | None = None,
+    chain: str = "sum",
+    one_sided: str = "evidence",
+    history: int = 1,
+    time_bins: int | None = None,
+    resample: float | None = None,
+    baseline: int = 0,
+    bootstrap: int = 0,
+    relevance: bool = False,
     continue_on_start_difference: bool = False,
     stop_early: bool = True,
     progress: Progress | None = None,
@@ -65,16 +84,43 @@ def compare(
         [1] eqs. (3)-(5); Gaussian and Laplace use the median heuristic for σ.
     estimator : {"biased", "unbiased"}, default: "biased"
         MMD_b (the paper's, reported not squared) or MMD²_u.
-    test : {"bound", "permutation"}, default: "bound"
-        The paper's Gretton-type bound or a permutation test with ``permutations`` resamples.
+    test : {"runs", "bound", "permutation"}, default: "runs"
+        ``runs``: run-level permutation test (whole runs reassigned; valid under any dependence
+        within runs) with a chain-level verdict; ``bound``: the paper's Gretton-type bound;
+        ``permutation``: the paper's per-transition permutation test. The last two treat
+        transitions as independent samples.
     alpha : float, default: 0.01
-        Level of every single test, in (0, 1).
+        Level of every single test (and of the chain verdict), in (0, 1).
     permutations : int, default: 999
-        Resamples of the permutation test.
+        Resamples of the permutation tests.
     seed : int, Generator or None
-        Seed of the permutation test. None draws fresh entropy, which is stored in the result.
+        Seed of the permutation tests. None draws fresh entropy, which is stored in the result.
+    multiplicity : {"fwer", "fdr", "none"}, default: "fwer" for ``runs``, else "none"
+        Control of the per-state verdicts: max-T family-wise, Benjamini–Hochberg, or none (the
+        paper's). Only ``runs`` supports "fwer" and "fdr".
+    chain : {"sum", "max"}, default: "sum"
+        Chain statistic of the run-level test: sum or maximum of standardised state statistics.
+    one_sided : {"evidence", "neutral"}, default: "evidence"
+        Run-level test: a state without transitions on one side counts as the largest possible
+        difference, or as no evidence.
+    history : int, default: 1
+        States are the last ``history`` binned feature vectors (1 = the paper's chain).
+    time_bins : int or None
+        Time since run start, binned into ``time_bins`` equal-frequency windows, becomes part
+        of the state (time-inhomogeneous chain). At least 2; None = time-homogeneous.
+    resample : float or None
+        Resample every run to this period (s) by linear interpolation. Without it, sets with
+        different sample periods are refused.
+    baseline : int, default: 0
+        Run-level test: number of random half-splits of set A compared against each other, the
+        distance's same-model baseline.
+    bootstrap : int, default: 0
+        Run-level test: bootstrap replicates (runs resampled within each set) for a 95 %
+        interval of the distance.
+    relevance : bool, default: False
+        Run-level test: chain statistics on each feature alone and with each feature left out.
     continue_on_start_difference : bool, default: False
-        Test the transitions even when the start distributions differ.
+        Bound/permutation tests: test the transitions even when the start distributions differ.
     stop_early : bool, default: True
         Permutation test: stop drawing once rejection is impossible (Besag & Clifford 1991).
         Verdicts are those of the full test; p-values above ``alpha`` become sequential
@@ -90,24 +136,36 @@ def compare(
     -----
     Each start state's permutation test draws from its own stream
     ``SeedSequence(seed, spawn_key=(1 + state,))``, so results do not depend on the order or the
-    worker in which states are tested.
+    worker in which states are tested. The run-level test draws all its permutations from
+    ``SeedSequence(seed, spawn_key=(RUNS_KEY,))``; see docs/comparison.md.
 
     Examples
     --------
     >>> from simcred.examples import lane_change_sets
     >>> a, b = lane_change_sets(runs=60, steps=40, seed=1)
-    >>> result = compare(a, b, features=["x", "y"], bins=5)
+    >>> result = compare(a, b, features=["x", "y"], bins=5, test="bound")
     >>> result.n_states, result.stopped
     (25, False)
+    >>> result = compare(a, b, features=["x", "y"], bins=5, permutations=199, seed=3)
+    >>> result.chain.pvalue <= 0.01, result.distance > 0
+    (True, True)
     """
     a, b = load(a), load(b)
-    options = comparison_options([a, b], features=features, bins=bins, kernel=kernel,
-                                 estimator=estimator, test=test, alpha=alpha,
-                                 permutations=permutations, seed=seed,
-                                 continue_on_start_difference=continue_on_start_difference,
-                                 stop_early=stop_early)
-    return compare_prepared(Prepared.of(a, options.features), Prepared.of(b, options.features),
-                            options, progress)
+    options = comparison_options(
+        [a, b], features=features, bins=bins, kernel=kernel, estimator=estimator, test=test,
+        alpha=alpha, permutations=permutations, seed=seed, multiplicity=multiplicity,
+        chain=chain, one_sided=one_sided, history=history, time_bins=time_bins,
+        resample=resample, baseline=baseline, bootstrap=bootstrap,
+        continue_on_start_difference=continue_on_start_difference, stop_early=stop_early)
+    result = compare_prepared(Prepared.of(a, options.features, options.resample),
+                              Prepared.of(b, options.features, options.resample),
+                              options, progress)
+    if relevance:
+        from simcred.compare.calibrate import feature_relevance
+
+        result = feature_relevance(result, Prepared.of(a, options.features, options.resample),
+                                   Prepared.of(b, options.features, options.resample))
+    return result
 
 
 def load(traces: TraceSet | str | Path) -> TraceSet:
@@ -116,27 +174,46 @@ def load(traces: TraceSet | str | Path) -> TraceSet:
 
 @dataclass(frozen=True, slots=True, eq=False)
 class Prepared:
-    """A trace set reduced to what a comparison needs: feature values, run offsets, identity."""
+    """A trace set reduced to what a comparison needs: feature values, time, run offsets,
+    identity."""
 
     values: np.ndarray
+    time: np.ndarray
     offsets: np.ndarray
     info: InputInfo
 
     @classmethod
-    def of(cls, traces: TraceSet, features: Sequence[str]) -> Prepared:
+    def of(cls, traces: TraceSet, features: Sequence[str], resample: float | None = None
+           ) -> Prepared:
         info = InputInfo(traces.source, traces.digest(), traces.n_runs, traces.n_rows)
-        return cls(traces.features(features), traces.offsets, info)
+        if resample is not None:
+            traces = resample_runs(traces, resample)
+        return cls(traces.features(features), traces.time, traces.offsets, info)
+
+    def encoded(self, space: StateSpace, options: ComparisonOptions) -> EncodedRuns:
+        return encode(space, self.values, self.time, self.offsets, options.history,
+                      options.time_bins is not None, self.info.source)
+
+
+def common_space(a: Prepared, b: Prepared, options: ComparisonOptions) -> StateSpace:
+    """The state space of a comparison: pooled binning of both sets, history, time windows."""
+    return state_space([a.values, b.values], [a.time, b.time], [a.offsets, b.offsets],
+                       options.bins, options.features, options.history, options.time_bins)
 
 
 def compare_prepared(
     a: Prepared, b: Prepared, options: ComparisonOptions, progress: Progress | None = None
 ) -> Comparison:
     """The process of [1] sec. V-A on validated options and prepared sets."""
+    space = common_space(a, b, options)
+    runs_a, runs_b = a.encoded(space, options), b.encoded(space, options)
+    if Test(options.test) is Test.RUNS:
+        from simcred.compare.calibrate import run_level_comparison
+
+        return run_level_comparison(runs_a, runs_b, space, options, (a.info, b.info))
     spec = options.spec
-    space = StateSpace.equal_frequency(np.vstack([a.values, b.values]), options.bins,
-                                       options.features)
-    counts_a = ChainCounts.from_codes(space.encode(a.values), a.offsets, space.n_states)
-    counts_b = ChainCounts.from_codes(space.encode(b.values), b.offsets, space.n_states)
+    counts_a = ChainCounts.from_codes(runs_a.codes, runs_a.offsets, space.n_states)
+    counts_b = ChainCounts.from_codes(runs_b.codes, runs_b.offsets, space.n_states)
 
     states, x, y = aligned(counts_a.start_states, counts_a.start_counts,
                            counts_b.start_states, counts_b.start_counts)
@@ -217,18 +294,28 @@ def _choice(enum: type, value: str, name: str):
 
 def comparison_options(
     sets: Sequence[TraceSet], *, features=None, bins=10, kernel="gaussian", estimator="biased",
-    test="bound", alpha=0.01, permutations=999, seed=None, continue_on_start_difference=False,
-    stop_early=True,
+    test="runs", alpha=0.01, permutations=999, seed=None, multiplicity=None, chain="sum",
+    one_sided="evidence", history=1, time_bins=None, resample=None, baseline=0, bootstrap=0,
+    continue_on_start_difference=False, stop_early=True,
 ) -> ComparisonOptions:
     """Validate every option of :func:`compare` against the trace sets they will be used on."""
     names = resolve_features(sets, features)
     estimator = _choice(Estimator, estimator, "estimator")
     test = _choice(Test, test, "test")
+    runs = test is Test.RUNS
+    multiplicity = _choice(Multiplicity, multiplicity or ("fwer" if runs else "none"),
+                           "multiplicity")
+    if not runs and multiplicity is not Multiplicity.NONE:
+        raise OptionError(f"multiplicity {multiplicity.value} needs the run-level test "
+                          "(--test runs); the paper's tests are per state only")
     small = [s for s in sets if s.n_runs < estimator.min_samples]
     if small:
         raise OptionError(f"the {estimator.value} estimator needs at least "
                           f"{estimator.min_samples} runs per trace set ({small[0].source}: "
                           f"{small[0].n_runs})")
+    resample = check_resample(resample)
+    if resample is None:
+        check_periods(list(sets))
     return ComparisonOptions(
         features=names,
         bins=resolve_bins(bins, len(names)),
@@ -236,11 +323,25 @@ def comparison_options(
         estimator=estimator.value,
         test=test.value,
         alpha=_check_alpha(alpha),
-        permutations=_check_permutations(permutations) if test is Test.PERMUTATION else None,
+        permutations=_check_permutations(permutations) if test is not Test.BOUND else None,
         seed=resolve_seed(seed),
         continue_on_start_difference=bool(continue_on_start_difference),
         stop_early=bool(stop_early) and test is Test.PERMUTATION,
+        multiplicity=multiplicity.value,
+        chain=_choice(ChainStatistic, chain, "chain").value,
+        one_sided=_choice(OneSided, one_sided, "one-sided").value,
+        history=check_history(history),
+        time_bins=check_time_bins(time_bins),
+        resample=resample,
+        baseline=_check_count(baseline, "baseline") if runs else 0,
+        bootstrap=_check_count(bootstrap, "bootstrap") if runs else 0,
     )
+
+
+def _check_count(value: int, name: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 0:
+        raise OptionError(f"{name} must be a non-negative integer, got {value!r}")
+    return int(value)
 
 
 def _check_alpha(alpha: float) -> float:

@@ -25,6 +25,14 @@ class ComparisonOptions:
     seed: int
     continue_on_start_difference: bool
     stop_early: bool
+    multiplicity: str = "none"
+    chain: str = "sum"
+    one_sided: str = "evidence"
+    history: int = 1
+    time_bins: int | None = None
+    resample: float | None = None
+    baseline: int = 0
+    bootstrap: int = 0
 
     @property
     def spec(self) -> MMDTestSpec:
@@ -60,6 +68,65 @@ class UntestableState:
     n: int
 
 
+@dataclass(frozen=True, slots=True)
+class ChainVerdict:
+    """One verdict for "A and B come from the same process" (run-level permutation test).
+
+    ``statistic``: sum (or max) of the standardised per-state statistics, start distribution
+    included; ``pvalue = (1 + #{T* ≥ T}) / (P + 1)``; ``states``: how many states entered.
+    """
+
+    test: str
+    combine: str
+    statistic: float
+    pvalue: float
+    rejected: bool
+    permutations: int
+    states: int
+
+
+@dataclass(frozen=True, slots=True)
+class Baseline:
+    """The distance when the reference set is split against itself (random halves of its runs).
+
+    Under "no difference" this is what the distance looks like with the same options; a
+    comparison's distance is read against it.
+    """
+
+    reference: str
+    distances: tuple[float, ...]
+    chain_pvalues: tuple[float, ...]
+
+    @property
+    def low(self) -> float:
+        return float(min(self.distances))
+
+    @property
+    def high(self) -> float:
+        return float(max(self.distances))
+
+
+@dataclass(frozen=True, slots=True)
+class DistanceInterval:
+    """Percentile bootstrap interval of the distance, resampling runs within each set."""
+
+    level: float
+    low: float
+    high: float
+    replicates: tuple[float, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class FeatureRelevance:
+    """Chain statistic on one feature alone and with that feature left out."""
+
+    feature: str
+    alone_pvalue: float
+    alone_statistic: float
+    without_pvalue: float | None
+    without_statistic: float | None
+
+
 @dataclass(frozen=True, slots=True, eq=False)
 class Comparison:
     """Result of [1] sec. V-A for trace sets A and B.
@@ -78,6 +145,10 @@ class Comparison:
     stopped: bool
     states: tuple[StateTest, ...]
     untestable: tuple[UntestableState, ...]
+    chain: ChainVerdict | None = None
+    baseline: Baseline | None = None
+    interval: DistanceInterval | None = None
+    relevance: tuple[FeatureRelevance, ...] | None = None
 
     @property
     def n_states(self) -> int:
@@ -111,6 +182,15 @@ class Comparison:
             "n_rejected": len(self.rejected_states),
             "distance": self.distance,
         }
+        if self.chain is not None:
+            body = {**_chain_first(body, asdict(self.chain))}
+        if self.baseline is not None:
+            body["baseline"] = {**asdict(self.baseline), "low": self.baseline.low,
+                                "high": self.baseline.high}
+        if self.interval is not None:
+            body["distance_interval"] = asdict(self.interval)
+        if self.relevance is not None:
+            body["relevance"] = [asdict(r) for r in self.relevance]
         return envelope("comparison", body)
 
     def to_json(self) -> str:
@@ -136,7 +216,20 @@ class Comparison:
         return {"status": status, "m": m, "n": n}
 
 
+def _chain_first(body: dict[str, Any], chain: dict[str, Any]) -> dict[str, Any]:
+    """The body with "chain" right after the options: the verdict a reader looks for first."""
+    out: dict[str, Any] = {}
+    for key, value in body.items():
+        out[key] = value
+        if key == "options":
+            out["chain"] = chain
+    return out
+
+
 def _test_dict(result: MMDTestResult) -> dict[str, Any]:
-    return {"m": result.m, "n": result.n, "statistic": result.statistic,
-            "threshold": result.threshold, "pvalue": result.pvalue, "rejected": result.rejected,
-            "bandwidth": result.bandwidth, "permutations_used": result.n_resamples}
+    out = {"m": result.m, "n": result.n, "statistic": result.statistic,
+           "threshold": result.threshold, "pvalue": result.pvalue, "rejected": result.rejected,
+           "bandwidth": result.bandwidth, "permutations_used": result.n_resamples}
+    if result.adjusted_pvalue is not None:
+        out["adjusted_pvalue"] = result.adjusted_pvalue
+    return out

@@ -82,11 +82,15 @@ class Contract:
 
     @classmethod
     def from_strings(cls, assumption: str, guarantee: str, *, name: str = "",
-                     declared: Mapping[str, Any] | None = None, where: str = "") -> Contract:
-        """``Contract.from_strings("0 <= v <= 30", "e <= 0.1")``."""
+                     declared: Mapping[str, Any] | None = None, where: str = "",
+                     types: Mapping[str, str] | None = None,
+                     units: Mapping[str, str] | None = None) -> Contract:
+        """``Contract.from_strings("0 <= v <= 30", "e <= 0.1")``; ``types`` and ``units`` as
+        in :func:`~simcred.contracts.expr.parse`."""
         where = where or name or "contract"
-        return cls(parse(assumption, declared=declared, where=f"{where}: assumption"),
-                   parse(guarantee, declared=declared, where=f"{where}: guarantee"), name)
+        options = {"declared": declared, "types": types, "units": units}
+        return cls(parse(assumption, where=f"{where}: assumption", **options),
+                   parse(guarantee, where=f"{where}: guarantee", **options), name)
 
     @property
     def variables(self) -> frozenset[str]:

@@ -30,8 +30,9 @@ from simcred.contracts.algebra import (
     compose_all,
     valid,
 )
-from simcred.contracts.expr import conjoin, evaluate
+from simcred.contracts.expr import conjoin, evaluate, variables
 from simcred.contracts.library import Library, LibraryError
+from simcred.contracts.search import branch_and_bound, interval_problem
 
 
 @dataclass(frozen=True, slots=True)
@@ -47,12 +48,13 @@ class Configuration:
     iterations: int
     counterexamples: list[dict[str, float]] = field(default_factory=list)
     reason: str = ""
+    method: str = "CEGIS over z3 Optimize"
 
     def to_dict(self) -> dict:
         return {"test_case": self.test_case, "status": self.status.value, "setup": self.setup,
                 "cost": self.cost, "proof": None if self.proof is None else self.proof.to_dict(),
                 "iterations": self.iterations, "counterexamples": self.counterexamples,
-                "reason": self.reason}
+                "reason": self.reason, "method": self.method}
 
 
 def setup_contract(library: Library, setup: dict[str, str]) -> Contract:
@@ -60,13 +62,48 @@ def setup_contract(library: Library, setup: dict[str, str]) -> Contract:
 
 
 def configure(library: Library, test_case: str, *, fixed: dict[str, str] | None = None,
-              timeout_ms: int = DEFAULT_TIMEOUT_MS, max_iterations: int = 1000) -> Configuration:
-    """The cheapest setup whose composed contract refines the test case (see module docs)."""
+              timeout_ms: int = DEFAULT_TIMEOUT_MS, max_iterations: int = 1000,
+              search: str = "auto") -> Configuration:
+    """The cheapest setup whose composed contract refines the test case (see module docs).
+
+    In the interval fragment the search is exact interval propagation with branch-and-bound
+    (:mod:`simcred.contracts.search`), and the chosen setup is then proven with z3; otherwise
+    counterexample-guided search over z3 ``Optimize``. ``search="cegis"`` forces the latter
+    (for comparison).
+    """
+    if search not in ("auto", "cegis"):
+        raise LibraryError(f"search must be 'auto' or 'cegis', got {search!r}")
+    target = library.test_case(test_case)
+    choices = _choices(library, library.components(), fixed or {})
+    problem = interval_problem(library, target, choices) if search == "auto" else None
+    if problem is not None:
+        result = _by_intervals(library, test_case, target, choices, problem, timeout_ms)
+        if result is not None:
+            return result
+    return _by_cegis(library, test_case, target, choices, timeout_ms, max_iterations)
+
+
+def _by_intervals(library, test_case, target, choices, problem, timeout_ms):
+    """Exact search in the interval fragment; None if z3 does not confirm (then CEGIS)."""
+    found = branch_and_bound(problem)
+    setups = int(np.prod([len(m) for m in choices.values()], dtype=object))
+    method = (f"interval propagation, branch-and-bound ({found.nodes} partial setups expanded "
+              f"of {setups:,} setups)")
+    if found.setup is None:
+        return Configuration(test_case, Status.FAILS, None, None, None, found.nodes, [],
+                             f"no setup refines the test case (decided exactly over all "
+                             f"{setups:,} setups by interval propagation)", method)
+    proof = setup_refines(library, found.setup, target, timeout_ms=timeout_ms)
+    if proof.status is not Status.HOLDS:  # cannot happen (module docs of search); be safe
+        return None
+    return Configuration(test_case, Status.HOLDS, found.setup, found.cost, proof, found.nodes,
+                         [], "", method + "; optimal by the bound, proven with z3")
+
+
+def _by_cegis(library, test_case, target, choices, timeout_ms, max_iterations):
+    """Counterexample-guided search (module docs) for contracts outside the interval fragment."""
     import z3
 
-    target = library.test_case(test_case)
-    components = library.spec.architecture or list(library.spec.components)
-    choices = _choices(library, components, fixed or {})
     selector = {(c, m): z3.Bool(f"{c}={m}") for c, models in choices.items() for m in models}
     optimizer = z3.Optimize()
     for c, models in choices.items():
@@ -171,3 +208,21 @@ def missing_ports(library: Library, given: dict[str, str]) -> set[str]:
     """Variables of the ports of the components not in ``given`` (what a missing model sees)."""
     components = library.spec.architecture or list(library.spec.components)
     return {p.variable for c in components if c not in given for p in library.ports(c)}
+
+
+def uncovered_assumptions(library: Library, test_case: str, given: dict[str, str],
+                          *, timeout_ms: int = DEFAULT_TIMEOUT_MS) -> list[dict]:
+    """The given models whose assumption the test case does not guarantee, with the clause and
+    an operating point of the test case outside it: why a quotient's guarantee is ``false``
+    (no missing model can make up for a given model used outside its validity domain)."""
+    target = library.test_case(test_case)
+    out = []
+    for model in given.values():
+        contract = library.model_contracts[model]
+        verdict = valid([target.assumption], contract.assumption, types=library.types,
+                        timeout_ms=timeout_ms)
+        if verdict.status is Status.FAILS:
+            names = variables(contract.assumption)
+            out.append({"model": model, "clause": verdict.clauses[0] if verdict.clauses else "",
+                        "at": {k: v for k, v in verdict.counterexample.items() if k in names}})
+    return out

@@ -38,7 +38,8 @@ GRAMMAR = r"""
 ?unary: "-" unary -> negative
       | power
 ?power: atom ("^" unary)?
-?atom: NUMBER -> number
+?atom: NUMBER UNIT -> quantity
+     | NUMBER -> number
      | "true" -> true
      | "false" -> false
      | FUNCTION "(" implication ("," implication)* ")" -> call
@@ -49,6 +50,8 @@ ADD: "+" | "-"
 MUL: "*" | "/"
 FUNCTION.2: /(abs|min|max)(?=\s*\()/
 NAME: /(?!(and|or|not|implies|true|false)\b)[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*/
+UNIT: /\[[^\[\]]*\]/ | /(?!(and|or|not|implies|true|false)\b)/ UNIT_FACTOR (/[\/*]/ UNIT_FACTOR)*
+UNIT_FACTOR: /[A-Za-z_°µΩ][A-Za-z0-9_]*(\^-?\d+)?/
 NUMBER: /\d+(\.\d*)?([eE][+-]?\d+)?|\.\d+([eE][+-]?\d+)?/
 %import common.WS
 %ignore WS
@@ -73,8 +76,20 @@ class Bool:
 
 
 @dataclass(frozen=True, slots=True)
+class Quantity:
+    """A literal with a unit (``100 km/h``); :func:`simcred.contracts.units.resolve` turns it
+    into a :class:`Num` in the unit of what it is compared with or added to."""
+
+    value: Fraction
+    unit: str
+
+
+@dataclass(frozen=True, slots=True)
 class Var:
+    """A variable; ``boolean`` for variables declared ``bool`` (a condition, not a number)."""
+
     name: str
+    boolean: bool = False
 
 
 @dataclass(frozen=True, slots=True)
@@ -100,22 +115,26 @@ class Logic:
     args: tuple[Expr, ...]
 
 
-Expr = Num | Bool | Var | Arith | Compare | Logic
+Expr = Num | Quantity | Bool | Var | Arith | Compare | Logic
 BOOLEAN = (Bool, Compare, Logic)
+
+# Limits that keep every later step (recursion, z3, exact arithmetic) bounded; see docs.
+MAX_TEXT = 10_000  # characters of one assertion
+MAX_DEPTH = 200  # nesting of operations (a sum of n terms nests n - 1 deep)
+MAX_DEGREE = 16  # polynomial degree of any term
+MAX_DIGITS = 40  # digits of a number literal
+MAX_EXPONENT = 100  # |e| of a number literal's decimal exponent
 
 
 def is_boolean(e: Expr) -> bool:
-    return isinstance(e, BOOLEAN)
+    return isinstance(e, BOOLEAN) or (isinstance(e, Var) and e.boolean)
 
 
 def variables(e: Expr) -> frozenset[str]:
     """Names of the variables ``e`` mentions."""
     if isinstance(e, Var):
         return frozenset((e.name,))
-    if isinstance(e, Num | Bool):
-        return frozenset()
-    children = (e.left, e.right) if isinstance(e, Compare) else e.args
-    return frozenset().union(*(variables(c) for c in children))
+    return frozenset().union(*(variables(c) for c in children(e)))
 
 
 def conjuncts(e: Expr) -> tuple[Expr, ...]:
@@ -154,14 +173,37 @@ def to_text(e: Expr) -> str:
     return _text(e, 0)
 
 
+def decimal_text(value: Fraction) -> str | None:
+    """The exact decimal of ``value`` (``0.25``) when it has one (denominator 2^a 5^b)."""
+    value = Fraction(value)
+    d, twos, fives = value.denominator, 0, 0
+    while d % 2 == 0:
+        d, twos = d // 2, twos + 1
+    while d % 5 == 0:
+        d, fives = d // 5, fives + 1
+    if d != 1:
+        return None
+    places = max(twos, fives)
+    digits = str(abs(value.numerator) * 10 ** places // value.denominator).rjust(places + 1, "0")
+    text = digits if places == 0 else f"{digits[:-places]}.{digits[-places:]}"
+    return ("-" if value < 0 else "") + text
+
+
 def _number_text(value: Fraction) -> str:
-    return str(value.numerator) if value.denominator == 1 else f"({value.numerator}/" \
-        f"{value.denominator})"
+    """Exact text of a non-negative literal: a decimal where there is one, else ``(p/q)``."""
+    text = decimal_text(value)
+    return text if text is not None else f"({value.numerator}/{value.denominator})"
 
 
 def _text(e: Expr, outer: int) -> str:
     if isinstance(e, Num):
         return _number_text(e.value) if e.value >= 0 else f"(-{_number_text(-e.value)})"
+    if isinstance(e, Quantity):
+        sign, size = ("-" if e.value < 0 else ""), abs(e.value)
+        exact = decimal_text(size)
+        if exact is not None:
+            return f"{sign}{exact} [{e.unit}]" if not sign else f"(-{exact} [{e.unit}])"
+        return f"({sign}{size.numerator} [{e.unit}] / {size.denominator})"
     if isinstance(e, Bool):
         return "true" if e.value else "false"
     if isinstance(e, Var):
@@ -195,10 +237,30 @@ def _parser() -> Lark:
     return Lark(GRAMMAR, parser="lalr", propagate_positions=True)
 
 
+def _literal(text: str) -> Fraction:
+    """The exact value of a number literal, within the digit and exponent limits."""
+    mantissa, _, exponent = text.lower().partition("e")
+    digits = len(mantissa.replace(".", "").lstrip("0"))
+    if digits > MAX_DIGITS:
+        raise ExpressionError(f"the number {text[:20]}... has {digits} digits (at most "
+                              f"{MAX_DIGITS})")
+    if exponent and abs(int(exponent)) > MAX_EXPONENT:
+        raise ExpressionError(f"the exponent of {text[:40]} is beyond ±{MAX_EXPONENT}")
+    return Fraction(text)
+
+
 @v_args(meta=True)
 class _ToAst(Transformer):
+    def __init__(self, booleans: frozenset[str] = frozenset()):
+        super().__init__()
+        self.booleans = booleans
+
     def number(self, meta, children):
-        return Num(Fraction(str(children[0])))
+        return Num(_literal(str(children[0])))
+
+    def quantity(self, meta, children):
+        unit = str(children[1]).strip("[]").strip()
+        return Quantity(_literal(str(children[0])), unit)
 
     def true(self, meta, children):
         return Bool(True)
@@ -207,7 +269,8 @@ class _ToAst(Transformer):
         return Bool(False)
 
     def variable(self, meta, children):
-        return Var(str(children[0]))
+        name = str(children[0])
+        return Var(name, name in self.booleans)
 
     def call(self, meta, children):
         name, args = str(children[0]), tuple(children[1:])
@@ -219,7 +282,11 @@ class _ToAst(Transformer):
 
     def negative(self, meta, children):
         operand = _arith(children[0], "-")
-        return Num(-operand.value) if isinstance(operand, Num) else Arith("neg", (operand,))
+        if isinstance(operand, Num):
+            return Num(-operand.value)
+        if isinstance(operand, Quantity):
+            return Quantity(-operand.value, operand.unit)
+        return Arith("neg", (operand,))
 
     def power(self, meta, children):
         base, exponent = _arith(children[0], "^"), _arith(children[1], "^")
@@ -267,6 +334,8 @@ def _fold(children) -> Expr:
             raise ExpressionError("division by zero")
         if op == "/" and isinstance(expr, Num) and isinstance(operand, Num):
             expr = Num(expr.value / operand.value)  # a rational literal such as 1/3
+        elif op == "/" and isinstance(expr, Quantity) and isinstance(operand, Num):
+            expr = Quantity(expr.value / operand.value, expr.unit)  # (1 [m] / 3)
         else:
             expr = Arith(str(op), (expr, operand))
     return expr
@@ -284,36 +353,110 @@ def _boolean(e: Expr, where: str) -> Expr:
     return e
 
 
-def parse(text: str, *, declared: Mapping[str, Any] | None = None, where: str = "") -> Expr:
+def parse(text: str, *, declared: Mapping[str, Any] | None = None, where: str = "",
+          types: Mapping[str, str] | None = None, units: Mapping[str, str] | None = None
+          ) -> Expr:
     """Parse an assertion; ``declared`` (if given) must contain every variable it uses.
 
+    ``types`` (variable → ``real``/``int``/``bool``) makes ``bool`` variables conditions;
+    ``units`` (variable → pint unit) checks the dimensions of every sum and comparison and
+    converts literals with units (``100 km/h``) exactly to the unit of what they meet
+    (:func:`simcred.contracts.units.resolve`). Size, nesting, degree and literal limits
+    (``MAX_*``) are checked before anything else can recurse or overflow.
+
     >>> to_text(parse("0 <= ego.v <= 30 and abs(a) < 2.5"))
-    '0 <= ego.v and ego.v <= 30 and abs(a) < (5/2)'
+    '0 <= ego.v and ego.v <= 30 and abs(a) < 2.5'
     """
     prefix = f"{where}: " if where else ""
     if not isinstance(text, str) or not text.strip():
         raise ExpressionError(f"{prefix}empty assertion")
+    if len(text) > MAX_TEXT:
+        raise ExpressionError(f"{prefix}the assertion has {len(text):,} characters (at most "
+                              f"{MAX_TEXT:,})")
+    shown = _shown(text)
     try:
         tree = _parser().parse(text)
     except UnexpectedInput as exc:
         raise ExpressionError(
             f"{prefix}line {exc.line}, column {exc.column}: unexpected "
-            f"{_describe(exc, text)} in '{text.strip()}'") from None
+            f"{_describe(exc, text)} in '{shown}'") from None
     except LarkError as exc:
-        raise ExpressionError(f"{prefix}cannot parse '{text.strip()}' ({exc})") from None
+        raise ExpressionError(f"{prefix}cannot parse '{shown}' ({exc})") from None
+    if _depth(tree, lambda t: getattr(t, "children", ())) > MAX_DEPTH:
+        raise ExpressionError(f"{prefix}'{shown}' nests more than {MAX_DEPTH} levels "
+                              "deep")
+    booleans = frozenset(n for n, t in (types or {}).items() if t == "bool")
     try:
-        expr = _ToAst().transform(tree)
+        expr = _ToAst(booleans).transform(tree)
     except LarkError as exc:  # errors raised inside the transformer come wrapped
         cause = exc.__context__ if isinstance(exc.__context__, ExpressionError) else exc
-        raise ExpressionError(f"{prefix}{cause} in '{text.strip()}'") from None
+        raise ExpressionError(f"{prefix}{cause} in '{shown}'") from None
+    _check_size(expr, prefix, shown)
     if not is_boolean(expr):
-        raise ExpressionError(f"{prefix}'{text.strip()}' is a number, not a condition")
+        raise ExpressionError(f"{prefix}'{shown}' is a number, not a condition")
     if declared is not None:
         unknown = sorted(variables(expr) - set(declared))
         if unknown:
-            raise ExpressionError(f"{prefix}undeclared variable '{unknown[0]}' in "
-                                  f"'{text.strip()}'")
+            raise ExpressionError(f"{prefix}undeclared variable '{unknown[0]}' in '{shown}'")
+    if units is not None:
+        from simcred.contracts.units import resolve
+
+        expr = resolve(expr, units, where=f"{prefix}'{shown}'")
+    elif _has_quantity(expr):
+        raise ExpressionError(f"{prefix}a number with a unit in '{shown}' needs the units of "
+                              "the variables (declare them in a library)")
     return expr
+
+
+def _shown(text: str) -> str:
+    """The assertion as quoted in an error: stripped, long ones shortened."""
+    text = " ".join(text.split())
+    return text if len(text) <= 120 else f"{text[:100]} ... {text[-15:]}"
+
+
+def children(e: Expr) -> tuple[Expr, ...]:
+    """The operands of ``e`` (none for leaves)."""
+    if isinstance(e, Compare):
+        return (e.left, e.right)
+    return e.args if isinstance(e, Arith | Logic) else ()
+
+
+def _depth(root, kids) -> int:
+    """Nesting depth of a tree, without recursion (the tree may be too deep to recurse)."""
+    deepest, stack = 0, [(root, 1)]
+    while stack:
+        node, level = stack.pop()
+        deepest = max(deepest, level)
+        if level <= MAX_DEPTH + 1:  # deeper is refused anyway; stop walking there
+            stack.extend((k, level + 1) for k in kids(node))
+    return deepest
+
+
+def _check_size(expr: Expr, prefix: str, shown: str) -> None:
+    if _depth(expr, children) > MAX_DEPTH:
+        raise ExpressionError(f"{prefix}'{shown}' nests more than {MAX_DEPTH} "
+                              "operations deep (split long sums into several clauses)")
+    worst = degree(expr)
+    if worst > MAX_DEGREE:
+        raise ExpressionError(f"{prefix}'{shown}' has polynomial degree {worst} (at most "
+                              f"{MAX_DEGREE})")
+
+
+def degree(e: Expr) -> int:
+    """Polynomial degree of ``e`` (a quotient counts as the product of its operands)."""
+    if isinstance(e, Var):
+        return 0 if e.boolean else 1
+    if isinstance(e, Num | Quantity | Bool):
+        return 0
+    if isinstance(e, Arith) and e.op in ("*", "/"):
+        return degree(e.args[0]) + degree(e.args[1])
+    if isinstance(e, Arith) and e.op == "^":
+        return degree(e.args[0]) * int(e.args[1].value)
+    return max(degree(c) for c in children(e))
+
+
+def _has_quantity(e: Expr) -> bool:
+    return isinstance(e, Quantity) or any(_has_quantity(c) for c in children(e))
 
 
 def _describe(exc: UnexpectedInput, text: str) -> str:
@@ -342,6 +485,8 @@ def to_z3(e: Expr, env: Mapping[str, Any]):
     """The z3 term of ``e`` with variables taken from ``env`` (exact rational numbers)."""
     import z3
 
+    if isinstance(e, Quantity):
+        raise ExpressionError(f"'{to_text(e)}': resolve units first (units.resolve)")
     if isinstance(e, Num):
         return z3.RealVal(f"{e.value.numerator}/{e.value.denominator}")
     if isinstance(e, Bool):
@@ -398,6 +543,8 @@ def evaluate(e: Expr, columns: Mapping[str, Any]) -> Any:
     ``columns`` maps each variable to an array (or scalar). Object arrays of ``Fraction`` give an
     exact evaluation.
     """
+    if isinstance(e, Quantity):
+        raise ExpressionError(f"'{to_text(e)}': resolve units first (units.resolve)")
     if isinstance(e, Num):
         return e.value if _exact(columns) else float(e.value)
     if isinstance(e, Bool):
@@ -458,6 +605,8 @@ def margin(e: Expr, columns: Mapping[str, Any]) -> Any:
     """
     if isinstance(e, Bool):
         return np.inf if e.value else -np.inf
+    if isinstance(e, Var):  # a bool variable: ±inf as for true/false
+        return np.where(np.asarray(columns[e.name], dtype=bool), np.inf, -np.inf)
     if isinstance(e, Compare):
         a, b = evaluate(e.left, columns), evaluate(e.right, columns)
         if e.op in ("<=", "<"):

@@ -21,20 +21,22 @@ the variable's unit. Each variable is controlled by at most one output port of t
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
 from typing import Literal
 
-import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from simcred.contracts.algebra import Contract
-from simcred.errors import SimcredError
+from simcred.contracts.loader import LibraryError, load_yaml
 
+__all__ = ["Library", "LibraryError", "LibrarySpec", "Port"]
 
-class LibraryError(SimcredError):
-    """A malformed or inconsistent library; the message names the file and the entry."""
+NAME = re.compile(r"(?!(and|or|not|implies|true|false)$)[A-Za-z_][A-Za-z0-9_]*"
+                  r"(\.[A-Za-z_][A-Za-z0-9_]*)*")
+MAX_COST = 1e12
 
 
 class _Strict(BaseModel):
@@ -43,12 +45,13 @@ class _Strict(BaseModel):
 
 class VariableSpec(_Strict):
     type: Literal["real", "int", "bool"] = "real"
-    unit: str = "dimensionless"
+    unit: str = Field("dimensionless", max_length=64)
 
 
 class ContractSpec(_Strict):
     assumption: str = "true"
     guarantee: str = "true"
+    viewpoint: str = ""
 
 
 class ComponentSpec(_Strict):
@@ -58,9 +61,16 @@ class ComponentSpec(_Strict):
 
 class ModelSpec(_Strict):
     implements: str
-    cost: float = Field(ge=0)
-    contract: ContractSpec = ContractSpec()
+    cost: float = Field(ge=0, le=MAX_COST, allow_inf_nan=False)
+    contract: ContractSpec | list[ContractSpec] | Literal["trivial"]
     description: str = ""
+
+    @property
+    def viewpoints(self) -> list[ContractSpec]:
+        """The model's contracts (several viewpoints are combined by conjunction)."""
+        if self.contract == "trivial":
+            return [ContractSpec()]
+        return self.contract if isinstance(self.contract, list) else [self.contract]
 
 
 class LibrarySpec(_Strict):
@@ -97,17 +107,8 @@ class Library:
 
     @classmethod
     def read(cls, path: str | Path) -> Library:
-        path = Path(path)
-        try:
-            data = yaml.safe_load(path.read_text())
-        except OSError as exc:
-            raise LibraryError(f"{path}: cannot read ({exc.strerror})") from None
-        except yaml.YAMLError as exc:
-            mark = getattr(exc, "problem_mark", None)
-            where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
-            problem = getattr(exc, "problem", None) or "malformed YAML"
-            raise LibraryError(f"{path}: {where}{problem}") from None
-        return cls.from_dict(data, source=str(path))
+        """Read and validate a library file (see :mod:`simcred.contracts.loader` for limits)."""
+        return cls.from_dict(load_yaml(Path(path)), source=str(path))
 
     @classmethod
     def from_dict(cls, data, *, source: str = "<memory>") -> Library:
@@ -118,7 +119,7 @@ class Library:
             spec = LibrarySpec.model_validate(data)
         except ValidationError as exc:
             error = exc.errors()[0]
-            where = ".".join(str(p) for p in error["loc"])
+            where = ".".join(str(p) for p in error["loc"] if not _is_type_tag(p))
             raise LibraryError(f"{source}: {where}: {error['msg']}") from None
         library = cls(spec, source)
         library.validate()
@@ -130,14 +131,30 @@ class Library:
     def types(self) -> dict[str, str]:
         return {name: v.type for name, v in self.spec.variables.items()}
 
+    @property
+    def units(self) -> dict[str, str]:
+        return {name: v.unit for name, v in self.spec.variables.items()}
+
     def _contract(self, spec: ContractSpec, where: str, name: str) -> Contract:
         return Contract.from_strings(spec.assumption, spec.guarantee, name=name,
-                                     declared=self.spec.variables, where=f"{self.source}: {where}")
+                                     declared=self.spec.variables, where=f"{self.source}: {where}",
+                                     types=self.types, units=self.units)
 
     @cached_property
     def model_contracts(self) -> dict[str, Contract]:
-        return {n: self._contract(m.contract, f"models.{n}.contract", n)
-                for n, m in self.spec.models.items()}
+        """Each model's contract: the conjunction of its viewpoints (seed 003 sec. III-A,
+        C_tot; Benveniste et al. 2008, multiple viewpoints)."""
+        out = {}
+        for n, m in self.spec.models.items():
+            views = m.viewpoints
+            parts = [self._contract(v, f"models.{n}.contract" + (f"[{i}]" if len(views) > 1
+                                                                 else ""), n)
+                     for i, v in enumerate(views)]
+            whole = parts[0]
+            for part in parts[1:]:
+                whole = whole.conjoin(part)
+            out[n] = Contract(whole.assumption, whole.guarantee, n)
+        return out
 
     @cached_property
     def test_case_contracts(self) -> dict[str, Contract]:
@@ -175,8 +192,10 @@ class Library:
                 for entry in entries]
 
     def _port(self, component: str, entry, direction) -> Port:
-        variable, unit = (entry, None) if isinstance(entry, str) else next(iter(entry.items()))
         where = f"{self.source}: components.{component}.{direction}s"
+        if isinstance(entry, dict) and len(entry) != 1:
+            raise LibraryError(f"{where}: a port is a name or one 'name: unit' pair, got {entry}")
+        variable, unit = (entry, None) if isinstance(entry, str) else next(iter(entry.items()))
         if variable not in self.spec.variables:
             raise LibraryError(f"{where}: undeclared variable '{variable}'")
         return Port(component, variable, unit or self.spec.variables[variable].unit, direction)
@@ -187,33 +206,25 @@ class Library:
     def uncontrolled(self, component: str) -> set[str]:
         return {p.variable for p in self.ports(component) if p.direction == "input"}
 
+    def components(self) -> list[str]:
+        """The components of the architecture (all components if none is given)."""
+        return self.spec.architecture or list(self.spec.components)
+
+    def environment(self) -> set[str]:
+        """Ports of the architecture that no component drives: what a test case may assume."""
+        ports = {p.variable for c in self.components() for p in self.ports(c)}
+        return ports - set().union(*(self.controlled(c) for c in self.components()))
+
     # -- validation ---------------------------------------------------------------------------
 
     def validate(self) -> None:
-        """Syntax of every assertion, units, composability of the architecture."""
-        from simcred.contracts.units import same_unit, unit
+        """Names, units, composability, port scope and non-vacuity (see :mod:`.wellformed`)."""
+        from simcred.contracts.wellformed import check_library
 
-        for name, variable in self.spec.variables.items():
-            unit(variable.unit, where=f"{self.source}: variables.{name}.unit")
-        for name, model in self.spec.models.items():
-            if model.implements not in self.spec.components:
-                raise LibraryError(f"{self.source}: models.{name}.implements: unknown component "
-                                   f"'{model.implements}'")
-        for name in self.spec.architecture:
-            if name not in self.spec.components:
-                raise LibraryError(f"{self.source}: architecture: unknown component '{name}'")
-        self.model_contracts, self.test_case_contracts, self.named_contracts  # noqa: B018
-        drivers: dict[str, str] = {}
-        for component in self.spec.architecture or list(self.spec.components):
-            for port in self.ports(component):
-                declared = self.spec.variables[port.variable].unit
-                if not same_unit(port.unit, declared):
-                    raise LibraryError(
-                        f"{self.source}: components.{component}: port '{port.variable}' in "
-                        f"{port.unit} but the variable is in {declared} (unit mismatch)")
-                if port.direction == "output":
-                    if port.variable in drivers:
-                        raise LibraryError(
-                            f"{self.source}: variable '{port.variable}' is driven by two outputs "
-                            f"({drivers[port.variable]} and {component})")
-                    drivers[port.variable] = component
+        check_library(self)
+
+
+def _is_type_tag(part) -> bool:
+    """pydantic's union branch names in error locations (``function-after[...]``, ``str``)."""
+    return isinstance(part, str) and (part in ("str", "list[...]", "dict[str,str]")
+                                      or "[" in part or part.startswith("literal"))

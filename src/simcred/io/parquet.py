@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pyarrow as pa
+import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 from simcred.errors import TraceSetError
@@ -34,24 +35,44 @@ def read(path: Path) -> TraceSet:
     runs = table.column(RUN)
     if runs.null_count:
         raise TraceSetError(f"{path}: column '{RUN}' has missing values")
-    run_labels = np.asarray(runs.to_pylist(), dtype=object).astype(str)
-    ids, first, inverse = np.unique(run_labels, return_index=True, return_inverse=True)
-    order_of_run = np.argsort(np.argsort(first, kind="stable"), kind="stable")
-    rows = np.argsort(order_of_run[inverse], kind="stable")
+    ids, run_of_row = _run_codes(runs, path)
+    rows = np.argsort(run_of_row, kind="stable")
     signals = [n for n in table.column_names if n not in (RUN, TIME)]
     values = np.empty((table.num_rows, len(signals)))
     for j, name in enumerate(signals):
         values[:, j] = float_column(table, name, str(path))[rows]
-    lengths = np.bincount(order_of_run[inverse], minlength=len(ids))
+    lengths = np.bincount(run_of_row, minlength=len(ids))
     return TraceSet(
         signals=tuple(signals),
         time=float_column(table, TIME, str(path))[rows],
         values=values,
         offsets=np.concatenate([[0], np.cumsum(lengths)]),
-        run_ids=tuple(ids[np.argsort(first, kind="stable")]),
+        run_ids=ids,
         metadata=_metadata(table, path),
         source=str(path),
     )
+
+
+def _run_codes(runs: pa.ChunkedArray, path: Path) -> tuple[tuple[str, ...], np.ndarray]:
+    """Run labels (in order of first appearance) and each row's run index.
+
+    Dictionary-encoded in Arrow, so only the distinct labels ever become Python strings (not one
+    per row). Labels that are equal as text (e.g. ``1`` and ``"1"`` cannot occur in one typed
+    column) name one run.
+    """
+    encoded = pc.dictionary_encode(runs.combine_chunks()) if not pa.types.is_dictionary(
+        runs.type) else runs.combine_chunks()
+    labels = [str(v) for v in encoded.dictionary.to_pylist()]
+    codes = encoded.indices.to_numpy(zero_copy_only=False).astype(np.int64)
+    if pa.types.is_dictionary(runs.type):  # a stored dictionary may be unordered or unused
+        used, first = np.unique(codes, return_index=True)
+        order = used[np.argsort(first, kind="stable")]
+        remap = np.empty(len(labels), dtype=np.int64)
+        remap[order] = np.arange(len(order))
+        codes, labels = remap[codes], [labels[i] for i in order]
+    if len(set(labels)) != len(labels):
+        raise TraceSetError(f"{path}: column '{RUN}' has labels that differ only in type")
+    return tuple(labels), codes
 
 
 def _metadata(table: pa.Table, path: Path) -> dict:
@@ -71,8 +92,9 @@ def write(traces: TraceSet, path: Path) -> Path:
                             "naming the run of each row; rename it or write a CSV directory")
     path.parent.mkdir(parents=True, exist_ok=True)
     columns = {
-        RUN: pa.array(np.repeat(np.asarray(traces.run_ids, dtype=object), traces.lengths),
-                      type=pa.string()),
+        RUN: pa.DictionaryArray.from_arrays(  # integer codes per row, each label stored once
+            np.repeat(np.arange(traces.n_runs, dtype=np.int32), traces.lengths),
+            pa.array(traces.run_ids, type=pa.string())),
         TIME: traces.time,
     }
     columns.update({s: traces.values[:, j] for j, s in enumerate(traces.signals)})

@@ -14,7 +14,7 @@ from simcred.contracts.configure import configure, missing_model_requirement, se
 from simcred.contracts.library import Library
 from simcred.errors import SimcredError
 
-FIGURE2 = Path(__file__).resolve().parents[1] / "examples" / "contracts" / "figure2.yaml"
+FIGURE2 = Path(__file__).resolve().parents[2] / "examples" / "contracts" / "figure2.yaml"
 
 
 def test_figure2_picks_the_cheapest_valid_setup_with_a_proof():
@@ -86,7 +86,8 @@ def base_spec():
         (lambda s: s["models"]["M1"]["contract"].update(assumption="0 <= w <= 4"),
          "undeclared variable 'w'"),
         (lambda s: s["components"]["I2"].update(inputs=[{"q": "km"}]), "unit mismatch"),
-        (lambda s: s["components"]["I2"].update(outputs=["err", "q"]), "driven by two outputs"),
+        (lambda s: s["components"]["I2"].update(inputs=["v"], outputs=["err", "q"]),
+         "driven by two outputs"),
         (lambda s: s["models"]["M2a"]["contract"].update(guarantee="err <= "),
          "models.M2a.contract"),
         (lambda s: s["models"]["M1"].update(implements="I9"), "unknown component 'I9'"),

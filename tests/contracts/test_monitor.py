@@ -12,7 +12,7 @@ from simcred.contracts.monitor import monitor
 from simcred.errors import SimcredError
 from simcred.traces import TraceSet
 
-FIGURE2 = Path(__file__).resolve().parents[1] / "examples" / "contracts" / "figure2.yaml"
+FIGURE2 = Path(__file__).resolve().parents[2] / "examples" / "contracts" / "figure2.yaml"
 
 
 def runs_with_excursions(rng, n_runs=5, steps=200):

@@ -1,0 +1,101 @@
+"""From runs to state codes: pooled binning, history length and time windows.
+
+Neurohr et al. 2023 [1], sec. V-A builds a first-order, time-homogeneous chain on binned features;
+sec. V-B and VII name history length and time-inhomogeneity as open problems. Both are offered
+here as extensions of the state, so every test downstream stays unchanged:
+
+* ``history = k``: the state at step t is the vector of the last k binned states
+  (``x[t-k+1], …, x[t]``); a run's first state is its first full history (step k-1).
+* ``time_bins = n``: the time since the run's start, binned like a feature (equal-frequency on the
+  pooled times of both sets, :func:`~simcred.compare.discretize.feature_edges`), is one more
+  coordinate of the state, so every time window has its own transition law.
+
+References
+----------
+[1] Neurohr et al., Determining the Validity of Simulation Models for the Verification of ADSs,
+    IEEE Access, 2023.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from simcred.compare.discretize import StateSpace, feature_edges
+from simcred.errors import OptionError
+
+WINDOW = "window"
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class EncodedRuns:
+    """State codes of the runs of one set: ``codes[offsets[i]:offsets[i + 1]]`` is run ``i``."""
+
+    codes: np.ndarray
+    offsets: np.ndarray
+
+
+def elapsed(time: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+    """Time since the start of each row's run."""
+    return time - np.repeat(time[offsets[:-1]], np.diff(offsets))
+
+
+def state_space(values: Sequence[np.ndarray], times: Sequence[np.ndarray],
+                offsets: Sequence[np.ndarray], bins: Sequence[int], features: Sequence[str],
+                history: int = 1, time_bins: int | None = None) -> StateSpace:
+    """The grid of (lagged) binned features, plus the time window when ``time_bins`` is set.
+
+    Edges come from the pooled values of all sets; with history, every lag uses the same edges.
+    """
+    space = StateSpace.equal_frequency(np.vstack(values), bins, features).lagged(history)
+    if time_bins is None:
+        return space
+    pooled = np.concatenate([elapsed(t, o) for t, o in zip(times, offsets, strict=True)])
+    return space.with_extra(WINDOW, feature_edges(pooled, time_bins),
+                            (float(pooled.min()), float(pooled.max())))
+
+
+def encode(space: StateSpace, values: np.ndarray, time: np.ndarray, offsets: np.ndarray,
+           history: int = 1, windowed: bool = False, source: str = "<memory>") -> EncodedRuns:
+    """State codes of one set on ``space`` (built by :func:`state_space` with the same options).
+
+    The layout: ``history`` lagged copies of the base features, then the time window if
+    ``windowed``.
+    """
+    n_base = values.shape[1]
+    base = np.stack([np.searchsorted(space.edges[j], values[:, j], side="right")
+                     for j in range(n_base)], axis=1)
+    lengths = np.diff(offsets)
+    short = np.flatnonzero(lengths < history)
+    if short.size:
+        raise OptionError(f"{source}: run {int(short[0]) + 1} has {lengths[short[0]]} steps; "
+                          f"history {history} needs at least {history}")
+    position = np.arange(len(base)) - np.repeat(offsets[:-1], lengths)
+    keep = np.flatnonzero(position >= history - 1)
+    parts = [base[keep - lag] for lag in range(history - 1, -1, -1)]
+    if windowed:
+        window = np.searchsorted(space.edges[-1], elapsed(time, offsets)[keep], side="right")
+        parts.append(window[:, None])
+    grid = np.hstack(parts)
+    codes = np.ravel_multi_index(tuple(grid.T), space.shape).astype(np.int64)
+    new_offsets = offsets - np.arange(len(offsets)) * (history - 1)
+    return EncodedRuns(codes, new_offsets.astype(np.int64))
+
+
+def check_history(history: int) -> int:
+    if isinstance(history, bool) or not isinstance(history, int | np.integer) or history < 1:
+        raise OptionError(f"history must be an integer >= 1 (1 = the paper's first-order "
+                          f"chain), got {history!r}")
+    return int(history)
+
+
+def check_time_bins(time_bins: int | None) -> int | None:
+    if time_bins is None:
+        return None
+    if isinstance(time_bins, bool) or not isinstance(time_bins, int | np.integer) \
+            or time_bins < 2:
+        raise OptionError(f"time-bins must be an integer >= 2 (omit it for the paper's "
+                          f"time-homogeneous chain), got {time_bins!r}")
+    return int(time_bins)

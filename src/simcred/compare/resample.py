@@ -1,0 +1,66 @@
+"""Sample periods: both sets must share one, or be resampled to a common one.
+
+A chain's transition law depends on the sample period (at 0.1 s most transitions are self-loops,
+at 1 s few are), so two sets recorded at different periods differ for that reason alone. simcred
+refuses such a pair unless the user asks for a common period, to which every run is resampled by
+linear interpolation between its samples (``numpy.interp``), starting at the run's first time
+stamp and ending at or before its last.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+
+import numpy as np
+
+from simcred.errors import OptionError
+from simcred.traces import TraceSet
+
+#: Relative difference of median sample periods above which two sets count as different.
+PERIOD_RTOL = 1e-3
+
+
+def sample_period(traces: TraceSet) -> float:
+    """Median time step within runs."""
+    steps = np.diff(traces.time)
+    steps[traces.offsets[1:-1] - 1] = np.nan  # not a step: the boundary between two runs
+    return float(np.nanmedian(steps))
+
+
+def check_periods(sets: list[TraceSet]) -> None:
+    """One-line error if the sets' median sample periods differ by more than PERIOD_RTOL."""
+    periods = [sample_period(s) for s in sets]
+    for traces, period in zip(sets[1:], periods[1:], strict=True):
+        if abs(period - periods[0]) > PERIOD_RTOL * max(period, periods[0]):
+            raise OptionError(
+                f"sample periods differ: {sets[0].source} {periods[0]:.6g} s, {traces.source} "
+                f"{period:.6g} s; resample both to one period with --resample DT")
+
+
+def check_resample(dt: float | None) -> float | None:
+    if dt is None:
+        return None
+    if isinstance(dt, bool) or not isinstance(dt, numbers.Real) or not math.isfinite(dt) \
+            or dt <= 0:
+        raise OptionError(f"resample period must be a positive number of seconds, got {dt!r}")
+    return float(dt)
+
+
+def resample(traces: TraceSet, dt: float) -> TraceSet:
+    """Every run linearly interpolated to ``t0, t0 + dt, …`` (up to its last time stamp)."""
+    times, values, lengths = [], [], []
+    for i in range(traces.n_runs):
+        lo, hi = traces.offsets[i], traces.offsets[i + 1]
+        t = traces.time[lo:hi]
+        grid = t[0] + dt * np.arange(int(math.floor((t[-1] - t[0]) / dt + 1e-9)) + 1)
+        if len(grid) < 2:
+            raise OptionError(f"{traces.source}: run '{traces.run_ids[i]}' lasts "
+                              f"{t[-1] - t[0]:.6g} s, less than one resample period {dt:g} s")
+        times.append(grid)
+        values.append(np.column_stack([np.interp(grid, t, traces.values[lo:hi, j])
+                                       for j in range(len(traces.signals))]))
+        lengths.append(len(grid))
+    return TraceSet(traces.signals, np.concatenate(times), np.vstack(values),
+                    np.concatenate([[0], np.cumsum(lengths)]), traces.run_ids,
+                    traces.metadata, traces.source)

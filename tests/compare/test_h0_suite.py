@@ -1,0 +1,147 @@
+"""Size of the run-level test under H0 on data that breaks the per-transition assumptions.
+
+Five seeded generators, each producing two sets of runs of one and the same process:
+
+* ``traits`` — per-run hidden driver traits (Beta(2, 5)) shift each run's level and noise;
+* ``selfloops`` — a smooth speed/acceleration process sampled at 0.1 s (mostly self-loops);
+* ``fewruns`` — 20–50 runs per set (unequal), AR(1) with a milder per-run trait;
+* ``secondorder`` — an AR(2) process observed through first-order states;
+* ``timephase`` — accelerate / cruise / brake phases: the law depends on the time since start.
+
+For each, ``TRIALS`` comparisons with ``PERMUTATIONS`` run permutations: the chain-level rejection
+rate must lie in [0.5α, 1.5α] at α = 0.05 and be ≤ 2α at α = 0.01; with FWER control the
+probability of a non-zero distance must be ≤ 1.5α at α = 0.05 (issue 11). The per-transition
+permutation test on the same designs is measured by ``main()`` (docs/calibration.md), not asserted.
+Run ``python tests/compare/test_h0_suite.py`` to print the table.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+from simcred.compare import compare
+from simcred.traces import TraceSet
+
+TRIALS = 1000
+PERMUTATIONS = 99
+BINS = 4
+
+
+def traceset(xy: np.ndarray, dt: float = 1.0) -> TraceSet:
+    """(runs, steps, 2) array → TraceSet with signals x, y."""
+    runs, steps, _ = xy.shape
+    return TraceSet(("x", "y"), np.tile(np.arange(steps) * dt, runs), xy.reshape(-1, 2),
+                    np.arange(runs + 1) * steps, tuple(str(i) for i in range(runs)))
+
+
+def ar1(rng, runs, steps, phi, level, noise):
+    """x_t = level + phi (x_{t-1} - level) + noise·e_t, per run ``level`` and ``noise``."""
+    x = np.empty((runs, steps))
+    x[:, 0] = level + noise * rng.normal(size=runs) / np.sqrt(1 - phi * phi)
+    for t in range(1, steps):
+        x[:, t] = level + phi * (x[:, t - 1] - level) + noise * rng.normal(size=runs)
+    return x
+
+
+def traits(rng, runs=40, steps=40):
+    theta = rng.beta(2, 5, size=runs)
+    x = ar1(rng, runs, steps, 0.8, 3 * theta, 0.3 + theta)
+    y = ar1(rng, runs, steps, 0.5, -2 * theta, 0.5)
+    return traceset(np.stack([x, y], axis=2))
+
+
+def selfloops(rng, runs=40, steps=100, dt=0.1):
+    acc = np.empty((runs, steps))
+    acc[:, 0] = rng.normal(0, 0.5, size=runs)
+    for t in range(1, steps):
+        acc[:, t] = 0.97 * acc[:, t - 1] + rng.normal(0, 0.12, size=runs)
+    speed = rng.normal(15, 2, size=runs)[:, None] + np.cumsum(acc, axis=1) * dt
+    return traceset(np.stack([speed, acc], axis=2), dt)
+
+
+def fewruns(rng, steps=40):
+    runs = int(rng.integers(20, 51))
+    theta = rng.beta(2, 2, size=runs)
+    x = ar1(rng, runs, steps, 0.7, theta, 1.0)
+    y = ar1(rng, runs, steps, 0.3, 0.0, 1.0)
+    return traceset(np.stack([x, y], axis=2))
+
+
+def secondorder(rng, runs=40, steps=40):
+    def ar2(a1, a2):
+        x = np.zeros((runs, steps + 20))
+        for t in range(2, steps + 20):
+            x[:, t] = a1 * x[:, t - 1] + a2 * x[:, t - 2] + rng.normal(size=runs)
+        return x[:, 20:]
+    return traceset(np.stack([ar2(1.5, -0.7), ar2(0.2, 0.6)], axis=2))
+
+
+def timephase(rng, runs=40, steps=45):
+    t = np.arange(steps)
+    phase_acc = np.where(t < 15, 1.0, np.where(t < 30, 0.0, -1.2))
+    acc = phase_acc[None, :] * rng.uniform(0.7, 1.3, size=(runs, 1)) \
+        + rng.normal(0, 0.4, size=(runs, steps))
+    speed = 10 + np.cumsum(acc, axis=1)
+    return traceset(np.stack([speed, acc], axis=2))
+
+
+GENERATORS = {"traits": traits, "selfloops": selfloops, "fewruns": fewruns,
+              "secondorder": secondorder, "timephase": timephase}
+
+
+def trial(generator, seed: int, test: str = "runs", **options):
+    """One H0 comparison: (chain p-value or None, distance > 0 at α = 0.05)."""
+    rng = np.random.default_rng(seed)
+    a, b = generator(rng), generator(rng)
+    result = compare(a, b, bins=BINS, test=test, alpha=0.05, permutations=PERMUTATIONS,
+                     seed=seed, continue_on_start_difference=True, **options)
+    chain = None if result.chain is None else result.chain.pvalue
+    return chain, bool(result.distance)
+
+
+def rates(name: str, trials: int = TRIALS, **options) -> dict[str, float]:
+    seeds = np.random.SeedSequence(list(name.encode())).generate_state(trials)
+    outcomes = [trial(GENERATORS[name], int(s), **options) for s in seeds]
+    chain = np.array([c for c, _ in outcomes], dtype=float)
+    return {"chain@0.05": float(np.mean(chain <= 0.05)),
+            "chain@0.01": float(np.mean(chain <= 0.01)),
+            "distance>0": float(np.mean([d for _, d in outcomes]))}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", sorted(GENERATORS))
+def test_run_level_test_holds_its_level(name):
+    measured = rates(name)
+    assert 0.025 <= measured["chain@0.05"] <= 0.075, measured
+    assert measured["chain@0.01"] <= 0.02, measured
+    assert measured["distance>0"] <= 0.075, measured  # FWER (default multiplicity) at α = 0.05
+
+
+def test_generators_break_the_per_transition_assumptions():
+    """Sanity check that the designs matter: the per-transition permutation test, which treats
+    transitions as independent, rejects far more often than its level on the trait design."""
+    rejected = [trial(traits, seed, test="permutation", multiplicity="none")[1]
+                for seed in range(20)]
+    assert np.mean(rejected) > 0.5  # measured 1.0 (distance > 0 in every same-model pair)
+
+
+def main() -> None:
+    print(f"H0 suite: {TRIALS} comparisons per design, {PERMUTATIONS} permutations, "
+          f"{BINS} bins per feature")
+    print("| design | chain rejection α=0.05 | chain rejection α=0.01 | P(distance>0), fwer, "
+          "α=0.05 | per-transition permutation: P(distance>0), α=0.05 |")
+    print("|---|---|---|---|---|")
+    for name in GENERATORS:
+        r = rates(name)
+        per = rates(name, trials=200, test="permutation", multiplicity="none")
+        print(f"| {name} | {r['chain@0.05']:.3f} | {r['chain@0.01']:.3f} | "
+              f"{r['distance>0']:.3f} | {per['distance>0']:.3f} |")
+
+
+if __name__ == "__main__":
+    started = time.perf_counter()
+    main()
+    print(f"({time.perf_counter() - started:.0f} s)")

@@ -1,0 +1,173 @@
+"""Dimensional analysis inside assertions (issue 15, item 2).
+
+Property tests: random assertions built dimension by dimension are accepted, and their resolved
+form (literals and variables converted exactly to one unit per sum or comparison) has the truth
+value of the same assertion computed in SI base units by a literal oracle; random assertions
+with one unlike operand are refused.
+"""
+
+from __future__ import annotations
+
+from fractions import Fraction
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import strategies as st
+
+from simcred.contracts.expr import (
+    Arith,
+    Compare,
+    ExpressionError,
+    Quantity,
+    Var,
+    evaluate,
+    parse,
+    to_text,
+)
+from simcred.contracts.units import _registry
+
+UNITS = {"d1": "m", "d2": "km", "t1": "s", "t2": "min", "v1": "m/s", "v2": "km/h",
+         "a1": "m/s^2", "lx": "lux"}
+VARIABLES = {"length": ["d1", "d2"], "time": ["t1", "t2"], "speed": ["v1", "v2"],
+             "acceleration": ["a1"], "illuminance": ["lx"]}
+LITERAL_UNITS = {"length": ["m", "km", "cm", "mile", "ft"], "time": ["s", "min", "h", "ms"],
+                 "speed": ["m/s", "km/h", "mph", "knot"], "acceleration": ["m/s^2", "g0"],
+                 "illuminance": ["lux", "lm/m^2"]}
+PRODUCTS = {"length": [("*", "speed", "time")], "speed": [("/", "length", "time"),
+                                                          ("*", "acceleration", "time")],
+            "time": [("/", "length", "speed")], "acceleration": [("/", "speed", "time")],
+            "illuminance": []}
+SETTINGS = settings(derandomize=True, database=None, deadline=None, max_examples=300,
+                    suppress_health_check=[HealthCheck.too_slow])
+
+positive = st.builds(Fraction, st.integers(1, 60), st.integers(1, 8))
+
+
+@st.composite
+def term(draw, dim: str, depth: int = 0):
+    kinds = ["var", "literal"] + (["sum", "minmax", "unary", "product"] if depth < 3 else [])
+    kind = draw(st.sampled_from(kinds))
+    if kind == "product" and not PRODUCTS[dim]:
+        kind = "var"
+    if kind == "var":
+        return Var(draw(st.sampled_from(VARIABLES[dim])))
+    if kind == "literal":
+        return Quantity(draw(positive), draw(st.sampled_from(LITERAL_UNITS[dim])))
+    if kind == "sum":
+        return Arith(draw(st.sampled_from("+-")), (draw(term(dim, depth + 1)),
+                                                   draw(term(dim, depth + 1))))
+    if kind == "minmax":
+        return Arith(draw(st.sampled_from(["min", "max"])), (draw(term(dim, depth + 1)),
+                                                             draw(term(dim, depth + 1))))
+    if kind == "unary":
+        return Arith(draw(st.sampled_from(["abs", "neg"])), (draw(term(dim, depth + 1)),))
+    op, left, right = draw(st.sampled_from(PRODUCTS[dim]))
+    return Arith(op, (draw(term(left, depth + 1)), draw(term(right, depth + 1))))
+
+
+dimensions = st.sampled_from(sorted(VARIABLES))
+
+
+@st.composite
+def well_dimensioned(draw):
+    dim = draw(dimensions)
+    return Compare(draw(st.sampled_from(["<=", "<", ">=", ">"])), draw(term(dim)),
+                   draw(term(dim)))
+
+
+@st.composite
+def ill_dimensioned(draw):
+    """A comparison or a sum somewhere with operands of two different dimensions."""
+    first, second = draw(st.lists(dimensions, min_size=2, max_size=2, unique=True))
+    where = draw(st.sampled_from(["compare", "sum-left", "sum-right"]))
+    if where == "compare":
+        return Compare("<=", draw(term(first)), draw(term(second)))
+    bad = Arith(draw(st.sampled_from("+-")), (draw(term(first)), draw(term(second))))
+    return Compare("<=", bad, draw(term(first))) if where == "sum-left" else \
+        Compare("<=", draw(term(first)), Arith("max", (draw(term(first)), bad)))
+
+
+# -- the SI oracle -------------------------------------------------------------------------------
+
+
+def si(unit_text: str) -> Fraction:
+    """Factor from ``unit_text`` to SI base units (pint, exact)."""
+    q = _registry().Quantity(Fraction(1), unit_text).to_base_units()
+    return Fraction(q.magnitude)
+
+
+def si_value(e, point):
+    """Value of a term in SI base units: variables from ``point`` (in their declared unit)."""
+    if isinstance(e, Var):
+        return point[e.name] * si(UNITS[e.name])
+    if isinstance(e, Quantity):
+        return e.value * si(e.unit)
+    args = [si_value(a, point) for a in e.args]
+    return {"+": lambda: args[0] + args[1], "-": lambda: args[0] - args[1],
+            "*": lambda: args[0] * args[1], "/": lambda: args[0] / args[1],
+            "min": lambda: min(args), "max": lambda: max(args), "abs": lambda: abs(args[0]),
+            "neg": lambda: -args[0]}[e.op]()
+
+
+def si_truth(c: Compare, point) -> bool:
+    a, b = si_value(c.left, point), si_value(c.right, point)
+    return {"<=": a <= b, "<": a < b, ">=": a >= b, ">": a > b}[c.op]
+
+
+@SETTINGS
+@given(well_dimensioned(), st.integers(0, 2**32 - 1))
+def test_well_dimensioned_assertions_are_accepted_and_mean_what_si_says(c, seed):
+    text = to_text(c)
+    resolved = parse(text, units=UNITS)
+    rng = np.random.default_rng(seed)
+    point = {n: Fraction(int(rng.integers(1, 200)), int(rng.integers(1, 7))) for n in UNITS}
+    try:
+        expected = si_truth(c, point)
+    except ZeroDivisionError:
+        assume(False)
+    columns = {n: np.array([v], dtype=object) for n, v in point.items()}
+    assert bool(evaluate(resolved, columns)) == expected, (text, point)
+
+
+@SETTINGS
+@given(ill_dimensioned())
+def test_ill_dimensioned_assertions_are_refused(c):
+    with pytest.raises(ExpressionError, match="unlike dimensions"):
+        parse(to_text(c), units=UNITS)
+
+
+@pytest.mark.parametrize(("text", "expected"), [
+    ("v1 <= 100 km/h", "v1 <= (250/9)"),
+    ("v2 <= 10 m/s", "v2 <= 36"),
+    ("lx >= 1 lux", "lx >= 1"),
+    ("d1 <= 1 mile", "d1 <= 1609.344"),
+    ("v1 + v2 <= 3", "v1 + (5/18) * v2 <= 3"),  # a variable in another unit is scaled exactly
+    ("a1 <= 1 g0", "a1 <= 9.80665"),
+    ("v1 <= 30", "v1 <= 30"),  # a bare number takes the unit of what it meets
+    ("d1 <= v1 * 2 s", "d1 <= v1 * 2"),
+    ("d1 <= 3 [km]", "d1 <= 3000"),
+])
+def test_literals_are_converted_exactly(text, expected):
+    assert to_text(parse(text, units=UNITS)) == expected
+
+
+def test_unit_literals_need_declared_units():
+    with pytest.raises(ExpressionError, match="needs the units of the variables"):
+        parse("v <= 100 km/h")
+
+
+def test_library_assertions_are_dimension_checked():
+    from simcred.contracts.library import Library
+    from simcred.errors import SimcredError
+
+    spec = {"variables": {"v": {"unit": "m/s"}, "q": {"unit": "m"}},
+            "components": {"I": {"inputs": ["v"], "outputs": ["q"]}},
+            "models": {"M": {"implements": "I", "cost": 1,
+                             "contract": {"assumption": "v <= 100 km/h", "guarantee": "q <= v"}}}}
+    with pytest.raises(SimcredError, match="models.M.contract: guarantee: .*unlike dimensions"):
+        Library.from_dict(spec)
+    spec["models"]["M"]["contract"]["guarantee"] = "q <= v * 1 s + 5 cm"
+    lib = Library.from_dict(spec)
+    assert to_text(lib.model_contracts["M"].guarantee) == "q <= v * 1 + 0.05"
+    assert to_text(lib.model_contracts["M"].assumption) == "v <= (250/9)"
