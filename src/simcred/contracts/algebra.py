@@ -66,9 +66,15 @@ class Verdict:
         def plain(v):
             return v if isinstance(v, bool | int) else float(v)
 
+        def exact(v):
+            return v if isinstance(v, bool | int) else str(Fraction(v))
+
+        example = self.counterexample
         return {"verdict": self.status.value,
-                "counterexample": None if self.counterexample is None
-                else {k: plain(v) for k, v in self.counterexample.items()},
+                "counterexample": None if example is None
+                else {k: plain(v) for k, v in example.items()},
+                "counterexample_exact": None if example is None
+                else {k: exact(v) for k, v in example.items()},
                 "clauses": list(self.clauses), "reason": self.reason}
 
 
