@@ -1,0 +1,209 @@
+"""The user's loop (DESIGN.md): measurements → per-cell comparisons → learned domains →
+contracts → configuration → monitors → one verdict for the test case.
+
+Verdict of a candidate for the test case (its operating conditions, ``test_case.conditions``):
+
+* ``valid`` — its learned contract refines the test case's (z3 proof): every operating point of
+  the test case lies in a valid cell and the measured distance bound meets ``max_distance``;
+* ``not valid`` — a cell that meets the test case's conditions is not valid, or the measured
+  bound exceeds ``max_distance``;
+* ``inconclusive`` — otherwise: the test case reaches cells without enough data (unknown) or
+  beyond the grid.
+
+The overall verdict is ``valid`` when configuration finds a candidate (the cheapest whose contract
+refines the test case), ``not valid`` when every candidate is not valid, else ``inconclusive``.
+Exit codes 0 / 1 / 3.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from simcred.contracts.algebra import Contract, Status, valid
+from simcred.contracts.configure import configure, setup_refines, uncovered_assumptions
+from simcred.contracts.expr import Bool, negate, parse
+from simcred.contracts.library import Library, LibraryError
+from simcred.contracts.monitor import MonitorReport, monitor
+from simcred.traces import TraceSet
+from simcred.validate.cells import Grid, grid_of, segments
+from simcred.validate.domain import CellStatus, Domain, learn_domain
+from simcred.validate.learned import COMPONENT, TEST_CASE, library_dict
+from simcred.validate.spec import RunsSpec, ValidationFileError, ValidationSpec
+
+VALID, NOT_VALID, INCONCLUSIVE = "valid", "not valid", "inconclusive"
+EXIT_CODES = {VALID: 0, NOT_VALID: 1, INCONCLUSIVE: 3}
+MAX_VIOLATIONS = 50  # per monitor in verdict.json; the count says how many there are
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Inputs:
+    reference: TraceSet
+    candidates: dict[str, TraceSet]
+    monitored: tuple[TraceSet, ...]
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class CandidateVerdict:
+    candidate: str
+    verdict: str
+    reasons: tuple[str, ...]
+    relevant_cells: tuple[int, ...]
+    proof: dict[str, Any] | None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"candidate": self.candidate, "verdict": self.verdict, "reasons":
+                list(self.reasons), "test_case_cells": list(self.relevant_cells),
+                "refinement": self.proof}
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Validation:
+    """Everything the loop found; ``verdict`` and ``exit_code`` answer the user's question."""
+
+    spec: ValidationSpec
+    grid: Grid
+    domains: dict[str, Domain]
+    candidates: dict[str, CandidateVerdict]
+    verdict: str
+    summary: str
+    library: dict[str, Any]
+    configuration: dict[str, Any] | None
+    uncovered: dict[str, list[dict]]
+    monitors: dict[str, MonitorReport]
+
+    @property
+    def exit_code(self) -> int:
+        return EXIT_CODES[self.verdict]
+
+    def library_yaml(self) -> str:
+        return yaml.safe_dump(self.library, sort_keys=False, allow_unicode=True, width=100)
+
+
+def read_inputs(spec: ValidationSpec, base: Path) -> Inputs:
+    return Inputs(_read(spec.reference, base),
+                  {n: _read(c.runs, base) for n, c in spec.candidates.items()},
+                  tuple(_read(m, base) for m in spec.monitor))
+
+
+def _read(runs: RunsSpec, base: Path) -> TraceSet:
+    path = Path(runs.path)
+    return TraceSet.read(path if path.is_absolute() else base / path, **runs.options)
+
+
+def check_test_case(spec: ValidationSpec, source: str) -> None:
+    """The test case's conditions parse over the condition variables (else a one-line error
+    naming ``test_case.conditions``)."""
+    try:
+        Library.from_dict(library_dict(spec, {}), source=source)
+    except LibraryError as exc:
+        message = str(exc).split(": test_cases.test_case: ", 1)[-1]
+        raise ValidationFileError(f"{source}: test_case.conditions: {message}") from None
+
+
+def validate(spec: ValidationSpec, inputs: Inputs, *, source: str = "<memory>") -> Validation:
+    """Run the loop (module docs) on validated inputs."""
+    check_test_case(spec, source)
+    _check_signals(spec, inputs)
+    grid = grid_of(spec.conditions)
+    reference = segments(inputs.reference, grid, spec.segments.min_length)
+    domains = {n: learn_domain(spec, grid, reference, runs, n)
+               for n, runs in inputs.candidates.items()}
+    data = library_dict(spec, domains)
+    library = Library.from_dict(data, source="learned contracts")
+    target = library.test_case(TEST_CASE)
+    relevant = _relevant_cells(grid, target, library)
+    verdicts = {n: _candidate_verdict(n, d, relevant, library, target)
+                for n, d in domains.items()}
+    configuration = configure(library, TEST_CASE).to_dict() if library.spec.models else None
+    uncovered = {n: [_plain_point(u) for u in uncovered_assumptions(library, TEST_CASE,
+                                                                     {COMPONENT: n})]
+                 for n in library.spec.models}
+    monitors = _monitors(library, inputs)
+    verdict, summary = _overall(spec, verdicts, configuration)
+    return Validation(spec, grid, domains, verdicts, verdict, summary, data, configuration,
+                      uncovered, monitors)
+
+
+def _check_signals(spec: ValidationSpec, inputs: Inputs) -> None:
+    needed = [*spec.conditions, *spec.features]
+    for traces, key in ((inputs.reference, "reference"),
+                        *((t, f"candidates.{n}") for n, t in inputs.candidates.items())):
+        for name in needed:
+            if name not in traces.signals:
+                raise ValidationFileError(f"{traces.source}: no signal '{name}' ({key}; signals "
+                                          f"are: {', '.join(traces.signals)})")
+
+
+def _relevant_cells(grid: Grid, target: Contract, library: Library) -> tuple[int, ...]:
+    """Cells (half-open, as rows are assigned) that meet the test case's conditions."""
+    out = []
+    for cell in range(grid.n_cells):
+        box = parse(grid.assertion(cell, half_open=True), declared=library.spec.variables)
+        disjoint = valid([box], negate(target.assumption), types=library.types)
+        if disjoint.status is not Status.HOLDS:
+            out.append(cell)
+    return tuple(out)
+
+
+def _candidate_verdict(name: str, domain: Domain, relevant: tuple[int, ...], library: Library,
+                       target: Contract) -> CandidateVerdict:
+    cells = [domain.cells[c] for c in relevant]
+    bad = [c for c in cells if c.status is CellStatus.NOT_VALID]
+    unknown = [c for c in cells if c.status is CellStatus.UNKNOWN]
+    proof = None
+    if name in library.spec.models:
+        proof = setup_refines(library, {COMPONENT: name}, target).to_dict()
+    reasons = [f"not valid in {c.label}: {c.reason}" for c in bad]
+    reasons += [f"unknown in {c.label}: {c.reason}" for c in unknown]
+    if proof is not None and proof["verdict"] == "holds":
+        return CandidateVerdict(name, VALID, (f"valid in all {len(cells)} cells of the test "
+                                              "case; its learned contract refines the test "
+                                              "case (z3)",), relevant, proof)
+    if not bad and not unknown and proof is not None:
+        if "distance" in " ".join(proof["clauses"]):
+            bad_bound = f"measured distance bound {domain.bound:g} exceeds the required one"
+            return CandidateVerdict(name, NOT_VALID, (bad_bound,), relevant, proof)
+        reasons.append("the test case's conditions reach beyond the grid: "
+                       f"{proof['counterexample']}")
+    if not cells:
+        reasons.append("no cell of the grid meets the test case's conditions")
+    return CandidateVerdict(name, NOT_VALID if bad else INCONCLUSIVE, tuple(reasons), relevant,
+                            proof)
+
+
+def _plain_point(entry: dict) -> dict:
+    """An uncovered assumption with its operating point as floats and exact text."""
+    at = entry["at"]
+    return {**entry, "at": {k: float(v) for k, v in at.items()},
+            "at_exact": {k: str(v) for k, v in at.items()}}
+
+
+def _monitors(library: Library, inputs: Inputs) -> dict[str, MonitorReport]:
+    """Each learned domain (assumption only: runs carry no distance) over the candidate's own
+    runs and over every monitored set."""
+    out = {}
+    for name in library.spec.models:
+        domain = Contract(library.model_contracts[name].assumption, Bool(True), name)
+        out[f"{name} on its own runs"] = monitor(inputs.candidates[name], {name: domain})
+        for i, traces in enumerate(inputs.monitored):
+            out[f"{name} on monitor[{i}]"] = monitor(traces, {name: domain})
+    return out
+
+
+def _overall(spec: ValidationSpec, verdicts: dict[str, CandidateVerdict],
+             configuration: dict[str, Any] | None) -> tuple[str, str]:
+    question = f"'{spec.test_case.conditions}'"
+    if configuration is not None and configuration["status"] == "holds":
+        chosen = configuration["setup"][COMPONENT]
+        return VALID, (f"VALID: {chosen} is valid for the test case {question} (the cheapest "
+                       "candidate whose learned contract refines the test case)")
+    if all(v.verdict == NOT_VALID for v in verdicts.values()):
+        names = ", ".join(verdicts)
+        return NOT_VALID, f"NOT VALID: no candidate ({names}) is valid for {question}"
+    open_ = ", ".join(n for n, v in verdicts.items() if v.verdict == INCONCLUSIVE)
+    return INCONCLUSIVE, (f"INCONCLUSIVE: not enough data to decide for {question} "
+                          f"({open_}: cells without enough data or outside the grid)")
