@@ -11,7 +11,7 @@ from collections.abc import Sequence
 
 import typer
 
-from simcred.cli import compare, contracts, convert, paper, reprocess, simulate  # noqa: F401
+from simcred.cli import compare, contracts, convert, paper, reprocess, simulate, validate  # noqa: F401, E501
 from simcred.cli._app import app, err_console
 
 __all__ = ["app", "entry", "run"]
