@@ -24,14 +24,16 @@ from typing import Any
 import yaml
 
 from simcred.contracts.algebra import Contract, Status, valid
-from simcred.contracts.configure import configure, setup_refines, uncovered_assumptions
-from simcred.contracts.expr import Bool, negate, parse
-from simcred.contracts.library import Library, LibraryError
+from simcred.contracts.configure import configure, setup_refines
+from simcred.contracts.expr import Bool, negate, parse, to_text
+from simcred.contracts.library import Library
 from simcred.contracts.monitor import MonitorReport, monitor
+from simcred.errors import SimcredError
 from simcred.traces import TraceSet
 from simcred.validate.cells import Grid, grid_of, segments
 from simcred.validate.domain import CellStatus, Domain, learn_domain
-from simcred.validate.learned import COMPONENT, TEST_CASE, library_dict
+from simcred.validate.learned import COMPONENT, METRIC, TEST_CASE, library_dict
+from simcred.validate.learned import number as _exact_text
 from simcred.validate.spec import RunsSpec, ValidationFileError, ValidationSpec
 
 VALID, NOT_VALID, INCONCLUSIVE = "valid", "not valid", "inconclusive"
@@ -72,7 +74,7 @@ class Validation:
     summary: str
     library: dict[str, Any]
     configuration: dict[str, Any] | None
-    uncovered: dict[str, list[dict]]
+    uncovered: dict[str, list[str]]
     monitors: dict[str, MonitorReport]
 
     @property
@@ -99,7 +101,7 @@ def check_test_case(spec: ValidationSpec, source: str) -> None:
     naming ``test_case.conditions``)."""
     try:
         Library.from_dict(library_dict(spec, {}), source=source)
-    except LibraryError as exc:
+    except SimcredError as exc:
         message = str(exc).split(": test_cases.test_case: ", 1)[-1]
         raise ValidationFileError(f"{source}: test_case.conditions: {message}") from None
 
@@ -116,12 +118,11 @@ def validate(spec: ValidationSpec, inputs: Inputs, *, source: str = "<memory>") 
     library = Library.from_dict(data, source="learned contracts")
     target = library.test_case(TEST_CASE)
     relevant = _relevant_cells(grid, target, library)
-    verdicts = {n: _candidate_verdict(n, d, relevant, library, target)
+    beyond_text = _beyond_grid(grid, target, library)
+    verdicts = {n: _candidate_verdict(n, d, relevant, library, target, beyond_text)
                 for n, d in domains.items()}
-    configuration = configure(library, TEST_CASE).to_dict() if library.spec.models else None
-    uncovered = {n: [_plain_point(u) for u in uncovered_assumptions(library, TEST_CASE,
-                                                                     {COMPONENT: n})]
-                 for n in library.spec.models}
+    configuration = _configuration(library)
+    uncovered = {n: _uncovered(d, relevant, beyond_text) for n, d in domains.items()}
     monitors = _monitors(library, inputs)
     verdict, summary = _overall(spec, verdicts, configuration)
     return Validation(spec, grid, domains, verdicts, verdict, summary, data, configuration,
@@ -149,37 +150,66 @@ def _relevant_cells(grid: Grid, target: Contract, library: Library) -> tuple[int
     return tuple(out)
 
 
+def _configuration(library: Library) -> dict[str, Any] | None:
+    """Configuration on the learned contracts, without solver models (z3's counterexamples
+    depend on the solver's history in the process, which would break byte-identical
+    verdicts)."""
+    if not library.spec.models:
+        return None
+    found = configure(library, TEST_CASE)
+    return {"status": found.status.value, "setup": found.setup, "cost": found.cost,
+            "proof": None if found.proof is None else _proof(found.proof), "method": found.method,
+            "reason": found.reason}
+
+
+def _proof(verdict) -> dict[str, Any]:
+    return {"verdict": verdict.status.value, "clauses": list(verdict.clauses),
+            "reason": verdict.reason}
+
+
+def _beyond_grid(grid: Grid, target: Contract, library: Library) -> str:
+    """'' if the test case's conditions lie inside the grid, else what reaches beyond it."""
+    box = parse(" and ".join(f"{lo} <= {v} <= {hi}" for v, lo, hi in
+                             ((v, _exact_text(e[0]), _exact_text(e[-1]))
+                              for v, e in zip(grid.variables, grid.edges, strict=True))),
+                declared=library.spec.variables)
+    inside = valid([target.assumption], box, types=library.types)
+    if inside.status is Status.HOLDS:
+        return ""
+    return f"the test case's conditions reach beyond the grid ({to_text(box)})"
+
+
+def _uncovered(domain: Domain, relevant: tuple[int, ...], beyond: str) -> list[str]:
+    """What of the test case the candidate's learned domain does not cover, cell by cell."""
+    out = [f"{domain.cells[c].label}: {domain.cells[c].status.value}" for c in relevant
+           if domain.cells[c].status is not CellStatus.VALID]
+    return out + ([beyond] if beyond else [])
+
+
 def _candidate_verdict(name: str, domain: Domain, relevant: tuple[int, ...], library: Library,
-                       target: Contract) -> CandidateVerdict:
+                       target: Contract, beyond: str) -> CandidateVerdict:
     cells = [domain.cells[c] for c in relevant]
     bad = [c for c in cells if c.status is CellStatus.NOT_VALID]
     unknown = [c for c in cells if c.status is CellStatus.UNKNOWN]
     proof = None
     if name in library.spec.models:
-        proof = setup_refines(library, {COMPONENT: name}, target).to_dict()
+        proof = _proof(setup_refines(library, {COMPONENT: name}, target))
     reasons = [f"not valid in {c.label}: {c.reason}" for c in bad]
     reasons += [f"unknown in {c.label}: {c.reason}" for c in unknown]
     if proof is not None and proof["verdict"] == "holds":
         return CandidateVerdict(name, VALID, (f"valid in all {len(cells)} cells of the test "
                                               "case; its learned contract refines the test "
                                               "case (z3)",), relevant, proof)
-    if not bad and not unknown and proof is not None:
-        if "distance" in " ".join(proof["clauses"]):
-            bad_bound = f"measured distance bound {domain.bound:g} exceeds the required one"
-            return CandidateVerdict(name, NOT_VALID, (bad_bound,), relevant, proof)
-        reasons.append("the test case's conditions reach beyond the grid: "
-                       f"{proof['counterexample']}")
+    if not bad and not unknown and proof is not None \
+            and any(METRIC in c for c in proof["clauses"]):
+        bad_bound = f"measured distance bound {domain.bound:g} exceeds the required one"
+        return CandidateVerdict(name, NOT_VALID, (bad_bound,), relevant, proof)
+    if beyond:
+        reasons.append(beyond)
     if not cells:
         reasons.append("no cell of the grid meets the test case's conditions")
     return CandidateVerdict(name, NOT_VALID if bad else INCONCLUSIVE, tuple(reasons), relevant,
                             proof)
-
-
-def _plain_point(entry: dict) -> dict:
-    """An uncovered assumption with its operating point as floats and exact text."""
-    at = entry["at"]
-    return {**entry, "at": {k: float(v) for k, v in at.items()},
-            "at_exact": {k: str(v) for k, v in at.items()}}
 
 
 def _monitors(library: Library, inputs: Inputs) -> dict[str, MonitorReport]:
