@@ -30,6 +30,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/contracts.py
 	$(BIN)/python benchmarks/reprocess.py
 	$(BIN)/python benchmarks/vary.py
+	$(BIN)/python benchmarks/sumo.py
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks

@@ -30,14 +30,15 @@ echo
 echo "== 6. the report"
 "$simcred" report "$out/all"
 echo
-echo "== 7. a real A9 recording (sensor data only), reprocessed"
-a9="$(dirname "$0")/../../shared/data/real/osc-generator-a9/trajectories_file.csv"
-if [ -f "$a9" ]; then
-  "$simcred" reprocess "$a9" --out "$out/a9" --threshold 0.1
-else
-  echo "(skipped: $a9 not found)"
-fi
+echo "== 7. a real A9 recording (sensor data only, shipped in simcred.data), reprocessed"
+a9="$("$simcred" data path a9/trajectories_file.csv)"
+"$simcred" reprocess "$a9" --out "$out/a9" --threshold 0.1
 echo
-echo "Outputs in $out/: compare-*/, matrix/, all/ (paper000/, paper002/, paper003/, claims.json), a9/"
+echo "== 8. real data meets a real simulator: OpenACC human car following (shipped) vs SUMO"
+echo "   Krauss/IDM/EIDM/ACC replaying the recorded leaders, and vs real ACC, per speed band"
+"$simcred" study car-following --out "$out/study" --seed 0
+echo
+echo "Outputs in $out/: compare-*/, matrix/, all/ (paper000/, paper002/, paper003/, claims.json), a9/,"
+echo "  study/ (study.json, matrix.csv/png, headway.png, bands/, maps/, comparisons/)"
 echo
 echo "The report: $(cd "$out/all" && pwd)/index.html"

@@ -10,11 +10,12 @@ import numpy as np
 import pyproj
 import pytest
 
+from simcred import data
 from simcred.errors import TraceSetError
 from simcred.io.a9 import A9Recording, heading_offset, lane_changer, lane_offset, read_a9
 
 SUBDIR = Path("data") / "real" / "osc-generator-a9"
-CANDIDATES = [Path(__file__).resolve().parents[2] / "shared" / SUBDIR,
+CANDIDATES = [data.path("a9"), Path(__file__).resolve().parents[2] / "shared" / SUBDIR,
               Path("/work/shared") / SUBDIR]
 DATA = next((p for p in CANDIDATES if (p / "trajectories_file.csv").is_file()), None)
 pytestmark = pytest.mark.skipif(

@@ -19,6 +19,8 @@ import numpy as np
 from simcred.errors import TraceSetError
 
 TIME = "t"
+#: Metadata key of per-run facts: ``metadata[RUN_INFO][run_id]`` is a JSON-able mapping.
+RUN_INFO = "run_info"
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -289,4 +291,33 @@ def concat(parts: Sequence[TraceSet], *, source: str | None = None,
         run_ids=tuple(r for p in parts for r in p.run_ids),
         metadata=dict(first.metadata if metadata is None else metadata),
         source=first.source if source is None else source,
+    )
+
+
+def take(traces: TraceSet, runs: Sequence[int], *, source: str | None = None) -> TraceSet:
+    """The runs ``runs`` (indices, in that order, no repeats) of ``traces`` as a new set.
+
+    Per-run metadata under :data:`RUN_INFO` keeps only the taken runs; other metadata is kept.
+    """
+    index = np.asarray(runs, dtype=np.int64).reshape(-1)
+    if index.size == 0:
+        raise TraceSetError(f"{traces.source}: no runs to take")
+    if len(np.unique(index)) != index.size or index.min() < 0 or index.max() >= traces.n_runs:
+        raise TraceSetError(f"{traces.source}: run indices must be distinct and in "
+                            f"[0, {traces.n_runs}), got {index.tolist()[:5]}...")
+    lo, hi = traces.offsets[index], traces.offsets[index + 1]
+    rows = np.concatenate([np.arange(a, b) for a, b in zip(lo, hi, strict=True)])
+    ids = tuple(traces.run_ids[i] for i in index)
+    metadata = dict(traces.metadata)
+    if isinstance(metadata.get(RUN_INFO), Mapping):
+        metadata[RUN_INFO] = {r: metadata[RUN_INFO][r] for r in ids if r in metadata[RUN_INFO]}
+    return TraceSet(
+        signals=traces.signals,
+        time=traces.time[rows],
+        values=traces.values[rows],
+        offsets=np.concatenate([[0], np.cumsum(hi - lo)]),
+        run_ids=ids,
+        metadata=metadata,
+        source=traces.source if source is None else source,
+        run_sources=tuple(traces.run_sources[i] for i in index) if traces.run_sources else (),
     )

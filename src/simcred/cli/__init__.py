@@ -11,7 +11,17 @@ from collections.abc import Sequence
 
 import typer
 
-from simcred.cli import compare, contracts, convert, paper, reprocess, simulate, validate  # noqa: F401, E501
+from simcred.cli import (  # noqa: F401  (importing registers the commands)
+    compare,
+    contracts,
+    convert,
+    data,
+    paper,
+    reprocess,
+    simulate,
+    study,
+    validate,
+)
 from simcred.cli._app import app, err_console
 
 __all__ = ["app", "entry", "run"]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 
 import matplotlib
@@ -70,14 +71,15 @@ def _project(grid: dict[str, np.ndarray], axes: tuple[int, int]) -> dict[str, np
     return out
 
 
-def state_map(result: Comparison, path: str | Path, features: tuple[str, str] | None = None
-              ) -> Path:
+def state_map(result: Comparison, path: str | Path, features: tuple[str, str] | None = None,
+              *, labels: Mapping[str, str] | None = None, title: str | None = None) -> Path:
     """Where A and B differ: the state grid over two features, in feature units.
 
     Left: the verdict per start state (rejected, kept, untestable, no transitions). Right: the
     number of successor samples m + n per start state (log scale). With more than two features
     the grid is projected onto the two chosen ones (a cell is 'rejected' if any state in it is).
-    With one feature the map is a strip.
+    With one feature the map is a strip. ``labels`` names the axes (e.g. with units:
+    ``{"gap": "gap [m]"}``); ``title`` replaces the default title (the two input names).
     """
     names = result.space.features
     chosen = features or (names[:2] if len(names) > 1 else (names[0], names[0]))
@@ -108,11 +110,11 @@ def state_map(result: Comparison, path: str | Path, features: tuple[str, str] | 
     fig.colorbar(mesh, ax=right, label="successor samples m + n")
     right.set_title("samples per start state (A + B)", fontsize=10)
     for ax in (left, right):
-        ax.set_xlabel(chosen[0])
-        ax.set_ylabel(chosen[1] if len(names) > 1 else "")
+        ax.set_xlabel((labels or {}).get(chosen[0], chosen[0]))
+        ax.set_ylabel((labels or {}).get(chosen[1], chosen[1]) if len(names) > 1 else "")
         if len(names) == 1:
             ax.set_yticks([])
     a, b = (Path(i.source).name for i in result.inputs)
-    fig.suptitle(f"{a} vs {b}: {result.options.kernel} kernel, {result.options.test} test, "
-                 f"α = {result.options.alpha}", fontsize=11)
+    fig.suptitle(f"{title or f'{a} vs {b}'}: {result.options.kernel} kernel, "
+                 f"{result.options.test} test, α = {result.options.alpha}", fontsize=11)
     return _save(fig, Path(path))

@@ -1,0 +1,64 @@
+"""simcred data: the real data shipped with simcred (OpenACC, the A9 recording)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from simcred.cli._app import app, one_line_errors, out_console
+
+data_app = typer.Typer(help="Real data shipped with simcred (with licences and attribution).")
+app.add_typer(data_app, name="data")
+
+
+@data_app.command("path")
+@one_line_errors
+def data_path(
+    name: Annotated[str, typer.Argument(help="A shipped file or folder, e.g. "
+                                             "a9/trajectories_file.csv or openacc.")],
+) -> None:
+    """Print the path of a shipped data file or folder."""
+    from simcred import data
+
+    typer.echo(str(data.path(name)))  # plain: a path is not rich markup
+
+
+@data_app.command("list")
+def data_list() -> None:
+    """List every shipped data file."""
+    from simcred import data
+
+    for name in data.names():
+        typer.echo(name)
+
+
+@data_app.command("openacc")
+@one_line_errors
+def data_openacc(
+    out: Annotated[Path, typer.Option(help="Trace set to write: a .parquet file or a CSV "
+                                           "directory.")],
+    follower: Annotated[str | None, typer.Option(help="human or acc (default: both).")] = None,
+    source: Annotated[Path | None, typer.Option(help="Folder of OpenACC CSV or Parquet files "
+                                                     "(default: the shipped copy).")] = None,
+    duration: Annotated[float, typer.Option(help="Episode length \\[s].")] = 10.0,
+    min_leader_speed: Annotated[float, typer.Option(help="Leader's mean speed must exceed "
+                                                         "this \\[m/s].")] = 2.0,
+    min_gap: Annotated[float, typer.Option(help="Smallest plausible gap \\[m].")] = 0.5,
+    max_gap: Annotated[float, typer.Option(help="Largest plausible gap \\[m].")] = 120.0,
+) -> None:
+    """Cut OpenACC leader–follower episodes (gap \\[m], dv \\[m/s], v \\[m/s], a \\[m/s²],
+    v_leader \\[m/s]) into a trace set; prints what each episode rule removed."""
+    from simcred.io.openacc import EpisodeRules, read_openacc
+
+    rules = EpisodeRules(duration=duration, min_leader_speed=min_leader_speed,
+                         gap_range=(min_gap, max_gap))
+    traces = read_openacc(source, rules, follower=follower)
+    path = traces.write(out)
+    cut = traces.metadata["cut"]
+    out_console.print(
+        f"wrote {path}: {traces.n_runs} episodes of {duration} s from {cut['files']} files, "
+        f"{cut['pairs']} pairs; of {cut['possible']} possible: {cut['removed_incomplete']} "
+        f"incomplete, {cut['removed_leader_stopped']} leader stopped, {cut['removed_gap']} gap "
+        f"out of range, {cut['kept']} kept", highlight=False)
