@@ -17,26 +17,16 @@ import json
 from collections import Counter
 
 from simcred.validate.loop import Inputs, validate
-from simcred.validate.spec import parse_validation
-from simcred.validate.synthetic import universe
+from simcred.validate.synthetic import universe, validation_spec
 
 EFFECTS = (0.0, 0.05, 0.1, 0.15, 0.2)
-
-
-def spec(seed: int, permutations: int = 99):
-    return parse_validation({
-        "test_case": {"conditions": "5 <= v <= 30"},
-        "reference": {"path": "-"}, "candidates": {"sim": {"runs": {"path": "-"}}},
-        "features": ["x"], "conditions": {"v": {"unit": "m/s", "edges": [5, 10, 15, 20, 25, 30]}},
-        "comparison": {"bins": 4, "permutations": permutations, "alpha": 0.05, "seed": seed},
-        "min_data": {"runs": 8, "samples": 200}})
 
 
 def outcome(effect: float, seed: int, runs: int = 100, steps: int = 150) -> Counter:
     """Per (side of the switch, status): how many cells."""
     reference = universe(runs, steps, seed=1000 + seed)
     candidate = universe(runs, steps, seed=2000 + seed, effect=effect, v_switch=20, name="sim")
-    result = validate(spec(seed), Inputs(reference, {"sim": candidate}, ()))
+    result = validate(validation_spec(seed), Inputs(reference, {"sim": candidate}, ()))
     counts = Counter()
     for cell in result.domains["sim"].cells:
         side = "above" if cell.index[0] >= 3 else "below"

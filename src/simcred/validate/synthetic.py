@@ -41,3 +41,18 @@ def universe(runs: int, steps: int, *, seed: int, effect: float = 0.0,
                               metadata={"generator": "simcred.validate.synthetic", "seed": seed,
                                         "effect": effect, "v_switch": v_switch},
                               source=name)
+
+
+def validation_spec(seed: int, *, permutations: int = 99, min_runs: int = 8):
+    """The validation of the universe used in docs/validate.md: cells 5-10-...-30 m/s, feature
+    ``x``, 4 bins, the chain test at alpha = 0.05, at least ``min_runs`` segments and 200
+    samples per side and cell. (Paths are placeholders: pass the sets with
+    :class:`~simcred.validate.loop.Inputs`.)"""
+    from simcred.validate.spec import parse_validation
+
+    return parse_validation({
+        "test_case": {"conditions": "5 <= v <= 30"},
+        "reference": {"path": "-"}, "candidates": {"sim": {"runs": {"path": "-"}}},
+        "features": ["x"], "conditions": {"v": {"unit": "m/s", "edges": [5, 10, 15, 20, 25, 30]}},
+        "comparison": {"bins": 4, "permutations": permutations, "alpha": 0.05, "seed": seed},
+        "min_data": {"runs": min_runs, "samples": 200}})
