@@ -1,0 +1,81 @@
+"""The validation report: text checks (verdict first, domain map, escaping, self-contained) and a
+real headless Chromium that finds the verdict, the domain map and every image decoded."""
+
+from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import matplotlib.image as mpimg
+import pytest
+
+from simcred.cli import run
+
+from .conftest import write_universe
+
+ROOT = Path(__file__).resolve().parents[2]
+TIMEOUT = 60
+
+
+@pytest.fixture(scope="module")
+def report(tmp_path_factory) -> Path:
+    folder = tmp_path_factory.mktemp("validate")
+    path = write_universe(folder, name="<b>evil</b> & name",
+                          monitor=[{"path": "twin.parquet"}])
+    assert run(["-q", "validate", str(path), "--out", str(folder / "out")]) == 1
+    return folder / "out" / "report.html"
+
+
+def test_report_text(report):
+    html = report.read_text()
+    body = html[html.index("<main>"):]
+    assert body.index('id="verdict"') < body.index('id="candidate-sim"')
+    assert "NOT VALID" in body[:body.index('id="candidate-sim"')]
+    assert 'id="domain-map-sim"' in html
+    assert "&lt;b&gt;evil&lt;/b&gt; &amp; name" in html and "<b>evil</b>" not in html
+    assert not re.search(r'(src|href)="(?!data:)', html)  # nothing outside the file
+    images = re.findall(r'<img src="data:image/png;base64,', html)
+    assert len(images) == 1 + 5  # the domain map and one state map per compared cell
+    assert 'id="configuration"' in html and 'id="provenance"' in html
+    assert "sim on monitor[0]" in html
+
+
+def _chromium() -> str:
+    found = shutil.which("chromium") or shutil.which("chromium-browser")
+    if found is None:
+        subprocess.run(["bash", str(ROOT / "scripts" / "ensure_chromium.sh")],
+                       capture_output=True, timeout=900, check=False)
+        found = shutil.which("chromium") or shutil.which("chromium-browser")
+    if found is None:
+        pytest.fail("the validation report's browser test needs Chromium "
+                    "(scripts/ensure_chromium.sh could not install it)", pytrace=False)
+    return found
+
+
+def _headless(chromium: str, profile: Path, *args: str) -> subprocess.CompletedProcess:
+    command = [chromium, "--headless", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
+               "--no-first-run", "--no-default-browser-check", "--hide-scrollbars",
+               f"--user-data-dir={profile}", *args]
+    return subprocess.run(command, capture_output=True, text=True, timeout=TIMEOUT, check=False)
+
+
+@pytest.mark.slow
+def test_report_renders_in_chromium(report, tmp_path):
+    chromium = _chromium()
+    url = report.resolve().as_uri()
+    shot = tmp_path / "shot.png"
+    done = _headless(chromium, tmp_path / "p1", f"--screenshot={shot}", "--window-size=1280,1400",
+                     url)
+    assert shot.is_file(), f"no screenshot (exit {done.returncode}): {done.stderr[-800:]}"
+    pixels = mpimg.imread(shot)
+    assert pixels.shape[:2] == (1400, 1280) and pixels[..., :3].std() > 0.01
+    dom = _headless(chromium, tmp_path / "p2", "--dump-dom", "--virtual-time-budget=5000",
+                    url).stdout
+    assert 'id="verdict"' in dom and "NOT VALID" in dom
+    assert 'id="domain-map-sim"' in dom
+    match = re.search(r'<body[^>]*\bdata-images-loaded="(\d+)/(\d+)"', dom)
+    assert match, "the page's load handler did not run"
+    loaded, total = map(int, match.groups())
+    assert loaded == total == 6
