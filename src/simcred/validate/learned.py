@@ -36,8 +36,8 @@ def library_dict(spec: ValidationSpec, domains: dict[str, Domain]) -> dict[str, 
         valid = domain.with_status(CellStatus.VALID)
         if not valid:
             continue
-        cells = [domain.grid.assertion(c.cell) for c in valid]
-        assumption = " or ".join(f"({c})" for c in cells) if len(cells) > 1 else cells[0]
+        parts = domain_parts(domain)
+        assumption = " or ".join(f"({c})" for c in parts) if len(parts) > 1 else parts[0]
         models[name] = {
             "implements": COMPONENT,
             "cost": spec.candidates[name].cost,
@@ -54,6 +54,23 @@ def library_dict(spec: ValidationSpec, domains: dict[str, Domain]) -> dict[str, 
                                    "guarantee": f"{METRIC} <= "
                                                 f"{number(spec.test_case.max_distance)}"}},
     }
+
+
+def domain_parts(domain: Domain) -> list[str]:
+    """The valid cells as closed boxes; with one condition variable, runs of adjacent valid
+    cells are merged into one interval (the same set, shorter text)."""
+    valid = [c.cell for c in domain.with_status(CellStatus.VALID)]
+    grid = domain.grid
+    if len(grid.variables) > 1:
+        return [grid.assertion(c) for c in valid]
+    runs: list[list[int]] = []
+    for c in valid:
+        if runs and runs[-1][-1] == c - 1:
+            runs[-1].append(c)
+        else:
+            runs.append([c])
+    edges, name = grid.edges[0], grid.variables[0]
+    return [f"{number(edges[r[0]])} <= {name} <= {number(edges[r[-1] + 1])}" for r in runs]
 
 
 def number(value: float) -> str:

@@ -32,7 +32,7 @@ from simcred.errors import SimcredError
 from simcred.traces import TraceSet
 from simcred.validate.cells import Grid, grid_of, segments
 from simcred.validate.domain import CellStatus, Domain, learn_domain
-from simcred.validate.learned import COMPONENT, METRIC, TEST_CASE, library_dict
+from simcred.validate.learned import COMPONENT, TEST_CASE, library_dict
 from simcred.validate.learned import number as _exact_text
 from simcred.validate.spec import RunsSpec, ValidationFileError, ValidationSpec
 
@@ -119,7 +119,8 @@ def validate(spec: ValidationSpec, inputs: Inputs, *, source: str = "<memory>") 
     target = library.test_case(TEST_CASE)
     relevant = _relevant_cells(grid, target, library)
     beyond_text = _beyond_grid(grid, target, library)
-    verdicts = {n: _candidate_verdict(n, d, relevant, library, target, beyond_text)
+    verdicts = {n: _candidate_verdict(n, d, relevant, library, target, beyond_text,
+                                      spec.test_case.max_distance)
                 for n, d in domains.items()}
     configuration = _configuration(library)
     uncovered = {n: _uncovered(d, relevant, beyond_text) for n, d in domains.items()}
@@ -163,8 +164,10 @@ def _configuration(library: Library) -> dict[str, Any] | None:
 
 
 def _proof(verdict) -> dict[str, Any]:
-    return {"verdict": verdict.status.value, "clauses": list(verdict.clauses),
-            "reason": verdict.reason}
+    """The refinement verdict without the solver's clauses and model (which clauses a
+    counterexample violates, or which premises an unsat core names, depends on z3's history
+    within the process)."""
+    return {"verdict": verdict.status.value, "reason": verdict.reason}
 
 
 def _beyond_grid(grid: Grid, target: Contract, library: Library) -> str:
@@ -187,7 +190,7 @@ def _uncovered(domain: Domain, relevant: tuple[int, ...], beyond: str) -> list[s
 
 
 def _candidate_verdict(name: str, domain: Domain, relevant: tuple[int, ...], library: Library,
-                       target: Contract, beyond: str) -> CandidateVerdict:
+                       target: Contract, beyond: str, required: float) -> CandidateVerdict:
     cells = [domain.cells[c] for c in relevant]
     bad = [c for c in cells if c.status is CellStatus.NOT_VALID]
     unknown = [c for c in cells if c.status is CellStatus.UNKNOWN]
@@ -201,7 +204,7 @@ def _candidate_verdict(name: str, domain: Domain, relevant: tuple[int, ...], lib
                                               "case; its learned contract refines the test "
                                               "case (z3)",), relevant, proof)
     if not bad and not unknown and proof is not None \
-            and any(METRIC in c for c in proof["clauses"]):
+            and domain.bound > required:
         bad_bound = f"measured distance bound {domain.bound:g} exceeds the required one"
         return CandidateVerdict(name, NOT_VALID, (bad_bound,), relevant, proof)
     if beyond:
