@@ -2,7 +2,11 @@
 
 (a) count-based compare vs the literal sample-based oracle (tests/oracle.py), identical results;
 (b) the 9×9 distance matrix, bound and permutation test, serial and on 2 worker processes;
-(c) one per-state permutation test at 2·10⁴, 2·10⁵, 2·10⁶ samples (cost flat in N).
+(c) one per-state permutation test at 2·10⁴, 2·10⁵, 2·10⁶ samples (cost flat in N);
+(d) the run-level test (default) on 2 × 10,000 runs × 200 steps × 2 features, 999 permutations,
+    against the paper's per-transition permutation test on the same data, with peak memory;
+(e) peak RSS of every test mode on 2 × 20,000 runs × 300 steps × 3 features (12 M rows), each in
+    its own process.
 
 Times are best-of-k wall-clock seconds on this machine; every figure of merit is a ratio against a
 reference measured in the same run. Usage: python benchmarks/compare.py [--quick]
@@ -12,6 +16,8 @@ from __future__ import annotations
 
 import argparse
 import json
+import resource
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -32,6 +38,7 @@ from simcred.compare.kernels import Kernel  # noqa: E402
 from simcred.compare.mmd import Estimator, MMDTestSpec, Test, mmd_test  # noqa: E402
 from simcred.engine import Engine, engine  # noqa: E402
 from simcred.examples import lane_change_runs  # noqa: E402
+from simcred.traces import TraceSet  # noqa: E402
 
 FEATURES = ["x", "y"]
 
@@ -127,20 +134,110 @@ def bench_flat_in_n(permutations: int) -> list[dict]:
     return rows
 
 
+def trait_set(rng, runs: int, steps: int, features: int, shift: float = 0.0) -> TraceSet:
+    """AR(1) runs with a Beta-distributed per-run level, sampled at 0.1 s (built columnar)."""
+    x = np.empty((runs, steps, features))
+    level = rng.beta(2, 5, size=(runs, features)) + shift
+    x[:, 0] = rng.normal(size=(runs, features))
+    for t in range(1, steps):
+        x[:, t] = 0.9 * x[:, t - 1] + 0.1 * level + rng.normal(0, 0.3, size=(runs, features))
+    return TraceSet(tuple("xyz"[:features]), np.tile(np.arange(steps) * 0.1, runs),
+                    x.reshape(-1, features), np.arange(runs + 1) * steps,
+                    tuple(map(str, range(runs))))
+
+
+def _child(test: str, runs: int, steps: int, features: int, permutations: int) -> None:
+    """Run one comparison and print wall/CPU seconds and this process's peak RSS as JSON."""
+    rng = np.random.default_rng(0)
+    a, b = trait_set(rng, runs, steps, features), trait_set(rng, runs, steps, features, 0.05)
+    a.digest(), b.digest()
+    rss_data = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    wall, cpu = time.perf_counter(), time.process_time()
+    result = compare(a, b, test=test, permutations=permutations, seed=1)
+    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+    print(json.dumps({"wall_s": wall, "cpu_s": cpu, "data_peak_mb": rss_data,
+                      "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+                      "distance": result.distance,
+                      "chain_pvalue": None if result.chain is None else result.chain.pvalue}))
+
+
+def in_process(test: str, runs: int, steps: int, features: int, permutations: int) -> dict:
+    out = subprocess.run([sys.executable, __file__, "--child", test, str(runs), str(steps),
+                          str(features), str(permutations)], capture_output=True, text=True,
+                         check=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def bench_run_level(runs: int, steps: int, permutations: int, repeats: int = 3) -> list[dict]:
+    rows = []
+    for test in ("runs", "permutation"):
+        measured = [in_process(test, runs, steps, 2, permutations) for _ in range(repeats)]
+        best = min(measured, key=lambda m: m["wall_s"])
+        rows.append({"case": f"(d) {test} test, 2 × {runs:,} runs × {steps} steps × 2 features, "
+                             f"{permutations} perm.", "seconds": best["wall_s"],
+                     "cpu_seconds": best["cpu_s"], "peak_rss_mb": best["peak_rss_mb"],
+                     "data_peak_mb": best["data_peak_mb"]})
+    rows[0]["target"] = "< 5 s on 2 cores"
+    for row in rows:
+        row["ratio_to_per_transition"] = row["seconds"] / rows[1]["seconds"]
+    return rows
+
+
+def bench_memory(runs: int, steps: int, permutations: int) -> list[dict]:
+    rows = []
+    for test in ("runs", "bound", "permutation"):
+        m = in_process(test, runs, steps, 3, permutations)
+        rows.append({"case": f"(e) {test} test, 2 × {runs:,} runs × {steps} steps × 3 features "
+                             f"({2 * runs * steps / 1e6:.0f} M rows)", "seconds": m["wall_s"],
+                     "peak_rss_mb": m["peak_rss_mb"], "data_peak_mb": m["data_peak_mb"],
+                     "target": "peak RSS < 2 GB"})
+    for row in rows:
+        row["ratio_to_data"] = row["peak_rss_mb"] / row["data_peak_mb"]
+    return rows
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--quick", action="store_true", help="smaller sizes, for a smoke run")
+    parser.add_argument("--only", choices=["run-level"], help="only the run-level benchmarks")
+    parser.add_argument("--child", nargs=5, help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.child:
+        test, *sizes = args.child
+        _child(test, *map(int, sizes))
+        return
     scale = 10 if args.quick else 1
-    results = {
-        "machine": machine(),
-        "oracle": bench_oracle(500 // scale, 200),
-        "matrix": bench_matrix(1000 // scale, 200, 999),
-        "flat_in_n": bench_flat_in_n(999),
-    }
+    results = {"machine": machine()}
+    if args.only is None:
+        results.update({
+            "oracle": bench_oracle(500 // scale, 200),
+            "matrix": bench_matrix(1000 // scale, 200, 999),
+            "flat_in_n": bench_flat_in_n(999),
+        })
+    results["run_level"] = bench_run_level(10_000 // scale, 200, 999)
+    results["memory"] = bench_memory(20_000 // scale, 300, 999)
     table = Table(title="simcred compare benchmarks")
     for column in ("case", "seconds", "ratio", "note"):
         table.add_column(column)
+    if "oracle" in results:
+        _paper_rows(table, results)
+    for row in results["run_level"]:
+        table.add_row(row["case"], f"{row['seconds']:.2f} (CPU {row['cpu_seconds']:.2f})",
+                      f"{row['ratio_to_per_transition']:.2f}× per-transition permutation",
+                      f"peak RSS {row['peak_rss_mb']:.0f} MB (data alone "
+                      f"{row['data_peak_mb']:.0f} MB) {row.get('target', '')}")
+    for row in results["memory"]:
+        table.add_row(row["case"], f"{row['seconds']:.1f}",
+                      f"{row['ratio_to_data']:.2f}× data alone",
+                      f"peak RSS {row['peak_rss_mb']:.0f} MB; {row['target']}")
+    Console(width=170).print(table)
+    name = "compare-run-level" if args.only else "compare"
+    out = ROOT / "benchmarks" / "results" / (f"{name}-quick.json" if args.quick else f"{name}.json")
+    out.write_text(json.dumps(results, indent=1) + "\n")
+    print(f"wrote {out}")
+
+
+def _paper_rows(table: Table, results: dict) -> None:
     o = results["oracle"]
     table.add_row(o["case"], f"{o['count_based_s']:.3f} vs {o['literal_s']:.1f}",
                   f"{o['speedup']:.0f}× faster", f"identical: {o['identical']}; {o['target']}")
@@ -156,10 +253,6 @@ def main() -> None:
         table.add_row(row["case"], f"{row['seconds'] * 1e3:.2f} ms",
                       f"{row['ratio_to_smallest_N']:.2f}× N=2·10⁴",
                       f"counting the samples: {row['counting_seconds'] * 1e3:.1f} ms")
-    Console(width=170).print(table)
-    out = ROOT / "benchmarks" / "results" / ("compare-quick.json" if args.quick else "compare.json")
-    out.write_text(json.dumps(results, indent=1) + "\n")
-    print(f"wrote {out}")
 
 
 if __name__ == "__main__":

@@ -137,6 +137,20 @@ class TraceSet:
             f"signals={list(self.signals)})"
         )
 
+    @property
+    def units(self) -> dict[str, str]:
+        """Unit per signal, from ``metadata["units"]`` (e.g. ``{"ego.v": "m/s"}``).
+
+        Kept in ``traceset.json`` (CSV directory) or the Parquet schema metadata, like all
+        metadata; signals without an entry have no known unit.
+        """
+        raw = self.metadata.get("units", {})
+        if not isinstance(raw, Mapping) or not all(
+                isinstance(k, str) and isinstance(v, str) for k, v in raw.items()):
+            raise TraceSetError(f"{self.source}: metadata 'units' must map signal names to "
+                                "unit strings")
+        return dict(raw)
+
     def column(self, name: str) -> np.ndarray:
         """All rows of one signal (or of ``t``), concatenated over runs."""
         if name == TIME:

@@ -22,74 +22,12 @@ import time
 import numpy as np
 import pytest
 
+from compare_designs import GENERATORS, traits
 from simcred.compare import compare
-from simcred.traces import TraceSet
 
 TRIALS = 1000
 PERMUTATIONS = 99
 BINS = 4
-
-
-def traceset(xy: np.ndarray, dt: float = 1.0) -> TraceSet:
-    """(runs, steps, 2) array → TraceSet with signals x, y."""
-    runs, steps, _ = xy.shape
-    return TraceSet(("x", "y"), np.tile(np.arange(steps) * dt, runs), xy.reshape(-1, 2),
-                    np.arange(runs + 1) * steps, tuple(str(i) for i in range(runs)))
-
-
-def ar1(rng, runs, steps, phi, level, noise):
-    """x_t = level + phi (x_{t-1} - level) + noise·e_t, per run ``level`` and ``noise``."""
-    x = np.empty((runs, steps))
-    x[:, 0] = level + noise * rng.normal(size=runs) / np.sqrt(1 - phi * phi)
-    for t in range(1, steps):
-        x[:, t] = level + phi * (x[:, t - 1] - level) + noise * rng.normal(size=runs)
-    return x
-
-
-def traits(rng, runs=40, steps=40):
-    theta = rng.beta(2, 5, size=runs)
-    x = ar1(rng, runs, steps, 0.8, 3 * theta, 0.3 + theta)
-    y = ar1(rng, runs, steps, 0.5, -2 * theta, 0.5)
-    return traceset(np.stack([x, y], axis=2))
-
-
-def selfloops(rng, runs=40, steps=100, dt=0.1):
-    acc = np.empty((runs, steps))
-    acc[:, 0] = rng.normal(0, 0.5, size=runs)
-    for t in range(1, steps):
-        acc[:, t] = 0.97 * acc[:, t - 1] + rng.normal(0, 0.12, size=runs)
-    speed = rng.normal(15, 2, size=runs)[:, None] + np.cumsum(acc, axis=1) * dt
-    return traceset(np.stack([speed, acc], axis=2), dt)
-
-
-def fewruns(rng, steps=40):
-    runs = int(rng.integers(20, 51))
-    theta = rng.beta(2, 2, size=runs)
-    x = ar1(rng, runs, steps, 0.7, theta, 1.0)
-    y = ar1(rng, runs, steps, 0.3, 0.0, 1.0)
-    return traceset(np.stack([x, y], axis=2))
-
-
-def secondorder(rng, runs=40, steps=40):
-    def ar2(a1, a2):
-        x = np.zeros((runs, steps + 20))
-        for t in range(2, steps + 20):
-            x[:, t] = a1 * x[:, t - 1] + a2 * x[:, t - 2] + rng.normal(size=runs)
-        return x[:, 20:]
-    return traceset(np.stack([ar2(1.5, -0.7), ar2(0.2, 0.6)], axis=2))
-
-
-def timephase(rng, runs=40, steps=45):
-    t = np.arange(steps)
-    phase_acc = np.where(t < 15, 1.0, np.where(t < 30, 0.0, -1.2))
-    acc = phase_acc[None, :] * rng.uniform(0.7, 1.3, size=(runs, 1)) \
-        + rng.normal(0, 0.4, size=(runs, steps))
-    speed = 10 + np.cumsum(acc, axis=1)
-    return traceset(np.stack([speed, acc], axis=2))
-
-
-GENERATORS = {"traits": traits, "selfloops": selfloops, "fewruns": fewruns,
-              "secondorder": secondorder, "timephase": timephase}
 
 
 def trial(generator, seed: int, test: str = "runs", **options):

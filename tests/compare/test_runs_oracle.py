@@ -125,6 +125,7 @@ def test_blockwise_kernel_equals_dense(monkeypatch):
     grid = np.unique(rng.integers(0, 12, size=(600, 3)), axis=0)
     d = rng.normal(size=(len(grid), 5))
     for kernel in (Kernel.GAUSSIAN, Kernel.LAPLACE):
+        monkeypatch.setattr(kernels, "SEPARABLE_LIMIT", 0)
         dense = KernelOperator(grid, kernel, 2.5, (12, 12, 12))
         assert dense.dense is not None
         monkeypatch.setattr(kernels, "DENSE_LIMIT", 100)
@@ -215,6 +216,7 @@ def test_large_state_path_equals_dense_path(kernel, estimator, monkeypatch):
     dense = mmd.batch_statistics(grid, cx, cy, kernel, estimator, (9, 9, 9))
     monkeypatch.setattr(mmd, "DENSE_LIMIT", 50)
     monkeypatch.setattr(kernels, "DENSE_LIMIT", 50)
+    monkeypatch.setattr(kernels, "SEPARABLE_LIMIT", 0)
     monkeypatch.setattr(kernels, "ROW_BLOCK", 32)
     large = mmd.batch_statistics(grid, cx, cy, kernel, estimator, (9, 9, 9))
     np.testing.assert_allclose(large[0], dense[0], rtol=1e-10, atol=1e-12)
@@ -230,3 +232,34 @@ def test_median_bandwidths_in_chunks_equal_one_chunk(monkeypatch):
     whole = kernels.median_bandwidths(dist, cx, cy)
     monkeypatch.setattr(kernels, "PAIR_BUDGET", dist.size * 3)
     np.testing.assert_array_equal(kernels.median_bandwidths(dist, cx, cy), whole)
+
+
+@pytest.mark.parametrize(("chunk", "sparse_ratio"), [(2**25, 256), (40, 256), (2**25, 10**9),
+                                                     (40, 1)])
+def test_dense_sparse_and_chunked_products_agree(chunk, sparse_ratio, monkeypatch):
+    rng = np.random.default_rng(12)
+    a = random_walk_set(rng, runs=25, drift=0.0)
+    b = random_walk_set(rng, runs=20, drift=0.4)
+    reference = compare(a, b, features=FEATURES, bins=5, permutations=49, seed=3)
+    monkeypatch.setattr(runs, "CHUNK_BUDGET", chunk)
+    monkeypatch.setattr(runs, "SPARSE_RATIO", sparse_ratio)
+    other = compare(a, b, features=FEATURES, bins=5, permutations=49, seed=3)
+    assert other.to_json() == reference.to_json()
+
+
+@pytest.mark.parametrize("kernel", [Kernel.GAUSSIAN, Kernel.LAPLACE])
+def test_separable_kernel_equals_dense(kernel):
+    """Gaussian and Laplace kernels factor over features: Kronecker application = dense."""
+    rng = np.random.default_rng(3)
+    shape = (7, 5, 6)
+    codes = rng.choice(np.prod(shape), size=150, replace=False)
+    grid = np.stack(np.unravel_index(np.sort(codes), shape), axis=1)
+    separable = KernelOperator(grid, kernel, 1.7, shape)
+    assert separable.factors is not None
+    dense = KernelOperator(grid[:20], kernel, 1.7, shape)  # U² small: the dense matrix
+    assert dense.dense is not None and dense.factors is None
+    d = rng.normal(size=(len(grid), 9))
+    levels = kernels.integer_levels(grid, grid, kernel).astype(float)
+    matrix = np.exp(-levels / (2 * 1.7 ** 2)) if kernel is Kernel.GAUSSIAN \
+        else np.exp(-levels / 1.7)
+    np.testing.assert_allclose(separable.apply(d), matrix @ d, rtol=1e-12, atol=1e-12)

@@ -138,3 +138,22 @@ def test_parquet_run_labels_round_trip_via_dictionary_codes(tmp_path):
     read = TraceSet.read(tmp_path / "plain.parquet")
     assert read.run_ids == ("r2", "r1")
     np.testing.assert_array_equal(read.column("x"), [5.0, 6.0, 1.0, 2.0])
+
+
+def test_units_round_trip_and_mismatch(tmp_path):
+    rng = np.random.default_rng(7)
+    runs = [{"t": np.arange(10) * 0.1, "gap": rng.normal(20, 2, 10), "v": rng.normal(10, 1, 10)}
+            for _ in range(12)]
+    a = TraceSet.from_runs(runs[:6], metadata={"units": {"gap": "m", "v": "m/s"}}, source="a")
+    b = TraceSet.from_runs(runs[6:], metadata={"units": {"v": "m/s"}}, source="b")
+    for path in (tmp_path / "a", tmp_path / "a.parquet"):
+        assert TraceSet.read(a.write(path)).units == {"gap": "m", "v": "m/s"}
+    result = compare(a, b, features="gap,v", bins=3, permutations=19, seed=0)
+    assert result.units == ("m", "m/s")
+    assert '"units": [' in result.to_json()
+    kmh = TraceSet.from_runs(runs[6:], metadata={"units": {"v": "km/h"}}, source="b")
+    with pytest.raises(OptionError, match="unit mismatch for 'v': a has 'm/s', b has 'km/h'"):
+        compare(a, kmh, features="gap,v", bins=3, test="bound")
+    bad = TraceSet.from_runs(runs[6:], metadata={"units": ["m"]}, source="bad")
+    with pytest.raises(ValueError, match="bad: metadata 'units' must map signal names"):
+        compare(a, bad, features="gap,v", bins=3, test="bound")

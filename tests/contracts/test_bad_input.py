@@ -175,6 +175,8 @@ CASES = [
     ("bad-given", None, "--given", ["quotient", "--test-case", "C_tc", "--given", "I1"]),
     ("given-wrong-model", None, "not a model of component", ["quotient", "--test-case", "C_tc",
                                                              "--given", "I1=M2a"]),
+    ("timeout-zero", None, "--timeout-ms", ["refines", "--refining", "M1", "--refined", "M1",
+                                            "--timeout-ms", "0"]),
     ("unknown-contract", None, "no contract, model or test case named", [
         "refines", "--refining", "M9", "--refined", "M1"]),
 ]

@@ -35,11 +35,11 @@ def test_monitor_finds_the_planted_violations_exactly():
     found = {(v.contract, v.kind, v.clause, v.run, v.first_step, v.last_step)
              for v in report.violations}
     assert ("M1", "assumption", "v <= 40", "r3", 50, 53) in found
-    assert ("M2a", "guarantee", "err <= (1/10)", "r3", 120, 120) in found
+    assert ("M2a", "guarantee", "err <= 0.1", "r3", 120, 120) in found
     # at v = 45, q = 67.5 leaves M1's guarantee and M2a's domain: reported, but only there
     assert all(v.run == "r3" and 50 <= v.first_step <= v.last_step <= 120
                for v in report.violations)
-    err = next(v for v in report.violations if v.clause == "err <= (1/10)")
+    err = next(v for v in report.violations if v.clause == "err <= 0.1")
     assert err.margin == pytest.approx(-0.3) and err.t_start == pytest.approx(6.0)
 
 

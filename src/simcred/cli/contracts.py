@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated
 
@@ -24,7 +25,8 @@ contracts_app = typer.Typer(help="Contracts of simulation models (Braun et al.):
                                  "configure, quotient.")
 app.add_typer(contracts_app, name="contracts")
 LibraryPath = Annotated[Path, typer.Argument(metavar="LIB.yaml", help="Contract library (YAML).")]
-Timeout = Annotated[int, typer.Option(help="Solver time limit per query [ms]; beyond it the "
+Timeout = Annotated[int, typer.Option(min=1, max=3_600_000,
+                                      help="Solver time limit per query [ms]; beyond it the "
                                            "answer is 'unknown' (exit 3).")]
 EXIT_CODES = {"holds": 0, "fails": 1, "unknown": 3}
 
@@ -32,9 +34,11 @@ EXIT_CODES = {"holds": 0, "fails": 1, "unknown": 3}
 
 def _value(v) -> str:
     """A counterexample value as a short decimal (the exact rational is in the JSON)."""
-    from simcred.contracts.intervals import decimal
+    from simcred.contracts.expr import decimal_text
 
-    return str(v).lower() if isinstance(v, bool) else decimal(v)
+    if isinstance(v, bool):
+        return str(v).lower()
+    return decimal_text(v) or f"{float(v):.6g}"
 
 
 def _point(point) -> str:
@@ -48,8 +52,22 @@ def _verdict_summary(verdict) -> str:
                                                               if verdict.reason else "")]
     if verdict.counterexample:
         lines.append("counterexample: " + escape(_point(verdict.counterexample)))
-    lines += [f"  clause: {escape(c)}" for c in verdict.clauses]
+    label = {"holds": "proof uses", "fails": "violated"}.get(verdict.status.value, "clause")
+    lines += [f"  {label}: {escape(c)}" for c in verdict.clauses]
     return "\n".join(lines)
+
+
+@contextmanager
+def _about(library: Path):
+    """Errors raised without a file (a temporal clause reaching z3) name the library."""
+    from simcred.contracts.expr import ExpressionError
+
+    try:
+        yield
+    except ExpressionError as exc:
+        message = str(exc)
+        raise ExpressionError(message if message.startswith(str(library))
+                              else f"{library}: {message}") from None
 
 
 def _worst(statuses) -> int:
@@ -76,6 +94,7 @@ def contracts_check(library: LibraryPath, timeout_ms: Timeout = 10_000,
     """Names, units, composability, port scope, non-vacuity; compatibility and consistency of
     every model contract and every test case. Exit 0 ok, 1 a check fails, 3 undecided."""
     from simcred.contracts.algebra import compatible, consistent
+    from simcred.contracts.expr import is_temporal
     from simcred.contracts.library import Library
 
     lib = Library.read(library)
@@ -83,6 +102,9 @@ def contracts_check(library: LibraryPath, timeout_ms: Timeout = 10_000,
     rows, lines = [], []
     for name, contract in lib.model_contracts.items():
         component = lib.spec.models[name].implements
+        if is_temporal(contract.assumption) or is_temporal(contract.guarantee):
+            lines.append(f"{name} ({component}): temporal, checked on runs by monitors only")
+            continue
         compat = compatible(contract, lib.controlled(component), **options)
         consist = consistent(contract, lib.uncontrolled(component), **options)
         rows.append({"model": name, "component": component, "compatible": compat.to_dict(),
@@ -94,6 +116,9 @@ def contracts_check(library: LibraryPath, timeout_ms: Timeout = 10_000,
     environment = lib.environment()
     cases = []
     for name, contract in lib.test_case_contracts.items():
+        if is_temporal(contract.assumption) or is_temporal(contract.guarantee):
+            lines.append(f"test case {name}: temporal, checked on runs by monitors only")
+            continue
         consist = consistent(contract, environment, **options)
         cases.append({"test_case": name, "assumption_satisfiable": True,
                       "consistent": consist.to_dict()})
@@ -122,8 +147,9 @@ def contracts_refines(
     from simcred.contracts.library import Library
 
     lib = Library.read(library)
-    verdict = refines(lib.contract(refining), lib.contract(refined), types=lib.types,
-                      timeout_ms=timeout_ms)
+    with _about(library):
+        verdict = refines(lib.contract(refining), lib.contract(refined), types=lib.types,
+                          timeout_ms=timeout_ms)
     _emit(verdict.to_dict(), as_json,
           f"{escape(refining)} ≼ {escape(refined)}: {_verdict_summary(verdict)}")
     raise typer.Exit(EXIT_CODES[verdict.status.value])
@@ -141,7 +167,9 @@ def contracts_configure(
     from simcred.contracts.configure import configure
     from simcred.contracts.library import Library
 
-    result = configure(Library.read(library), test_case, timeout_ms=timeout_ms)
+    lib = Library.read(library)
+    with _about(library):
+        result = configure(lib, test_case, timeout_ms=timeout_ms)
     if result.setup and result.status.value == "holds":
         setup = ", ".join(f"{c} = {m}" for c, m in result.setup.items())
         summary = (f"[green]{escape(test_case)}: cheapest valid setup[/green] {escape(setup)} "

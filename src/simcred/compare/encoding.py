@@ -65,21 +65,23 @@ def encode(space: StateSpace, values: np.ndarray, time: np.ndarray, offsets: np.
     ``windowed``.
     """
     n_base = values.shape[1]
-    base = np.stack([np.searchsorted(space.edges[j], values[:, j], side="right")
-                     for j in range(n_base)], axis=1)
+    base = [np.searchsorted(space.edges[j], values[:, j], side="right").astype(np.int32)
+            for j in range(n_base)]
     lengths = np.diff(offsets)
     short = np.flatnonzero(lengths < history)
     if short.size:
         raise OptionError(f"{source}: run {int(short[0]) + 1} has {lengths[short[0]]} steps; "
                           f"history {history} needs at least {history}")
-    position = np.arange(len(base)) - np.repeat(offsets[:-1], lengths)
-    keep = np.flatnonzero(position >= history - 1)
-    parts = [base[keep - lag] for lag in range(history - 1, -1, -1)]
+    keep = slice(None)
+    if history > 1:
+        position = np.arange(len(values)) - np.repeat(offsets[:-1], lengths)
+        keep = np.flatnonzero(position >= history - 1)
+    columns = [column[keep] if lag == 0 else column[keep - lag]
+               for lag in range(history - 1, -1, -1) for column in base]
     if windowed:
-        window = np.searchsorted(space.edges[-1], elapsed(time, offsets)[keep], side="right")
-        parts.append(window[:, None])
-    grid = np.hstack(parts)
-    codes = np.ravel_multi_index(tuple(grid.T), space.shape).astype(np.int64)
+        columns.append(np.searchsorted(space.edges[-1], elapsed(time, offsets)[keep],
+                                       side="right").astype(np.int32))
+    codes = np.ravel_multi_index(tuple(columns), space.shape).astype(np.int64, copy=False)
     new_offsets = offsets - np.arange(len(offsets)) * (history - 1)
     return EncodedRuns(codes, new_offsets.astype(np.int64))
 

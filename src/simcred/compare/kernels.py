@@ -109,6 +109,8 @@ def gram(
 #: Largest number of distinct states whose full kernel matrix is formed at once; above it the
 #: kernel is applied in row blocks, so memory stays O(block · U) instead of O(U²).
 DENSE_LIMIT = 1024
+#: Largest grid |S| on which a separable kernel is applied feature by feature.
+SEPARABLE_LIMIT = 2**18
 #: Rows per block when the kernel is applied blockwise.
 ROW_BLOCK = 256
 
@@ -188,23 +190,44 @@ def pooled_bandwidth(grid: np.ndarray, totals: np.ndarray, kernel: Kernel) -> fl
 class KernelOperator:
     """``d ↦ K d`` for the kernel matrix over ``U`` distinct states, in bounded memory.
 
-    Up to :data:`DENSE_LIMIT` states the matrix is formed once; above, it is recomputed in row
-    blocks of :data:`ROW_BLOCK` on every application (memory O(ROW_BLOCK · U), never
-    batch × U²). The linear kernel never forms it: ``K d = V (Vᵀ d) / scale``.
+    Three ways, whichever is cheapest:
+
+    * dense: up to :data:`DENSE_LIMIT` states the U×U matrix is formed once;
+    * separable: Gaussian and Laplace kernels factor over features,
+      ``k(x, y) = Π_j exp(−(x_j − y_j)²/(2σ²))`` resp. ``Π_j exp(−|x_j − y_j|/σ)``, so on the grid
+      ``K`` is the Kronecker product of one small ``B_j × B_j`` matrix per feature. ``d`` is
+      placed on the full grid (|S| entries) and multiplied feature by feature: cost
+      O(|S| · Σ_j B_j) per column instead of O(U²); used when that is smaller and |S| ≤
+      :data:`SEPARABLE_LIMIT`, in column chunks of at most ``PAIR_BUDGET`` grid entries;
+    * row blocks: otherwise, recomputed in blocks of :data:`ROW_BLOCK` rows on every
+      application (memory O(ROW_BLOCK · U), never batch × U²).
+
+    The linear kernel never forms it: ``K d = V (Vᵀ d) / scale``.
     """
 
     def __init__(self, grid: np.ndarray, kernel: Kernel, sigma: float | None,
                  n_bins: tuple[int, ...]) -> None:
-        self.grid, self.kernel, self.sigma = grid, kernel, sigma
+        self.grid, self.kernel, self.sigma, self.n_bins = grid, kernel, sigma, tuple(n_bins)
         self.vectors = grid.astype(np.float64)
         self.scale = float(sum((b - 1) ** 2 for b in n_bins)) or 1.0
         self.dense = None
-        if kernel.has_bandwidth and len(grid) <= DENSE_LIMIT:
-            self.dense = self._rows(0, len(grid))
+        self.factors = None
+        if not kernel.has_bandwidth or sigma is None:
+            return
+        u, size = len(grid), int(np.prod(self.n_bins, dtype=np.int64))
+        if size <= SEPARABLE_LIMIT and size * sum(self.n_bins) < u * u:
+            self.flat = np.ravel_multi_index(tuple(grid.T), self.n_bins)
+            self.factors = [self._factor(b) for b in self.n_bins]
+        elif u <= DENSE_LIMIT:
+            self.dense = self._rows(0, u)
+
+    def _factor(self, n: int) -> np.ndarray:
+        steps = np.abs(np.arange(n)[:, None] - np.arange(n)[None, :]).astype(np.float64)
+        if self.kernel is Kernel.GAUSSIAN:
+            return np.exp(-(steps * steps) / (2.0 * self.sigma * self.sigma))
+        return np.exp(-steps / self.sigma)
 
     def _rows(self, lo: int, hi: int) -> np.ndarray:
-        if self.sigma is None:  # one single state or a one-element sample: any kernel is 1
-            return np.ones((hi - lo, len(self.grid)))
         levels = integer_levels(self.grid[lo:hi], self.grid, self.kernel).astype(np.float64)
         if self.kernel is Kernel.GAUSSIAN:
             return np.exp(-levels / (2.0 * self.sigma * self.sigma))  # [1] eq. (3)
@@ -219,10 +242,28 @@ class KernelOperator:
         """``K @ d`` for ``d`` of shape (U, batch)."""
         if self.kernel is Kernel.LINEAR:
             return self.vectors @ (self.vectors.T @ d) / self.scale  # [1] eq. (5)
+        if self.sigma is None:  # one single state or a one-element sample: any kernel is 1
+            return np.broadcast_to(d.sum(axis=0), d.shape).copy()
+        if self.factors is not None:
+            return self._separable(d)
         if self.dense is not None:
             return self.dense @ d
         out = np.empty_like(d, dtype=np.float64)
         for lo in range(0, len(self.grid), ROW_BLOCK):
             hi = min(lo + ROW_BLOCK, len(self.grid))
             out[lo:hi] = self._rows(lo, hi) @ d
+        return out
+
+    def _separable(self, d: np.ndarray) -> np.ndarray:
+        size = len(self.factors[0]) if len(self.factors) == 1 else int(np.prod(self.n_bins))
+        step = max(1, PAIR_BUDGET // size)
+        out = np.empty_like(d, dtype=np.float64)
+        for lo in range(0, d.shape[1], step):
+            part = d[:, lo:lo + step]
+            full = np.zeros((size, part.shape[1]))
+            full[self.flat] = part
+            tensor = full.reshape(*self.n_bins, part.shape[1])
+            for axis, factor in enumerate(self.factors):
+                tensor = np.moveaxis(np.tensordot(factor, tensor, axes=(1, axis)), 0, axis)
+            out[:, lo:lo + step] = tensor.reshape(size, -1)[self.flat]
         return out

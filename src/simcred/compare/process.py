@@ -8,6 +8,7 @@ rejected states over the whole state space ([1] eq. (6)).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import numbers
 from collections.abc import Sequence
@@ -160,12 +161,28 @@ def compare(
     result = compare_prepared(Prepared.of(a, options.features, options.resample),
                               Prepared.of(b, options.features, options.resample),
                               options, progress)
+    units = feature_units(a, b, options.features)
+    if any(units):
+        result = dataclasses.replace(result, units=units)
     if relevance:
         from simcred.compare.calibrate import feature_relevance
 
         result = feature_relevance(result, Prepared.of(a, options.features, options.resample),
                                    Prepared.of(b, options.features, options.resample))
     return result
+
+
+def feature_units(a: TraceSet, b: TraceSet, features: Sequence[str]) -> tuple[str, ...]:
+    """Unit of every feature ("" if unknown); one-line error if the two sets disagree."""
+    units_a, units_b = a.units, b.units
+    out = []
+    for name in features:
+        ua, ub = units_a.get(name), units_b.get(name)
+        if ua is not None and ub is not None and ua != ub:
+            raise OptionError(f"unit mismatch for '{name}': {a.source} has {ua!r}, "
+                              f"{b.source} has {ub!r}")
+        out.append(ua or ub or "")
+    return tuple(out)
 
 
 def load(traces: TraceSet | str | Path) -> TraceSet:

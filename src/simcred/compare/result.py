@@ -136,6 +136,10 @@ class Comparison:
     Otherwise ``states`` holds one successor test per start state seen in both sets (R2),
     ``untestable`` the states seen in only one (or with too few samples for the estimator), and
     ``distance = #rejected / |S|`` ([1] eq. (6)).
+
+    Run-level test (issue 11): ``chain`` is the chain-level verdict, per-state results carry
+    ``adjusted_pvalue``; ``baseline``, ``interval`` and ``relevance`` are set when asked for.
+    ``units``: unit per (base) feature from the sets' metadata, "" where unknown.
     """
 
     options: ComparisonOptions
@@ -149,6 +153,7 @@ class Comparison:
     baseline: Baseline | None = None
     interval: DistanceInterval | None = None
     relevance: tuple[FeatureRelevance, ...] | None = None
+    units: tuple[str, ...] = ()
 
     @property
     def n_states(self) -> int:
@@ -170,6 +175,7 @@ class Comparison:
             "inputs": [asdict(i) for i in self.inputs],
             "options": asdict(self.options),
             "features": list(self.space.features),
+            **({"units": list(self.units)} if self.units else {}),
             "edges": [e.tolist() for e in self.space.edges],
             "bounds": [list(b) for b in self.space.bounds],
             "n_states": self.n_states,

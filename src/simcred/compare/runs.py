@@ -49,6 +49,10 @@ from simcred.compare.mmd import Estimator, kernel_statistics
 
 #: Elements of one dense (columns × batch) or (runs × batch) array of a permutation batch.
 BATCH_BUDGET = 2**22
+#: Elements of one dense chunk of the count matrix (float32: 128 MB).
+CHUNK_BUDGET = 2**25
+#: Below a density of 1/SPARSE_RATIO the sparse product beats dense BLAS.
+SPARSE_RATIO = 256
 #: Absolute/relative tolerance when counting permuted statistics ≥ the observed one.
 TIE_TOL = 1e-9
 #: ``dᵀKd`` below this is rounding noise of an exact 0 (|error| ≲ 4·eps) and is set to 0 before
@@ -93,19 +97,22 @@ class RunCounts:
     def from_codes(cls, codes: np.ndarray, offsets: np.ndarray, n_states: int) -> RunCounts:
         """Count start states and within-run transitions of state ``codes`` split by ``offsets``."""
         n_runs = len(offsets) - 1
-        run_of_row = np.repeat(np.arange(n_runs, dtype=np.int64), np.diff(offsets))
-        valid = np.ones(len(codes) - 1, dtype=bool)
-        valid[offsets[1:-1] - 1] = False  # no transition from a run's last step to the next run
         size = np.int64(n_states)
-        keys = np.concatenate([codes[offsets[:-1]],  # block START: origin START + 1 = 0
-                               (codes[:-1][valid] + 1) * size + codes[1:][valid]])
-        runs = np.concatenate([np.arange(n_runs, dtype=np.int64), run_of_row[:-1][valid]])
-        del run_of_row, valid
-        columns, inverse = np.unique(keys, return_inverse=True)
-        del keys
-        matrix = sp.csr_matrix((np.ones(len(runs)), (inverse.ravel(), runs)),
+        last = offsets[1:] - 1  # a run's last row starts no transition
+        starts = codes[offsets[:-1]]
+        keys = (codes[:-1] + 1) * size + codes[1:]  # block START is origin START + 1 = 0
+        keys[last[:-1]] = -1
+        keys = np.concatenate([starts, keys[keys >= 0]])
+        lengths = np.diff(offsets) - 1
+        runs = np.concatenate([np.arange(n_runs, dtype=np.int64),
+                               np.repeat(np.arange(n_runs, dtype=np.int64), lengths)])
+        columns, column_of, run_of, count = _pair_counts(keys, runs, n_runs)
+        del keys, runs
+        order = np.lexsort((run_of, column_of))  # already sorted unless the fallback ran
+        matrix = sp.csr_matrix((count[order].astype(np.float64), run_of[order],
+                                np.r_[0, np.cumsum(np.bincount(column_of,
+                                                               minlength=len(columns)))]),
                                shape=(len(columns), n_runs))
-        matrix.sum_duplicates()
         origin = columns // size - 1
         bounds = np.r_[0, np.flatnonzero(np.diff(origin)) + 1, len(columns)]
         return cls(matrix, origin[bounds[:-1]], bounds, columns % size)
@@ -123,6 +130,25 @@ class RunCounts:
         bounds = np.r_[0, np.flatnonzero(np.diff(block)) + 1, len(used)]
         return RunCounts(matrix[used], self.blocks[block[bounds[:-1]]], bounds,
                          self.successors[used])
+
+
+def _pair_counts(keys: np.ndarray, runs: np.ndarray, n_runs: int):
+    """Distinct keys (sorted), and per distinct (key, run): key index, run, count.
+
+    One sort of ``key · runs + run`` when that fits into int64, else two.
+    """
+    if len(keys) and (int(keys.max()) + 1) * n_runs < 2**62:
+        combined = keys * np.int64(n_runs)
+        combined += runs
+        combined, count = np.unique(combined, return_counts=True)
+        key, run_of = np.divmod(combined, np.int64(n_runs))
+        del combined
+        new = np.r_[True, key[1:] != key[:-1]]
+        return key[new], np.cumsum(new) - 1, run_of, count
+    columns, inverse = np.unique(keys, return_inverse=True)
+    combined, count = np.unique(inverse.ravel() * np.int64(n_runs) + runs, return_counts=True)
+    column_of, run_of = np.divmod(combined, np.int64(n_runs))
+    return columns, column_of, run_of, count
 
 
 @dataclass(frozen=True, slots=True)
@@ -265,30 +291,80 @@ class StateModels:
 
 def _permuted_statistics(counts: RunCounts, in_a: np.ndarray, states: StateModels,
                          spec: RunTestSpec, rng: np.random.Generator) -> np.ndarray:
-    """(P + 1, blocks) statistics; row 0 is the observed assignment, NaN = one side empty."""
+    """(P + 1, blocks) statistics; row 0 is the observed assignment, NaN = one side empty.
+
+    All assignments are drawn first ((P + 1) × runs booleans), in batches whose size depends only
+    on the data's dimensions, each batch one ``Generator.permuted`` call. Then every chunk of the
+    count matrix is made dense once and multiplied with the assignments batch by batch.
+    """
     total = spec.permutations + 1
     n_cols, n_runs = counts.matrix.shape
     batch = int(np.clip(BATCH_BUDGET // max(n_cols, n_runs, 1), 8, 1024))
-    out = np.empty((total, len(counts.blocks)))
     pattern = np.sort(in_a)[::-1].copy()  # n_A ones, then zeros
+    assignments = np.empty((total, n_runs), dtype=bool)
     for start in range(0, total, batch):
         size = min(batch, total - start)
-        assignment = rng.permuted(np.broadcast_to(pattern, (size, n_runs)), axis=1)
-        if start == 0:
-            assignment[0] = in_a
-        out[start:start + size] = assignment_statistics(counts, states, assignment,
-                                                        spec.estimator)
-    return out
+        assignments[start:start + size] = rng.permuted(np.broadcast_to(pattern, (size, n_runs)),
+                                                       axis=1)
+    assignments[0] = in_a
+    return assignment_statistics(counts, states, assignments, spec.estimator, batch)
+
+
+class SideCounts:
+    """``R @ Z``: the A-side counts of assignments ``Z`` (runs × batch, 0/1), chunk by chunk.
+
+    Dense BLAS (float32 while every count stays below 2**24, so it is exact) on column chunks of
+    at most ``CHUNK_BUDGET`` elements, aligned to state blocks; the sparse product when ``R`` is
+    very sparse (density below 1/``SPARSE_RATIO``), where it is faster.
+    """
+
+    def __init__(self, counts: RunCounts) -> None:
+        self.matrix = counts.matrix
+        n_cols, n_runs = self.matrix.shape
+        exact32 = n_cols == 0 or self.matrix.sum(axis=1).max() < 2**24
+        self.dtype = np.float32 if exact32 else np.float64
+        self.dense = self.matrix.nnz * SPARSE_RATIO >= n_cols * n_runs
+        self.chunks = _block_chunks(counts.bounds, max(1, CHUNK_BUDGET // max(n_runs, 1)))
+
+    def rows(self, lo: int, hi: int):
+        """Columns lo:hi of R, dense or sparse, ready to multiply."""
+        if not self.dense:
+            return self.matrix[lo:hi]
+        return self.matrix[lo:hi].astype(self.dtype).toarray()
+
+    def product(self, rows, assignment: np.ndarray) -> np.ndarray:
+        """(len(rows), batch) float64 counts for bool assignments (batch, runs)."""
+        dtype = self.dtype if self.dense else np.float64
+        z = np.ascontiguousarray(assignment.T, dtype=dtype)
+        return np.asarray(rows @ z, dtype=np.float64)
+
+
+def _block_chunks(bounds: np.ndarray, rows: int) -> list[tuple[int, int, int, int]]:
+    """(first block, last block + 1, first column, last column + 1) of chunks of ≤ ``rows``
+    columns (a single larger block is a chunk of its own)."""
+    chunks, first = [], 0
+    for b in range(1, len(bounds)):
+        if bounds[b] - bounds[first] > rows and b - 1 > first:
+            chunks.append((first, b - 1, int(bounds[first]), int(bounds[b - 1])))
+            first = b - 1
+    chunks.append((first, len(bounds) - 1, int(bounds[first]), int(bounds[-1])))
+    return chunks
 
 
 def assignment_statistics(counts: RunCounts, states: StateModels, assignment: np.ndarray,
-                          estimator: Estimator) -> np.ndarray:
+                          estimator: Estimator, batch: int = 256) -> np.ndarray:
     """(k, blocks) statistics of k assignments of runs to A (bool, shape (k, runs))."""
-    side_a = counts.matrix @ np.ascontiguousarray(assignment.T, dtype=np.float64)
+    product = SideCounts(counts)
     out = np.empty((len(assignment), len(counts.blocks)))
-    for b, (lo, hi) in enumerate(zip(counts.bounds[:-1], counts.bounds[1:], strict=True)):
-        out[:, b] = _statistic(side_a[lo:hi], states.column_totals[lo:hi], states.operators[b],
-                               estimator)
+    for first, last, lo, hi in product.chunks:
+        rows = product.rows(lo, hi)
+        for start in range(0, len(assignment), batch):
+            side_a = product.product(rows, assignment[start:start + batch])
+            for b in range(first, last):
+                u0, u1 = counts.bounds[b] - lo, counts.bounds[b + 1] - lo
+                out[start:start + batch, b] = _statistic(
+                    side_a[u0:u1], states.column_totals[lo + u0:lo + u1], states.operators[b],
+                    estimator)
     return out
 
 

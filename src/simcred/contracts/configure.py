@@ -46,15 +46,27 @@ class Configuration:
     cost: float | None
     proof: Verdict | None
     iterations: int
-    counterexamples: list[dict[str, float]] = field(default_factory=list)
+    counterexamples: list[dict] = field(default_factory=list)  # exact values (Fraction)
     reason: str = ""
     method: str = "CEGIS over z3 Optimize"
 
     def to_dict(self) -> dict:
         return {"test_case": self.test_case, "status": self.status.value, "setup": self.setup,
                 "cost": self.cost, "proof": None if self.proof is None else self.proof.to_dict(),
-                "iterations": self.iterations, "counterexamples": self.counterexamples,
+                "iterations": self.iterations,
+                "counterexamples": [{k: _plain(v) for k, v in p.items()}
+                                    for p in self.counterexamples],
+                "counterexamples_exact": [{k: _exact(v) for k, v in p.items()}
+                                          for p in self.counterexamples],
                 "reason": self.reason, "method": self.method}
+
+
+def _plain(v):
+    return v if isinstance(v, bool | int) else float(v)
+
+
+def _exact(v):
+    return v if isinstance(v, bool | int) else str(Fraction(v))
 
 
 def setup_contract(library: Library, setup: dict[str, str]) -> Contract:
@@ -90,14 +102,29 @@ def _by_intervals(library, test_case, target, choices, problem, timeout_ms):
     method = (f"interval propagation, branch-and-bound ({found.nodes} partial setups expanded "
               f"of {setups:,} setups)")
     if found.setup is None:
-        return Configuration(test_case, Status.FAILS, None, None, None, found.nodes, [],
+        cheapest = {c: models[0] for c, models in choices.items()}
+        example = setup_refines(library, cheapest, target, timeout_ms=timeout_ms)
+        points, why = [], ""
+        if example.status is Status.FAILS:
+            points = [dict(example.counterexample)]
+            why = (f"; e.g. the cheapest setup ({', '.join(cheapest.values())}) fails at "
+                   f"{_point_text(example.counterexample)}: "
+                   f"{', '.join(example.clauses) or 'an assumption of a model'}")
+        return Configuration(test_case, Status.FAILS, None, None, example, found.nodes, points,
                              f"no setup refines the test case (decided exactly over all "
-                             f"{setups:,} setups by interval propagation)", method)
+                             f"{setups:,} setups by interval propagation){why}", method)
     proof = setup_refines(library, found.setup, target, timeout_ms=timeout_ms)
     if proof.status is not Status.HOLDS:  # cannot happen (module docs of search); be safe
         return None
     return Configuration(test_case, Status.HOLDS, found.setup, found.cost, proof, found.nodes,
                          [], "", method + "; optimal by the bound, proven with z3")
+
+
+def _point_text(point) -> str:
+    from simcred.contracts.intervals import decimal
+
+    return ", ".join(f"{k} = {v if isinstance(v, bool) else decimal(v)}"
+                     for k, v in point.items())
 
 
 def _by_cegis(library, test_case, target, choices, timeout_ms, max_iterations):
@@ -112,7 +139,7 @@ def _by_cegis(library, test_case, target, choices, timeout_ms, max_iterations):
              for models in choices.values() for m in models}
     optimizer.minimize(z3.Sum([z3.If(selector[c, m], z3.RealVal(str(costs[m])), 0)
                                for (c, m) in selector]))
-    points: list[dict[str, float]] = []
+    points: list[dict] = []
     for iteration in range(1, max_iterations + 1):
         if optimizer.check() != z3.sat:
             return Configuration(test_case, Status.FAILS, None, None, None, iteration, points,
@@ -128,7 +155,7 @@ def _by_cegis(library, test_case, target, choices, timeout_ms, max_iterations):
             return Configuration(test_case, Status.UNKNOWN, setup, None, proof, iteration, points,
                                  f"the solver could not decide {setup}: {proof.reason}")
         point = proof.counterexample
-        points.append({k: float(v) for k, v in point.items()})
+        points.append(dict(point))
         optimizer.add(_valid_at(library, target, choices, selector, point))
     return Configuration(test_case, Status.UNKNOWN, None, None, None, max_iterations, points,
                          "iteration limit reached")

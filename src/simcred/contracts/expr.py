@@ -25,13 +25,20 @@ from lark.exceptions import LarkError, UnexpectedInput
 
 from simcred.errors import SimcredError
 
+KEYWORDS = ("and|or|not|implies|true|false|always|eventually|historically|once|previous|until"
+            "|since")
 GRAMMAR = r"""
 ?start: implication
-?implication: disjunction ("implies" implication)?
+?implication: binary_temporal ("implies" implication)?
+?binary_temporal: disjunction (BINARY_TEMPORAL window disjunction)?
 ?disjunction: conjunction ("or" conjunction)*
 ?conjunction: negation ("and" negation)*
 ?negation: "not" negation -> logical_not
+         | UNARY_TEMPORAL window negation -> temporal
+         | "previous" negation -> previous
          | comparison
+window: "[" signed "," signed "]"
+signed: NUMBER | "-" NUMBER -> minus
 ?comparison: sum (COMPARE sum)*
 ?sum: product (ADD product)*
 ?product: unary (MUL unary)*
@@ -49,13 +56,15 @@ COMPARE: "<=" | ">=" | "==" | "!=" | "<" | ">"
 ADD: "+" | "-"
 MUL: "*" | "/"
 FUNCTION.2: /(abs|min|max)(?=\s*\()/
-NAME: /(?!(and|or|not|implies|true|false)\b)[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*/
-UNIT: /\[[^\[\]]*\]/ | /(?!(and|or|not|implies|true|false)\b)/ UNIT_FACTOR (/[\/*]/ UNIT_FACTOR)*
+UNARY_TEMPORAL.2: /(always|eventually|historically|once)\b/
+BINARY_TEMPORAL.2: /(until|since)\b/
+NAME: /(?!(KEYWORDS)\b)[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*/
+UNIT: /\[[^\[\]]*\]/ | /(?!(KEYWORDS)\b)/ UNIT_FACTOR (/[\/*]/ UNIT_FACTOR)*
 UNIT_FACTOR: /[A-Za-z_°µΩ][A-Za-z0-9_]*(\^-?\d+)?/
 NUMBER: /\d+(\.\d*)?([eE][+-]?\d+)?|\.\d+([eE][+-]?\d+)?/
 %import common.WS
 %ignore WS
-"""
+""".replace("KEYWORDS", KEYWORDS)
 
 
 class ExpressionError(SimcredError):
@@ -115,8 +124,21 @@ class Logic:
     args: tuple[Expr, ...]
 
 
-Expr = Num | Quantity | Bool | Var | Arith | Compare | Logic
-BOOLEAN = (Bool, Compare, Logic)
+@dataclass(frozen=True, slots=True)
+class Temporal:
+    """A bounded temporal operator (monitors only; see :mod:`simcred.contracts.temporal`):
+    ``always``, ``eventually``, ``historically``, ``once`` (one operand), ``until``, ``since``
+    (two), with the window [lo, hi] in seconds; ``previous`` (one operand, no window)."""
+
+    op: str
+    lo: Fraction
+    hi: Fraction
+    args: tuple[Expr, ...]
+
+
+Expr = Num | Quantity | Bool | Var | Arith | Compare | Logic | Temporal
+BOOLEAN = (Bool, Compare, Logic, Temporal)
+TEMPORAL_OPS = ("always", "eventually", "historically", "once", "previous", "until", "since")
 
 # Limits that keep every later step (recursion, z3, exact arithmetic) bounded; see docs.
 MAX_TEXT = 10_000  # characters of one assertion
@@ -189,6 +211,11 @@ def decimal_text(value: Fraction) -> str | None:
     return ("-" if value < 0 else "") + text
 
 
+def _window_text(value: Fraction) -> str:
+    exact = decimal_text(value)
+    return exact if exact is not None else str(float(value))
+
+
 def _number_text(value: Fraction) -> str:
     """Exact text of a non-negative literal: a decimal where there is one, else ``(p/q)``."""
     text = decimal_text(value)
@@ -210,6 +237,15 @@ def _text(e: Expr, outer: int) -> str:
         return e.name
     if isinstance(e, Arith) and e.op in ("abs", "min", "max"):
         return f"{e.op}({', '.join(_text(a, 0) for a in e.args)})"
+    if isinstance(e, Temporal):
+        window = f"[{_window_text(e.lo)}, {_window_text(e.hi)}]"
+        if e.op == "previous":
+            prec, text = 4, f"previous {_text(e.args[0], 4)}"
+        elif e.op in ("until", "since"):
+            prec, text = 2, f"{_text(e.args[0], 3)} {e.op}{window} {_text(e.args[1], 3)}"
+        else:
+            prec, text = 4, f"{e.op}{window} {_text(e.args[0], 4)}"
+        return f"({text})" if prec < outer else text
     if isinstance(e, Compare):
         prec, text = 5, f"{_text(e.left, 6)} {e.op} {_text(e.right, 6)}"
     elif e.op == "neg":
@@ -305,6 +341,30 @@ class _ToAst(Transformer):
         ops = [str(op) for op in children[1::2]]
         return conjoin(*(Compare(op, a, b) for op, a, b in zip(ops, terms, terms[1:],
                                                                 strict=False)))
+
+    def window(self, meta, children):
+        lo, hi = children
+        if lo < 0 or hi < lo:
+            raise ExpressionError(f"a window [a, b] needs 0 <= a <= b, got [{lo}, {hi}]")
+        return lo, hi
+
+    def signed(self, meta, children):
+        return _literal(str(children[0]))
+
+    def minus(self, meta, children):
+        return -_literal(str(children[0]))
+
+    def temporal(self, meta, children):
+        op, (lo, hi), operand = str(children[0]), children[1], children[2]
+        return Temporal(op, lo, hi, (_boolean(operand, op),))
+
+    def previous(self, meta, children):
+        return Temporal("previous", Fraction(0), Fraction(0),
+                        (_boolean(children[0], "previous"),))
+
+    def binary_temporal(self, meta, children):
+        left, op, (lo, hi), right = children
+        return Temporal(str(op), lo, hi, (_boolean(left, str(op)), _boolean(right, str(op))))
 
     def logical_not(self, meta, children):
         return Logic("not", (_boolean(children[0], "not"),))
@@ -418,7 +478,12 @@ def children(e: Expr) -> tuple[Expr, ...]:
     """The operands of ``e`` (none for leaves)."""
     if isinstance(e, Compare):
         return (e.left, e.right)
-    return e.args if isinstance(e, Arith | Logic) else ()
+    return e.args if isinstance(e, Arith | Logic | Temporal) else ()
+
+
+def is_temporal(e: Expr) -> bool:
+    """Whether ``e`` uses a temporal operator anywhere."""
+    return isinstance(e, Temporal) or any(is_temporal(c) for c in children(e))
 
 
 def _depth(root, kids) -> int:
@@ -487,6 +552,10 @@ def to_z3(e: Expr, env: Mapping[str, Any]):
 
     if isinstance(e, Quantity):
         raise ExpressionError(f"'{to_text(e)}': resolve units first (units.resolve)")
+    if isinstance(e, Temporal):
+        raise ExpressionError(
+            f"'{to_text(e)}' is temporal: the contract algebra (z3) reasons about the "
+            "instantaneous fragment only; temporal clauses are checked by monitors on runs")
     if isinstance(e, Num):
         return z3.RealVal(f"{e.value.numerator}/{e.value.denominator}")
     if isinstance(e, Bool):
@@ -537,11 +606,12 @@ _Z3_BINARY: dict[str, Callable] = {"+": operator.add, "-": operator.sub, "*": op
 # -- numpy back end -----------------------------------------------------------------------------
 
 
-def evaluate(e: Expr, columns: Mapping[str, Any]) -> Any:
+def evaluate(e: Expr, columns: Mapping[str, Any], timeline=None) -> Any:
     """Vectorised value of ``e``: booleans for conditions, numbers for terms.
 
     ``columns`` maps each variable to an array (or scalar). Object arrays of ``Fraction`` give an
-    exact evaluation.
+    exact evaluation. Temporal operators need the rows' ``timeline``
+    (:class:`simcred.contracts.temporal.Timeline`).
     """
     if isinstance(e, Quantity):
         raise ExpressionError(f"'{to_text(e)}': resolve units first (units.resolve)")
@@ -552,8 +622,11 @@ def evaluate(e: Expr, columns: Mapping[str, Any]) -> Any:
     if isinstance(e, Var):
         return columns[e.name]
     if isinstance(e, Compare):
-        return _NP_COMPARE[e.op](evaluate(e.left, columns), evaluate(e.right, columns))
-    args = [evaluate(a, columns) for a in e.args]
+        return _NP_COMPARE[e.op](evaluate(e.left, columns, timeline),
+                                 evaluate(e.right, columns, timeline))
+    args = [evaluate(a, columns, timeline) for a in e.args]
+    if isinstance(e, Temporal):
+        return _temporal(e, args, timeline, boolean=True)
     if isinstance(e, Logic):
         if e.op == "not":
             return np.logical_not(args[0])
@@ -565,6 +638,26 @@ def evaluate(e: Expr, columns: Mapping[str, Any]) -> Any:
             out = combine(out, a)
         return out
     return _np_arith(e.op, args, e)
+
+
+def _temporal(e: Temporal, args, timeline, *, boolean: bool):
+    """A temporal operator over its operands' values (booleans or robustness)."""
+    from simcred.contracts import temporal
+
+    if timeline is None:
+        raise ExpressionError(f"'{to_text(e)}' is temporal: it needs recorded runs (monitor)")
+    n = len(timeline.time)
+    args = [np.broadcast_to(np.asarray(a, dtype=bool if boolean else float), (n,)) for a in args]
+    top, bottom = (True, False) if boolean else (np.inf, -np.inf)
+    if e.op == "previous":
+        return temporal.previous(args[0], timeline, first=top)
+    past = e.op in ("historically", "once", "since")
+    start, stop = timeline.window(float(e.lo), float(e.hi), past=past)
+    if e.op in ("until", "since"):
+        return temporal.until(args[0], args[1], start, stop, past=past, boolean=boolean)
+    universal = e.op in ("always", "historically")
+    return temporal.window_reduce(args[0], start, stop, maximum=not universal,
+                                  empty=top if universal else bottom)
 
 
 def _exact(columns: Mapping[str, Any]) -> bool:
@@ -596,12 +689,13 @@ def _np_arith(op: str, args, e: Arith):
     return {"+": np.add, "-": np.subtract, "*": np.multiply, "/": np.true_divide}[op](a, b)
 
 
-def margin(e: Expr, columns: Mapping[str, Any]) -> Any:
+def margin(e: Expr, columns: Mapping[str, Any], timeline=None) -> Any:
     """Signed distance to violation of the condition ``e`` (robustness semantics).
 
     ``a <= b`` has margin ``b - a``; ``and`` the minimum, ``or`` the maximum of its operands';
     ``not`` flips the sign; ``a implies b`` is ``not a or b``. Equalities have margin
-    ``-|a - b|`` (0 when they hold); ``true``/``false`` are ±inf.
+    ``-|a - b|`` (0 when they hold); ``true``/``false`` are ±inf. Temporal operators take the
+    minimum/maximum over their windows (as rtamt's discrete-time STL).
     """
     if isinstance(e, Bool):
         return np.inf if e.value else -np.inf
@@ -615,12 +709,16 @@ def margin(e: Expr, columns: Mapping[str, Any]) -> Any:
             return np.subtract(a, b)
         gap = np.abs(np.subtract(a, b))
         return -gap if e.op == "==" else gap
+    if isinstance(e, Temporal):
+        return _temporal(e, [margin(a, columns, timeline) for a in e.args], timeline,
+                         boolean=False)
     if e.op == "not":
-        return np.negative(margin(e.args[0], columns))
+        return np.negative(margin(e.args[0], columns, timeline))
     if e.op == "implies":
-        return np.maximum(np.negative(margin(e.args[0], columns)), margin(e.args[1], columns))
+        return np.maximum(np.negative(margin(e.args[0], columns, timeline)),
+                          margin(e.args[1], columns, timeline))
     combine = np.minimum if e.op == "and" else np.maximum
-    out = margin(e.args[0], columns)
+    out = margin(e.args[0], columns, timeline)
     for a in e.args[1:]:
-        out = combine(out, margin(a, columns))
+        out = combine(out, margin(a, columns, timeline))
     return out

@@ -21,8 +21,10 @@ the variable's unit. Each variable is controlled by at most one output port of t
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass
+from fractions import Fraction
 from functools import cached_property
 from pathlib import Path
 from typing import Literal
@@ -32,7 +34,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from simcred.contracts.algebra import Contract
 from simcred.contracts.loader import LibraryError, load_yaml
 
-__all__ = ["Library", "LibraryError", "LibrarySpec", "Port"]
+__all__ = ["Library", "LibraryError", "LibrarySpec", "ModelSpec", "ParameterSpec", "Port"]
 
 NAME = re.compile(r"(?!(and|or|not|implies|true|false)$)[A-Za-z_][A-Za-z0-9_]*"
                   r"(\.[A-Za-z_][A-Za-z0-9_]*)*")
@@ -59,10 +61,26 @@ class ComponentSpec(_Strict):
     outputs: list[str | dict[str, str]] = Field(default_factory=list)
 
 
+class ParameterSpec(_Strict):
+    """A constant setting of a model, somewhere in ``range`` (see :mod:`.parameters`)."""
+
+    range: tuple[float, float]
+    unit: str = Field("dimensionless", max_length=64)
+
+    @field_validator("range")
+    @classmethod
+    def _finite_and_ordered(cls, value):
+        lo, hi = value
+        if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi):
+            raise ValueError(f"a range is [low, high] with finite low <= high, got {list(value)}")
+        return value
+
+
 class ModelSpec(_Strict):
     implements: str
     cost: float = Field(ge=0, le=MAX_COST, allow_inf_nan=False)
     contract: ContractSpec | list[ContractSpec] | Literal["trivial"]
+    parameters: dict[str, ParameterSpec] = Field(default_factory=dict)
     description: str = ""
 
     @property
@@ -135,24 +153,38 @@ class Library:
     def units(self) -> dict[str, str]:
         return {name: v.unit for name, v in self.spec.variables.items()}
 
-    def _contract(self, spec: ContractSpec, where: str, name: str) -> Contract:
+    def _contract(self, spec: ContractSpec, where: str, name: str,
+                  parameters: dict[str, ParameterSpec] | None = None) -> Contract:
+        parameters = parameters or {}
+        declared = {**self.spec.variables, **parameters}
+        units = {**self.units, **{p: v.unit for p, v in parameters.items()}}
         return Contract.from_strings(spec.assumption, spec.guarantee, name=name,
-                                     declared=self.spec.variables, where=f"{self.source}: {where}",
-                                     types=self.types, units=self.units)
+                                     declared=declared, where=f"{self.source}: {where}",
+                                     types=self.types, units=units)
 
     @cached_property
     def model_contracts(self) -> dict[str, Contract]:
         """Each model's contract: the conjunction of its viewpoints (seed 003 sec. III-A,
         C_tot; Benveniste et al. 2008, multiple viewpoints)."""
+        from simcred.contracts.parameters import eliminate
+
         out = {}
         for n, m in self.spec.models.items():
+            clash = sorted(set(m.parameters) & set(self.spec.variables))
+            if clash:
+                raise LibraryError(f"{self.source}: models.{n}.parameters.{clash[0]}: also a "
+                                   "variable (a parameter needs its own name)")
             views = m.viewpoints
             parts = [self._contract(v, f"models.{n}.contract" + (f"[{i}]" if len(views) > 1
-                                                                 else ""), n)
+                                                                 else ""), n, m.parameters)
                      for i, v in enumerate(views)]
             whole = parts[0]
             for part in parts[1:]:
                 whole = whole.conjoin(part)
+            ranges = {p: (Fraction(repr(v.range[0])), Fraction(repr(v.range[1])))
+                      for p, v in m.parameters.items()}  # the decimals as written
+            whole = eliminate(whole, ranges, types=self.types,
+                              where=f"{self.source}: models.{n}.parameters")
             out[n] = Contract(whole.assumption, whole.guarantee, n)
         return out
 

@@ -17,6 +17,7 @@ import numpy as np
 from simcred._json import dumps, envelope
 from simcred.contracts.algebra import Contract
 from simcred.contracts.expr import Expr, conjuncts, evaluate, implies, margin, to_text, variables
+from simcred.contracts.temporal import Timeline
 from simcred.errors import SimcredError
 from simcred.traces import TraceSet
 
@@ -63,16 +64,17 @@ def monitor(traces: TraceSet, contracts: Mapping[str, Contract], *, tolerance: f
     signals that sit exactly on a domain's boundary, e.g. accelerations by differentiation).
     """
     columns = _columns(traces, contracts)
+    timeline = Timeline(np.asarray(traces.time, dtype=float), np.asarray(traces.offsets))
     found: list[Violation] = []
     clauses = 0
     for name, contract in contracts.items():
         for kind, clause, checked in _clauses(contract):
             clauses += 1
-            holds = np.broadcast_to(evaluate(checked, columns), (traces.n_rows,))
+            holds = np.broadcast_to(evaluate(checked, columns, timeline), (traces.n_rows,))
             if holds.all():
                 continue
             # the margin of the clause itself: how far it is from holding where it is violated
-            margins = np.broadcast_to(margin(clause, columns), (traces.n_rows,))
+            margins = np.broadcast_to(margin(clause, columns, timeline), (traces.n_rows,))
             violated = ~holds & ~(margins >= -tolerance) if tolerance > 0 else ~holds
             if violated.any():
                 found += _segments(traces, name, kind, clause, violated, margins)

@@ -85,11 +85,12 @@ def _union(parts: list[Expr]) -> Expr | None:
     spans = sorted((i for _, i in found if not i.empty), key=_lower_key)
     merged = spans[0] if spans else None
     for span in spans[1:]:
-        if merged.hi is not None and (span.lo is None or span.lo > merged.hi or (
+        if merged.hi is None:
+            break  # already unbounded above: the rest lies inside
+        if span.lo is not None and (span.lo > merged.hi or (
                 span.lo == merged.hi and merged.hi_open and span.lo_open)):
             return None  # a gap: not one interval
-        if merged.hi is not None and (span.hi is None or span.hi > merged.hi or (
-                span.hi == merged.hi and not span.hi_open)):
+        if span.hi is None or span.hi > merged.hi or (span.hi == merged.hi and not span.hi_open):
             merged = Interval(merged.lo, span.hi, merged.lo_open, span.hi_open)
     if merged is None:
         return Bool(False)

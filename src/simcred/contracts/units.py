@@ -27,6 +27,7 @@ from simcred.contracts.expr import (
     Logic,
     Num,
     Quantity,
+    Temporal,
     Var,
     to_text,
 )
@@ -109,6 +110,9 @@ def _resolve(e: Expr, units, where: str):
         return e, None if e.boolean else units.get(e.name, _registry().dimensionless)
     if isinstance(e, Logic):
         return Logic(e.op, tuple(_resolve(a, units, where)[0] for a in e.args)), None
+    if isinstance(e, Temporal):
+        return Temporal(e.op, e.lo, e.hi, tuple(_resolve(a, units, where)[0] for a in e.args)), \
+            None
     if isinstance(e, Compare):
         (left, right), _ = _alike([e.left, e.right], units, where, e.op)
         return Compare(e.op, left, right), None
