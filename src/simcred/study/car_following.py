@@ -200,9 +200,12 @@ class StudyResult:
                 continue
             word = "differs from human following" if c.verdict.rejected else \
                 "not distinguishable from human following"
-            if c.row in BASELINES:
-                word = "halves differ (the test is not calibrated here)" if c.verdict.rejected \
-                    else "halves not distinguishable (as expected)"
+            if c.row == BASELINE:
+                word = "random halves differ: the test is not calibrated here" \
+                    if c.verdict.rejected else "random halves not distinguishable (as expected)"
+            elif c.row == BASELINE_CARS:
+                word = "the two groups of cars (drivers) differ among themselves" \
+                    if c.verdict.rejected else "the two groups of cars not distinguishable"
             out.append(f"{where}: {word} (chain p = {_fmt(c.verdict.pvalue)}, distance "
                        f"{_fmt(c.distance)}, {_runs(c)})")
         return out

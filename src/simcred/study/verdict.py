@@ -58,8 +58,15 @@ class CellVerdict:
 
 
 def check_test(test: str) -> str:
+    """``test`` if the study knows it and :mod:`simcred.compare` offers it, else a one-line error
+    before any simulation runs."""
+    from simcred.compare.mmd import Test
+
     if test not in TESTS:
         raise OptionError(f"test must be one of {', '.join(TESTS)}; got {test!r}")
+    if test not in {t.value for t in Test}:
+        raise OptionError(f"test {test!r} is not offered by simcred.compare in this version "
+                          f"(it has: {', '.join(t.value for t in Test)})")
     return test
 
 
