@@ -92,6 +92,9 @@ def test_monitor_flags_the_steps_that_leave_the_domain(tmp_path):
 def test_same_inputs_and_seed_give_identical_bytes(tmp_path):
     path = write_universe(tmp_path)
     assert run(["-q", "validate", str(path), "--out", str(tmp_path / "a")]) == 1
+    (tmp_path / "other").mkdir()
+    other = write_universe(tmp_path / "other", candidates=TWO)  # other solver queries between
+    assert run(["-q", "validate", str(other), "--out", str(tmp_path / "o"), "--no-report"]) == 0
     assert run(["-q", "validate", str(path), "--out", str(tmp_path / "b")]) == 1
     for name in ("verdict.json", "contracts.yaml", "report.html"):
         assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes()

@@ -152,15 +152,18 @@ def _relevant_cells(grid: Grid, target: Contract, library: Library) -> tuple[int
 
 
 def _configuration(library: Library) -> dict[str, Any] | None:
-    """Configuration on the learned contracts, without solver models (z3's counterexamples
-    depend on the solver's history in the process, which would break byte-identical
-    verdicts)."""
+    """Configuration on the learned contracts, without solver models: z3's counterexamples
+    depend on the solver's history in the process, which would break byte-identical verdicts
+    (the reason is ours; the candidates' reasons say what is not covered)."""
     if not library.spec.models:
         return None
     found = configure(library, TEST_CASE)
+    reason = "" if found.status is Status.HOLDS else (
+        "no candidate's learned contract refines the test case (see the candidates' reasons)"
+        if found.status is Status.FAILS else "undecided (solver limit)")
     return {"status": found.status.value, "setup": found.setup, "cost": found.cost,
             "proof": None if found.proof is None else _proof(found.proof), "method": found.method,
-            "reason": found.reason}
+            "reason": reason}
 
 
 def _proof(verdict) -> dict[str, Any]:
