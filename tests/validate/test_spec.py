@@ -33,8 +33,6 @@ CASES = [
         conditions={"distance": {"edges": [0, 1]}}), "conditions"),
     ("min_data too small", lambda d: d.update(min_data={"runs": 1}), "min_data.runs"),
     ("no candidates", lambda d: d.update(candidates={}), "candidates"),
-    ("candidate without runs", lambda d: d.update(candidates={"sim": {"cost": 1}}),
-     "candidates.sim.runs"),
     ("features not a list", lambda d: d.update(features="x"), "features"),
 ]
 
@@ -80,3 +78,28 @@ def test_outputs_never_overwrite_inputs(tmp_path, capsys):
     path = write_universe(tmp_path, runs=10, steps=20,
                           reference={"path": "verdict.json"})
     assert run(["validate", str(path), "--out", str(tmp_path)]) == 2
+
+
+@pytest.mark.parametrize(("candidate", "needle"), [
+    ({"runs": {"path": "sim.parquet"},
+      "simulate": {"command": ["simulate", "cutin"], "output": "x.parquet"}},
+     "candidates.sim: give either runs or simulate"),
+    ({"cost": 1}, "candidates.sim: give either runs or simulate"),
+    ({"simulate": {"command": ["paper", "all"], "output": "x.parquet"}},
+     "candidates.sim.simulate.command: a simulator command starts with 'simulate'"),
+])
+def test_candidate_sources(tmp_path, candidate, needle):
+    path = _mutated(write_universe(tmp_path, runs=10, steps=20),
+                    lambda d: d.update(candidates={"sim": candidate}))
+    with pytest.raises(ValidationFileError, match=needle):
+        read_validation(path)
+
+
+def test_failing_simulator_command_names_the_candidate(tmp_path, capsys):
+    path = _mutated(write_universe(tmp_path, runs=10, steps=20), lambda d: d.update(
+        candidates={"sim": {"simulate": {"command": ["simulate", "sumo-following",
+                                                     "{base}/missing.parquet", "--out", "{out}"],
+                                         "output": "IDM.parquet"}}}))
+    assert run(["validate", str(path), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert "candidates.sim.simulate" in err and "Traceback" not in err

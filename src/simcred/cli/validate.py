@@ -12,6 +12,7 @@ from simcred.cli._app import State, app, one_line_errors, out_console
 from simcred.errors import SimcredError
 from simcred.report.validate import write_validation_report
 from simcred.validate import read_inputs, read_validation, validate
+from simcred.validate.spec import RunsSpec, ValidationSpec
 from simcred.validate.verdict import verdict_document
 
 OUTPUTS = ("verdict.json", "contracts.yaml", "report.html")
@@ -31,8 +32,8 @@ def validate_command(
     candidate is valid for the test case. Exit 0 valid, 1 not valid, 3 inconclusive, 2 bad
     input."""
     spec, base = read_validation(validation)
-    inputs = read_inputs(spec, base)
     _check_out(out, validation, spec, base)
+    inputs = read_inputs(spec, base, simulate_candidates(spec, base, out))
     result = validate(spec, inputs, source=str(validation))
     document = verdict_document(result, inputs, validation_file=validation, date=date)
     out.mkdir(parents=True, exist_ok=True)
@@ -50,14 +51,39 @@ def validate_command(
     raise typer.Exit(result.exit_code)
 
 
-def _check_out(out: Path, validation: Path, spec, base: Path) -> None:
+def simulate_candidates(spec: ValidationSpec, base: Path, out: Path) -> dict[str, RunsSpec]:
+    """Run each candidate's simulator command (in-process, ``simcred simulate ...``) into
+    ``out/runs/<candidate>/``; the runs it wrote, per candidate."""
+    made = {}
+    for name, candidate in spec.candidates.items():
+        if candidate.simulate is None:
+            continue
+        folder = (out / "runs" / name).resolve()
+        folder.mkdir(parents=True, exist_ok=True)
+        args = [a.replace("{base}", str(base)).replace("{out}", str(folder))
+                for a in candidate.simulate.command]
+        from simcred.cli import run
+
+        quiet, debug = State.quiet, State.debug
+        try:
+            code = run(["--quiet", *args])
+        finally:
+            State.quiet, State.debug = quiet, debug
+        if code != 0:
+            raise SimcredError(f"candidates.{name}.simulate: 'simcred {' '.join(args)}' exited "
+                               f"with {code}")
+        made[name] = RunsSpec(path=str(folder / candidate.simulate.output),
+                              options=candidate.simulate.options)
+    return made
+
+
+def _check_out(out: Path, validation: Path, spec: ValidationSpec, base: Path) -> None:
     """Outputs never overwrite inputs."""
     if out.exists() and not out.is_dir():
         raise SimcredError(f"{out}: --out must be a folder")
+    runs = [c.runs for c in spec.candidates.values() if c.runs is not None]
     inputs = {validation.resolve(), *((base / r.path).resolve() for r in
-                                      [spec.reference, *(c.runs for c in
-                                                         spec.candidates.values()),
-                                       *spec.monitor])}
+                                      [spec.reference, *runs, *spec.monitor])}
     for name in OUTPUTS:
         if (out / name).resolve() in inputs:
             raise SimcredError(f"{out / name}: is an input of the validation; choose another "

@@ -85,9 +85,17 @@ class Validation:
         return yaml.safe_dump(self.library, sort_keys=False, allow_unicode=True, width=100)
 
 
-def read_inputs(spec: ValidationSpec, base: Path) -> Inputs:
+def read_inputs(spec: ValidationSpec, base: Path,
+                simulated: dict[str, RunsSpec] | None = None) -> Inputs:
+    """Read every trace set; ``simulated`` gives the runs of candidates made by a simulator
+    command (an absolute path per candidate name)."""
+    simulated = simulated or {}
+    missing = [n for n, c in spec.candidates.items() if c.runs is None and n not in simulated]
+    if missing:
+        raise ValidationFileError(f"candidates.{missing[0]}.simulate: the simulator command has "
+                                  "not been run (simcred validate runs it)")
     return Inputs(_read(spec.reference, base),
-                  {n: _read(c.runs, base) for n, c in spec.candidates.items()},
+                  {n: _read(c.runs or simulated[n], base) for n, c in spec.candidates.items()},
                   tuple(_read(m, base) for m in spec.monitor))
 
 

@@ -57,10 +57,38 @@ class TestCaseSpec(_Strict):
     max_distance: float = Field(default=1.0, ge=0, le=1, allow_inf_nan=False)
 
 
+class SimulateSpec(_Strict):
+    """A simcred simulator command that writes the candidate's runs: ``command`` is the argument
+    list of ``simcred`` (no shell; it must start with ``simulate``), in which ``{base}`` stands
+    for the validation file's folder and ``{out}`` for a fresh folder under ``--out``;
+    ``output`` is the trace set the command writes there, ``options`` go to its reader."""
+
+    command: list[str] = Field(min_length=2, max_length=64)
+    output: str = Field(min_length=1)
+    options: dict[str, str | int | float | bool] = Field(default_factory=dict)
+
+    @field_validator("command")
+    @classmethod
+    def _simulate(cls, command: list[str]) -> list[str]:
+        if command[0] != "simulate":
+            raise ValueError("a simulator command starts with 'simulate' (a simcred simulate "
+                             f"subcommand), got {command[0]!r}")
+        return command
+
+
 class CandidateSpec(_Strict):
-    runs: RunsSpec
+    """A candidate: its runs on disk, or a simulator command that makes them."""
+
+    runs: RunsSpec | None = None
+    simulate: SimulateSpec | None = None
     cost: float = Field(default=1.0, ge=0, le=1e12, allow_inf_nan=False)
     description: str = ""
+
+    @model_validator(mode="after")
+    def _one_source(self) -> CandidateSpec:
+        if (self.runs is None) == (self.simulate is None):
+            raise ValueError("give either runs or simulate")
+        return self
 
 
 class ConditionSpec(_Strict):
