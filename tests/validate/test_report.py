@@ -4,19 +4,15 @@ real headless Chromium that finds the verdict, the domain map and every image de
 from __future__ import annotations
 
 import re
-import shutil
-import subprocess
 from pathlib import Path
 
 import matplotlib.image as mpimg
 import pytest
 
 from simcred.cli import run
+from test_report import _headless, chromium  # noqa: F401  (the fixture: found or installed)
 
 from .conftest import write_universe
-
-ROOT = Path(__file__).resolve().parents[2]
-TIMEOUT = 60
 
 
 @pytest.fixture(scope="module")
@@ -42,28 +38,8 @@ def test_report_text(report):
     assert "sim on monitor[0]" in html
 
 
-def _chromium() -> str:
-    found = shutil.which("chromium") or shutil.which("chromium-browser")
-    if found is None:
-        subprocess.run(["bash", str(ROOT / "scripts" / "ensure_chromium.sh")],
-                       capture_output=True, timeout=900, check=False)
-        found = shutil.which("chromium") or shutil.which("chromium-browser")
-    if found is None:
-        pytest.fail("the validation report's browser test needs Chromium "
-                    "(scripts/ensure_chromium.sh could not install it)", pytrace=False)
-    return found
-
-
-def _headless(chromium: str, profile: Path, *args: str) -> subprocess.CompletedProcess:
-    command = [chromium, "--headless", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
-               "--no-first-run", "--no-default-browser-check", "--hide-scrollbars",
-               f"--user-data-dir={profile}", *args]
-    return subprocess.run(command, capture_output=True, text=True, timeout=TIMEOUT, check=False)
-
-
 @pytest.mark.slow
-def test_report_renders_in_chromium(report, tmp_path):
-    chromium = _chromium()
+def test_report_renders_in_chromium(chromium, report, tmp_path):  # noqa: F811
     url = report.resolve().as_uri()
     shot = tmp_path / "shot.png"
     done = _headless(chromium, tmp_path / "p1", f"--screenshot={shot}", "--window-size=1280,1400",
