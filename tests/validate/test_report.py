@@ -55,3 +55,27 @@ def test_report_renders_in_chromium(chromium, report, tmp_path):  # noqa: F811
     assert match, "the page's load handler did not run"
     loaded, total = map(int, match.groups())
     assert loaded == total == 6
+
+
+def test_cells_with_a_constant_feature_are_named_not_drawn(tmp_path):
+    from simcred.report.validate import write_validation_report
+    from simcred.traces import TraceSet
+    from simcred.validate import read_inputs, read_validation, validate
+    from simcred.validate.verdict import verdict_document
+
+    path = write_universe(tmp_path, features=["v", "x"])
+    spec, base = read_validation(path)
+    inputs = read_inputs(spec, base)
+    flat = {}
+    for name, traces in (("reference", inputs.reference), *inputs.candidates.items()):
+        values = traces.values.copy()
+        values[:, traces.signals.index("v")] = 7.0  # every row in the first cell, v constant
+        flat[name] = TraceSet(traces.signals, traces.time, values, traces.offsets,
+                              traces.run_ids, source=traces.source)
+    inputs = type(inputs)(flat["reference"], {"sim": flat["sim"]}, ())
+    result = validate(spec, inputs)
+    out = tmp_path / "out"
+    out.mkdir()
+    html = write_validation_report(result, verdict_document(result, inputs), out).read_text()
+    assert "No state map where a drawn feature is constant" in html
+    assert "5 ≤ v &lt; 10" in html

@@ -52,8 +52,10 @@ def write_validation_report(result: Validation, document: dict[str, Any], out: P
 
 def _candidate(result: Validation, name: str, domain: Domain, figures: Path) -> dict[str, Any]:
     verdict = result.candidates[name]
-    maps = [c for c in domain.cells if c.comparison is not None]
-    maps = sorted(maps, key=lambda c: (c.status is not CellStatus.NOT_VALID, c.cell))
+    compared = [c for c in domain.cells if c.comparison is not None]
+    maps = sorted((c for c in compared if _drawable(c.comparison)),
+                  key=lambda c: (c.status is not CellStatus.NOT_VALID, c.cell))
+    flat = [c.label for c in compared if not _drawable(c.comparison)]
     return {
         "name": name,
         "verdict": verdict.verdict,
@@ -66,8 +68,15 @@ def _candidate(result: Validation, name: str, domain: Domain, figures: Path) -> 
                                               figures / f"{name}_cell{c.cell}_states.png"))}
                        for c in maps[:MAX_STATE_MAPS]],
         "more_maps": max(0, len(maps) - MAX_STATE_MAPS),
+        "flat_cells": flat,
         "monitors": {k: v for k, v in result.monitors.items() if k.startswith(f"{name} on ")},
     }
+
+
+def _drawable(comparison) -> bool:
+    """A state map needs bin edges on the features it draws (the first two): a feature that is
+    constant within a cell has none (report.figures.state_map cannot draw it)."""
+    return all(len(e) > 0 for e in comparison.space.edges[:2])
 
 
 def domain_map(domain: Domain, path: Path, conditions: str) -> Path:
