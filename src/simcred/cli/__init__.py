@@ -20,6 +20,7 @@ from simcred.cli import (  # noqa: F401  (importing registers the commands)
     reprocess,
     simulate,
     study,
+    validate,
 )
 from simcred.cli._app import app, error_line, plain_help
 

@@ -1,0 +1,253 @@
+"""The user's loop (DESIGN.md): measurements → per-cell comparisons → learned domains →
+contracts → configuration → monitors → one verdict for the test case.
+
+Verdict of a candidate for the test case (its operating conditions, ``test_case.conditions``):
+
+* ``valid`` — its learned contract refines the test case's (z3 proof): every operating point of
+  the test case lies in a valid cell and the measured distance bound meets ``max_distance``;
+* ``not valid`` — a cell that meets the test case's conditions is not valid, or the measured
+  bound exceeds ``max_distance``;
+* ``inconclusive`` — otherwise: the test case reaches cells without enough data (unknown) or
+  beyond the grid.
+
+The overall verdict is ``valid`` when configuration finds a candidate (the cheapest whose contract
+refines the test case), ``not valid`` when every candidate is not valid, else ``inconclusive``.
+Exit codes 0 / 1 / 3.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from simcred.contracts.algebra import Contract, Status, valid
+from simcred.contracts.configure import configure, setup_refines
+from simcred.contracts.expr import Bool, negate, parse, to_text
+from simcred.contracts.library import Library
+from simcred.contracts.monitor import MonitorReport, monitor
+from simcred.errors import SimcredError
+from simcred.traces import TraceSet
+from simcred.validate.cells import Grid, grid_of, segments
+from simcred.validate.domain import CellStatus, Domain, learn_domain
+from simcred.validate.learned import COMPONENT, TEST_CASE, library_dict
+from simcred.validate.learned import number as _exact_text
+from simcred.validate.spec import RunsSpec, ValidationFileError, ValidationSpec
+
+VALID, NOT_VALID, INCONCLUSIVE = "valid", "not valid", "inconclusive"
+EXIT_CODES = {VALID: 0, NOT_VALID: 1, INCONCLUSIVE: 3}
+MAX_VIOLATIONS = 50  # per monitor in verdict.json; the count says how many there are
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Inputs:
+    reference: TraceSet
+    candidates: dict[str, TraceSet]
+    monitored: tuple[TraceSet, ...]
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class CandidateVerdict:
+    candidate: str
+    verdict: str
+    reasons: tuple[str, ...]
+    relevant_cells: tuple[int, ...]
+    proof: dict[str, Any] | None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"candidate": self.candidate, "verdict": self.verdict, "reasons":
+                list(self.reasons), "test_case_cells": list(self.relevant_cells),
+                "refinement": self.proof}
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Validation:
+    """Everything the loop found; ``verdict`` and ``exit_code`` answer the user's question."""
+
+    spec: ValidationSpec
+    grid: Grid
+    domains: dict[str, Domain]
+    candidates: dict[str, CandidateVerdict]
+    verdict: str
+    summary: str
+    library: dict[str, Any]
+    configuration: dict[str, Any] | None
+    uncovered: dict[str, list[str]]
+    monitors: dict[str, MonitorReport]
+
+    @property
+    def exit_code(self) -> int:
+        return EXIT_CODES[self.verdict]
+
+    def library_yaml(self) -> str:
+        return yaml.safe_dump(self.library, sort_keys=False, allow_unicode=True, width=100)
+
+
+def read_inputs(spec: ValidationSpec, base: Path,
+                simulated: dict[str, RunsSpec] | None = None) -> Inputs:
+    """Read every trace set; ``simulated`` gives the runs of candidates made by a simulator
+    command (an absolute path per candidate name)."""
+    simulated = simulated or {}
+    missing = [n for n, c in spec.candidates.items() if c.runs is None and n not in simulated]
+    if missing:
+        raise ValidationFileError(f"candidates.{missing[0]}.simulate: the simulator command has "
+                                  "not been run (simcred validate runs it)")
+    return Inputs(_read(spec.reference, base),
+                  {n: _read(c.runs or simulated[n], base) for n, c in spec.candidates.items()},
+                  tuple(_read(m, base) for m in spec.monitor))
+
+
+def _read(runs: RunsSpec, base: Path) -> TraceSet:
+    path = Path(runs.path)
+    return TraceSet.read(path if path.is_absolute() else base / path, **runs.options)
+
+
+def check_test_case(spec: ValidationSpec, source: str) -> None:
+    """The test case's conditions parse over the condition variables (else a one-line error
+    naming ``test_case.conditions``)."""
+    try:
+        Library.from_dict(library_dict(spec, {}), source=source)
+    except SimcredError as exc:
+        message = str(exc).split(": test_cases.test_case: ", 1)[-1]
+        raise ValidationFileError(f"{source}: test_case.conditions: {message}") from None
+
+
+def validate(spec: ValidationSpec, inputs: Inputs, *, source: str = "<memory>") -> Validation:
+    """Run the loop (module docs) on validated inputs."""
+    check_test_case(spec, source)
+    _check_signals(spec, inputs)
+    grid = grid_of(spec.conditions)
+    reference = segments(inputs.reference, grid, spec.segments.min_length)
+    domains = {n: learn_domain(spec, grid, reference, runs, n)
+               for n, runs in inputs.candidates.items()}
+    data = library_dict(spec, domains)
+    library = Library.from_dict(data, source="learned contracts")
+    target = library.test_case(TEST_CASE)
+    relevant = _relevant_cells(grid, target, library)
+    beyond_text = _beyond_grid(grid, target, library)
+    verdicts = {n: _candidate_verdict(n, d, relevant, library, target, beyond_text,
+                                      spec.test_case.max_distance)
+                for n, d in domains.items()}
+    configuration = _configuration(library)
+    uncovered = {n: _uncovered(d, relevant, beyond_text) for n, d in domains.items()}
+    monitors = _monitors(library, inputs)
+    verdict, summary = _overall(spec, verdicts, configuration)
+    return Validation(spec, grid, domains, verdicts, verdict, summary, data, configuration,
+                      uncovered, monitors)
+
+
+def _check_signals(spec: ValidationSpec, inputs: Inputs) -> None:
+    needed = [*spec.conditions, *spec.features]
+    for traces, key in ((inputs.reference, "reference"),
+                        *((t, f"candidates.{n}") for n, t in inputs.candidates.items())):
+        for name in needed:
+            if name not in traces.signals:
+                raise ValidationFileError(f"{traces.source}: no signal '{name}' ({key}; signals "
+                                          f"are: {', '.join(traces.signals)})")
+
+
+def _relevant_cells(grid: Grid, target: Contract, library: Library) -> tuple[int, ...]:
+    """Cells (half-open, as rows are assigned) that meet the test case's conditions."""
+    out = []
+    for cell in range(grid.n_cells):
+        box = parse(grid.assertion(cell, half_open=True), declared=library.spec.variables)
+        disjoint = valid([box], negate(target.assumption), types=library.types)
+        if disjoint.status is not Status.HOLDS:
+            out.append(cell)
+    return tuple(out)
+
+
+def _configuration(library: Library) -> dict[str, Any] | None:
+    """Configuration on the learned contracts, without solver models: z3's counterexamples
+    depend on the solver's history in the process, which would break byte-identical verdicts
+    (the reason is ours; the candidates' reasons say what is not covered)."""
+    if not library.spec.models:
+        return None
+    found = configure(library, TEST_CASE)
+    reason = "" if found.status is Status.HOLDS else (
+        "no candidate's learned contract refines the test case (see the candidates' reasons)"
+        if found.status is Status.FAILS else "undecided (solver limit)")
+    return {"status": found.status.value, "setup": found.setup, "cost": found.cost,
+            "proof": None if found.proof is None else _proof(found.proof), "method": found.method,
+            "reason": reason}
+
+
+def _proof(verdict) -> dict[str, Any]:
+    """The refinement verdict without the solver's clauses and model (which clauses a
+    counterexample violates, or which premises an unsat core names, depends on z3's history
+    within the process)."""
+    return {"verdict": verdict.status.value, "reason": verdict.reason}
+
+
+def _beyond_grid(grid: Grid, target: Contract, library: Library) -> str:
+    """'' if the test case's conditions lie inside the grid, else what reaches beyond it."""
+    box = parse(" and ".join(f"{lo} <= {v} <= {hi}" for v, lo, hi in
+                             ((v, _exact_text(e[0]), _exact_text(e[-1]))
+                              for v, e in zip(grid.variables, grid.edges, strict=True))),
+                declared=library.spec.variables)
+    inside = valid([target.assumption], box, types=library.types)
+    if inside.status is Status.HOLDS:
+        return ""
+    return f"the test case's conditions reach beyond the grid ({to_text(box)})"
+
+
+def _uncovered(domain: Domain, relevant: tuple[int, ...], beyond: str) -> list[str]:
+    """What of the test case the candidate's learned domain does not cover, cell by cell."""
+    out = [f"{domain.cells[c].label}: {domain.cells[c].status.value}" for c in relevant
+           if domain.cells[c].status is not CellStatus.VALID]
+    return out + ([beyond] if beyond else [])
+
+
+def _candidate_verdict(name: str, domain: Domain, relevant: tuple[int, ...], library: Library,
+                       target: Contract, beyond: str, required: float) -> CandidateVerdict:
+    cells = [domain.cells[c] for c in relevant]
+    bad = [c for c in cells if c.status is CellStatus.NOT_VALID]
+    unknown = [c for c in cells if c.status is CellStatus.UNKNOWN]
+    proof = None
+    if name in library.spec.models:
+        proof = _proof(setup_refines(library, {COMPONENT: name}, target))
+    reasons = [f"not valid in {c.label}: {c.reason}" for c in bad]
+    reasons += [f"unknown in {c.label}: {c.reason}" for c in unknown]
+    if proof is not None and proof["verdict"] == "holds":
+        return CandidateVerdict(name, VALID, (f"valid in all {len(cells)} cells of the test "
+                                              "case; its learned contract refines the test "
+                                              "case (z3)",), relevant, proof)
+    if not bad and not unknown and proof is not None \
+            and domain.bound > required:
+        bad_bound = f"measured distance bound {domain.bound:g} exceeds the required one"
+        return CandidateVerdict(name, NOT_VALID, (bad_bound,), relevant, proof)
+    if beyond:
+        reasons.append(beyond)
+    if not cells:
+        reasons.append("no cell of the grid meets the test case's conditions")
+    return CandidateVerdict(name, NOT_VALID if bad else INCONCLUSIVE, tuple(reasons), relevant,
+                            proof)
+
+
+def _monitors(library: Library, inputs: Inputs) -> dict[str, MonitorReport]:
+    """Each learned domain (assumption only: runs carry no distance) over the candidate's own
+    runs and over every monitored set."""
+    out = {}
+    for name in library.spec.models:
+        domain = Contract(library.model_contracts[name].assumption, Bool(True), name)
+        out[f"{name} on its own runs"] = monitor(inputs.candidates[name], {name: domain})
+        for i, traces in enumerate(inputs.monitored):
+            out[f"{name} on monitor[{i}]"] = monitor(traces, {name: domain})
+    return out
+
+
+def _overall(spec: ValidationSpec, verdicts: dict[str, CandidateVerdict],
+             configuration: dict[str, Any] | None) -> tuple[str, str]:
+    question = f"'{spec.test_case.conditions}'"
+    if configuration is not None and configuration["status"] == "holds":
+        chosen = configuration["setup"][COMPONENT]
+        return VALID, (f"VALID: {chosen} is valid for the test case {question} (the cheapest "
+                       "candidate whose learned contract refines the test case)")
+    if all(v.verdict == NOT_VALID for v in verdicts.values()):
+        names = ", ".join(verdicts)
+        return NOT_VALID, f"NOT VALID: no candidate ({names}) is valid for {question}"
+    open_ = ", ".join(n for n, v in verdicts.items() if v.verdict == INCONCLUSIVE)
+    return INCONCLUSIVE, (f"INCONCLUSIVE: not enough data to decide for {question} "
+                          f"({open_}: cells without enough data or outside the grid)")

@@ -1,0 +1,201 @@
+"""The validation file: what a user states once to get one verdict for one test case.
+
+YAML, read with the contracts' strict safe loader (no duplicate keys, no aliases, bounded size)
+and validated with pydantic (unknown keys are errors). Every error is one line naming the file
+and the key. Paths are relative to the validation file's folder. See docs/validate.md::
+
+    name: car following, 10-25 m/s
+    test_case:
+      conditions: "10 <= v <= 25"     # operating conditions (over the condition variables)
+      max_distance: 0.2               # required validity: calibrated distance bound
+    reference: {path: ref.parquet}    # any format simcred reads (reader options allowed)
+    candidates:
+      idm: {runs: {path: idm.parquet}, cost: 1}
+    features: [v, gap]
+    conditions:                       # variables spanning the validity domain, cell edges
+      v: {unit: m/s, edges: [10, 15, 20, 25]}
+    comparison: {bins: 4, alpha: 0.05, permutations: 199, seed: 0}
+    acceptance: {rule: chain}         # or {rule: distance, d_max: 0.2}
+    min_data: {runs: 8, samples: 200} # per side and cell, else the cell is unknown
+    monitor: [{path: new_runs.parquet}]
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from simcred.contracts.loader import load_yaml
+from simcred.errors import SimcredError
+
+NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*$")
+RESERVED = {"and", "or", "not", "implies", "true", "false", "distance"}
+MAX_CELLS = 400
+
+
+class ValidationFileError(SimcredError):
+    """A malformed validation file; the message names the file and the key."""
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class RunsSpec(_Strict):
+    """A trace set on disk: ``path`` plus reader options (:func:`simcred.io.read`)."""
+
+    path: str = Field(min_length=1)
+    options: dict[str, str | int | float | bool] = Field(default_factory=dict)
+
+
+class TestCaseSpec(_Strict):
+    conditions: str = Field(min_length=1)
+    max_distance: float = Field(default=1.0, ge=0, le=1, allow_inf_nan=False)
+
+
+class SimulateSpec(_Strict):
+    """A simcred simulator command that writes the candidate's runs: ``command`` is the argument
+    list of ``simcred`` (no shell; it must start with ``simulate``), in which ``{base}`` stands
+    for the validation file's folder and ``{out}`` for a fresh folder under ``--out``;
+    ``output`` is the trace set the command writes there, ``options`` go to its reader."""
+
+    command: list[str] = Field(min_length=2, max_length=64)
+    output: str = Field(min_length=1)
+    options: dict[str, str | int | float | bool] = Field(default_factory=dict)
+
+    @field_validator("command")
+    @classmethod
+    def _simulate(cls, command: list[str]) -> list[str]:
+        if command[0] != "simulate":
+            raise ValueError("a simulator command starts with 'simulate' (a simcred simulate "
+                             f"subcommand), got {command[0]!r}")
+        return command
+
+
+class CandidateSpec(_Strict):
+    """A candidate: its runs on disk, or a simulator command that makes them."""
+
+    runs: RunsSpec | None = None
+    simulate: SimulateSpec | None = None
+    cost: float = Field(default=1.0, ge=0, le=1e12, allow_inf_nan=False)
+    description: str = ""
+
+    @model_validator(mode="after")
+    def _one_source(self) -> CandidateSpec:
+        if (self.runs is None) == (self.simulate is None):
+            raise ValueError("give either runs or simulate")
+        return self
+
+
+class ConditionSpec(_Strict):
+    """One operating-condition variable: a signal of the runs, its unit and its cell edges."""
+
+    unit: str = Field(default="dimensionless", max_length=64)
+    edges: list[float] = Field(min_length=2, max_length=MAX_CELLS + 1)
+
+    @field_validator("edges")
+    @classmethod
+    def _increasing(cls, edges: list[float]) -> list[float]:
+        if not all(math.isfinite(e) for e in edges):
+            raise ValueError("edges must be finite numbers")
+        if any(b <= a for a, b in zip(edges, edges[1:], strict=False)):
+            raise ValueError("edges must be strictly increasing")
+        return edges
+
+
+class ComparisonSpec(_Strict):
+    """Options of the calibrated comparison (run-level test) in every cell."""
+
+    bins: int | list[int] = 4
+    kernel: Literal["gaussian", "laplace", "linear"] = "gaussian"
+    alpha: float = Field(default=0.05, gt=0, lt=1)
+    permutations: int = Field(default=199, ge=19, le=100_000)
+    seed: int = Field(default=0, ge=0)
+    chain: Literal["sum", "max"] = "sum"
+    multiplicity: Literal["fwer", "fdr", "none"] = "fwer"
+    resample: float | None = Field(default=None, gt=0)
+
+
+class AcceptanceSpec(_Strict):
+    """When a cell with enough data is valid: the chain-level test does not reject at the
+    comparison's alpha (``chain``), or the distance is at most ``d_max`` (``distance``)."""
+
+    rule: Literal["chain", "distance"] = "chain"
+    d_max: float | None = Field(default=None, ge=0, le=1, allow_inf_nan=False)
+
+    @model_validator(mode="after")
+    def _d_max(self) -> AcceptanceSpec:
+        if self.rule == "distance" and self.d_max is None:
+            raise ValueError("rule 'distance' needs d_max")
+        if self.rule == "chain" and self.d_max is not None:
+            raise ValueError("d_max belongs to rule 'distance'")
+        return self
+
+
+class MinDataSpec(_Strict):
+    """Least data per side (reference and candidate) in a cell; below it the cell is unknown."""
+
+    runs: int = Field(default=8, ge=2)
+    samples: int = Field(default=100, ge=2)
+
+
+class SegmentSpec(_Strict):
+    """Runs cross cells: each run is cut into maximal segments inside one cell; segments shorter
+    than ``min_length`` samples are dropped."""
+
+    min_length: int = Field(default=10, ge=2)
+
+
+class ValidationSpec(_Strict):
+    name: str = Field(default="validation", max_length=200)
+    test_case: TestCaseSpec
+    reference: RunsSpec
+    reference_note: str = ""
+    candidates: dict[str, CandidateSpec] = Field(min_length=1)
+    features: list[str] = Field(min_length=1)
+    conditions: dict[str, ConditionSpec] = Field(min_length=1, max_length=3)
+    comparison: ComparisonSpec = Field(default_factory=ComparisonSpec)
+    acceptance: AcceptanceSpec = Field(default_factory=AcceptanceSpec)
+    min_data: MinDataSpec = Field(default_factory=MinDataSpec)
+    segments: SegmentSpec = Field(default_factory=SegmentSpec)
+    monitor: list[RunsSpec] = Field(default_factory=list)
+
+    @field_validator("candidates", "conditions")
+    @classmethod
+    def _names(cls, value: dict[str, Any]) -> dict[str, Any]:
+        for name in value:
+            if not NAME.match(name) or name in RESERVED:
+                raise ValueError(f"'{name}' is not a usable name (letters, digits, _ and dots; "
+                                 f"not {', '.join(sorted(RESERVED))})")
+        return value
+
+    @model_validator(mode="after")
+    def _cells(self) -> ValidationSpec:
+        cells = math.prod(len(c.edges) - 1 for c in self.conditions.values())
+        if cells > MAX_CELLS:
+            raise ValueError(f"{cells} cells (at most {MAX_CELLS})")
+        return self
+
+
+def read_validation(path: str | Path) -> tuple[ValidationSpec, Path]:
+    """The validated spec of the file ``path`` and the folder its relative paths start from."""
+    path = Path(path)
+    data = load_yaml(path)
+    return parse_validation(data, source=str(path)), path.resolve().parent
+
+
+def parse_validation(data: Any, *, source: str = "<memory>") -> ValidationSpec:
+    if not isinstance(data, dict):
+        raise ValidationFileError(f"{source}: a validation file is a mapping (test_case, "
+                                  "reference, candidates, features, conditions, ...)")
+    try:
+        return ValidationSpec.model_validate(data)
+    except ValidationError as exc:
+        error = exc.errors()[0]
+        where = ".".join(str(p) for p in error["loc"]) or "(top level)"
+        message = error["msg"].removeprefix("Value error, ")
+        raise ValidationFileError(f"{source}: {where}: {message}") from None

@@ -1,0 +1,88 @@
+"""``verdict.json``: the verdict, its reasons and the provenance, byte for byte reproducible.
+
+No wall-clock time enters the document: ``date`` is what the caller gives (an option), so the same
+inputs, options and seed give the same bytes. Inputs are named by content hash (the validation
+file's SHA-256, each trace set's digest), code by version and, when simcred runs from a git
+checkout, its commit.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import platform
+import subprocess
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import scipy
+
+import simcred
+from simcred._json import dumps, envelope
+from simcred.validate.loop import MAX_VIOLATIONS, Inputs, Validation
+
+
+def verdict_document(result: Validation, inputs: Inputs, *, validation_file: Path | None = None,
+                     date: str | None = None) -> dict[str, Any]:
+    body = {
+        "verdict": result.verdict,
+        "summary": result.summary,
+        "test_case": result.spec.test_case.model_dump(),
+        "candidates": {n: v.to_dict() for n, v in result.candidates.items()},
+        "grid": {"variables": list(result.grid.variables), "units": list(result.grid.units),
+                 "edges": [list(e) for e in result.grid.edges]},
+        "domains": {n: d.to_dict() for n, d in result.domains.items()},
+        "configuration": result.configuration,
+        "uncovered": result.uncovered,
+        "monitors": {n: _monitor(m) for n, m in result.monitors.items()},
+        "provenance": provenance(result, inputs, validation_file, date),
+    }
+    return envelope("validation_verdict", body)
+
+
+def verdict_json(result: Validation, inputs: Inputs, **kwargs: Any) -> str:
+    return dumps(verdict_document(result, inputs, **kwargs))
+
+
+def _monitor(report) -> dict[str, Any]:
+    violations = [{"run": v.run, "first_step": v.first_step, "last_step": v.last_step,
+                   "t_start": v.t_start, "t_end": v.t_end, "margin": v.margin}
+                  for v in report.violations]
+    return {"source": report.source, "runs": report.runs, "samples": report.samples,
+            "passed": report.passed, "violations": len(violations),
+            "runs_leaving_domain": len({v["run"] for v in violations}),
+            "first_violations": violations[:MAX_VIOLATIONS]}
+
+
+def provenance(result: Validation, inputs: Inputs, validation_file: Path | None,
+               date: str | None) -> dict[str, Any]:
+    return {
+        "validation_file": None if validation_file is None else {
+            "path": validation_file.name,
+            "sha256": hashlib.sha256(validation_file.read_bytes()).hexdigest()},
+        "inputs": {"reference": _set(inputs.reference),
+                   "candidates": {n: _set(t) for n, t in inputs.candidates.items()},
+                   "monitor": [_set(t) for t in inputs.monitored]},
+        "options": result.spec.model_dump(mode="json"),
+        "seed": result.spec.comparison.seed,
+        "versions": {"simcred": simcred.__version__, "numpy": np.__version__,
+                     "scipy": scipy.__version__, "python": platform.python_version()},
+        "git_commit": git_commit(),
+        "date": date,
+    }
+
+
+def _set(traces) -> dict[str, Any]:
+    return {"source": Path(traces.source).name, "digest": traces.digest(),
+            "runs": traces.n_runs, "rows": traces.n_rows}
+
+
+def git_commit() -> str | None:
+    """The commit of the checkout simcred runs from, if it is one (None otherwise)."""
+    here = Path(simcred.__file__).resolve().parent
+    try:
+        done = subprocess.run(["git", "-C", str(here), "rev-parse", "HEAD"], capture_output=True,
+                              text=True, timeout=10, check=False)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return done.stdout.strip() or None if done.returncode == 0 else None

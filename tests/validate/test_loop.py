@@ -1,0 +1,154 @@
+"""The loop end to end on the synthetic universe: verdicts and exit codes, learned contracts that
+`contracts check` accepts, configuration against brute force, monitors at the right steps,
+byte-identical reruns, the grid against a literal implementation."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import yaml
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from simcred.cli import run
+from simcred.contracts.configure import setup_refines
+from simcred.contracts.library import Library
+from simcred.traces import TraceSet
+from simcred.validate import read_inputs, read_validation, validate
+from simcred.validate.cells import OUTSIDE, Grid, segments
+from simcred.validate.learned import COMPONENT, TEST_CASE
+
+from .conftest import write_universe
+
+TWO = {"sim": {"runs": {"path": "sim.parquet"}, "cost": 1},
+       "twin": {"runs": {"path": "twin.parquet"}, "cost": 5}}
+
+
+def _run(path, out, *extra):
+    code = run(["-q", "validate", str(path), "--out", str(out), "--no-report", *extra])
+    return code, json.loads((out / "verdict.json").read_text())
+
+
+def test_not_valid_above_the_switch(tmp_path):
+    code, verdict = _run(write_universe(tmp_path), tmp_path / "out")
+    assert code == 1 and verdict["verdict"] == "not valid"
+    cells = verdict["domains"]["sim"]["cells"]
+    assert [c["status"] for c in cells] == ["valid"] * 3 + ["not valid"] * 2
+    assert verdict["candidates"]["sim"]["test_case_cells"] == [1, 2, 3, 4]
+
+
+def test_valid_below_the_switch_and_cheapest_by_brute_force(tmp_path, capsys):
+    path = write_universe(tmp_path, test_case={"conditions": "5 <= v < 20", "max_distance": 0.5},
+                          candidates=TWO)
+    code, verdict = _run(path, tmp_path / "out")
+    assert code == 0 and verdict["verdict"] == "valid"
+    assert verdict["configuration"]["setup"] == {COMPONENT: "sim"}
+    library = Library.read(tmp_path / "out" / "contracts.yaml")
+    target = library.test_case(TEST_CASE)
+    costs = {m: library.spec.models[m].cost for m in library.spec.models
+             if setup_refines(library, {COMPONENT: m}, target).holds}
+    assert set(costs) == {"sim", "twin"}
+    assert verdict["configuration"]["cost"] == min(costs.values())
+    assert run(["contracts", "check", str(tmp_path / "out" / "contracts.yaml")]) == 0
+    # over the whole test case 10..25 only the twin is valid, though it costs more
+    path = write_universe(tmp_path, candidates=TWO)
+    code, verdict = _run(path, tmp_path / "out2")
+    assert code == 0 and verdict["configuration"]["setup"] == {COMPONENT: "twin"}
+    assert verdict["candidates"]["sim"]["verdict"] == "not valid"
+
+
+def test_inconclusive_when_data_is_short_or_the_grid_ends(tmp_path):
+    path = write_universe(tmp_path, test_case={"conditions": "5 <= v < 20"},
+                          min_data={"runs": 10_000, "samples": 200})
+    code, verdict = _run(path, tmp_path / "a")
+    assert code == 3 and verdict["verdict"] == "inconclusive"
+    assert {c["status"] for c in verdict["domains"]["sim"]["cells"]} == {"unknown"}
+    assert verdict["configuration"] is None
+    path = write_universe(tmp_path, test_case={"conditions": "0 <= v < 20"})
+    code, verdict = _run(path, tmp_path / "b")
+    assert code == 3
+    assert any("beyond the grid" in r for r in verdict["candidates"]["sim"]["reasons"])
+    assert verdict["uncovered"]["sim"] == [
+        "the test case's conditions reach beyond the grid (5 <= v and v <= 30)"]
+
+
+def test_monitor_flags_the_steps_that_leave_the_domain(tmp_path):
+    t = np.arange(100) * 0.1
+    v = np.linspace(12.0, 24.0, 100)
+    TraceSet.from_runs([{"t": t, "v": v, "x": np.zeros(100)}], run_ids=["ramp"]).write(
+        tmp_path / "ramp.parquet")
+    path = write_universe(tmp_path, monitor=[{"path": "ramp.parquet"}])
+    _, verdict = _run(path, tmp_path / "out")
+    report = verdict["monitors"]["sim on monitor[0]"]
+    assert report["violations"] == 1
+    outside = np.flatnonzero(v > 20.0)  # the learned domain is 5 <= v <= 20
+    found = report["first_violations"][0]
+    assert (found["first_step"], found["last_step"]) == (outside[0], outside[-1])
+    assert found["margin"] == pytest.approx(-(v.max() - 20.0))
+
+
+def test_same_inputs_and_seed_give_identical_bytes(tmp_path):
+    path = write_universe(tmp_path)
+    assert run(["-q", "validate", str(path), "--out", str(tmp_path / "a")]) == 1
+    (tmp_path / "other").mkdir()
+    other = write_universe(tmp_path / "other", candidates=TWO)  # other solver queries between
+    assert run(["-q", "validate", str(other), "--out", str(tmp_path / "o"), "--no-report"]) == 0
+    assert run(["-q", "validate", str(path), "--out", str(tmp_path / "b")]) == 1
+    for name in ("verdict.json", "contracts.yaml", "report.html"):
+        assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes()
+    document = yaml.safe_load(path.read_text())
+    document["comparison"]["seed"] = 8
+    path.write_text(yaml.safe_dump(document))
+    run(["-q", "validate", str(path), "--out", str(tmp_path / "c"), "--no-report"])
+    assert (tmp_path / "c" / "verdict.json").read_bytes() != \
+        (tmp_path / "a" / "verdict.json").read_bytes()
+
+
+def test_library_api_matches_cli(tmp_path):
+    spec, base = read_validation(write_universe(tmp_path))
+    result = validate(spec, read_inputs(spec, base))
+    assert result.verdict == "not valid" and result.exit_code == 1
+    domain = result.domains["sim"]
+    assert domain.bound == max(c.distance for c in domain.cells if c.status.value == "valid")
+    assert f"distance <= {domain.bound}" in result.library_yaml()
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.sampled_from([4.0, 5.0, 7.5, 10.0, 12.0, 20.0, 29.9, 30.0, 31.0]),
+                min_size=2, max_size=40),
+       st.lists(st.floats(-1, 3), min_size=2, max_size=40))
+def test_cells_and_segments_match_a_literal_implementation(vs, gs):
+    n = min(len(vs), len(gs))
+    grid = Grid(("v", "g"), ((5.0, 10.0, 20.0, 30.0), (0.0, 1.0, 2.0)), ("m/s", "m"))
+    traces = TraceSet.from_runs([{"t": np.arange(n), "v": vs[:n], "g": gs[:n]}])
+
+    def literal(value, edges):
+        for i in range(len(edges) - 1):
+            last = i == len(edges) - 2
+            if edges[i] <= value < edges[i + 1] or (last and value == edges[i + 1]):
+                return i
+        return None
+
+    expected = []
+    for v, g in zip(vs[:n], gs[:n], strict=True):
+        i, j = literal(v, grid.edges[0]), literal(g, grid.edges[1])
+        expected.append(OUTSIDE if i is None or j is None else i * 2 + j)
+    assert grid.cells_of(traces).tolist() == expected
+    cut = segments(traces, grid, 2)
+    rows = sum(ts.n_rows for ts in cut.by_cell.values())
+    runs_of_two = sum(1 for k, grp in _groups(expected) if k != OUTSIDE and grp >= 2)
+    assert sum(ts.n_runs for ts in cut.by_cell.values()) == runs_of_two
+    assert rows == sum(grp for k, grp in _groups(expected) if k != OUTSIDE and grp >= 2)
+
+
+def _groups(values):
+    out, k = [], 0
+    while k < len(values):
+        j = k
+        while j < len(values) and values[j] == values[k]:
+            j += 1
+        out.append((values[k], j - k))
+        k = j
+    return out

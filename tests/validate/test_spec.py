@@ -1,0 +1,105 @@
+"""Bad validation files: one line naming the file and the key; CLI exit 2, no traceback."""
+
+from __future__ import annotations
+
+import pytest
+import yaml
+
+from simcred.cli import run
+from simcred.validate.spec import ValidationFileError, read_validation
+
+from .conftest import write_universe
+
+
+def _mutated(path, change):
+    document = yaml.safe_load(path.read_text())
+    change(document)
+    path.write_text(yaml.safe_dump(document, sort_keys=False))
+    return path
+
+
+CASES = [
+    ("unknown top-level key", lambda d: d.update(extra=1), "extra"),
+    ("unknown nested key", lambda d: d["comparison"].update(bin=3), "comparison.bin"),
+    ("missing test case", lambda d: d.pop("test_case"), "test_case"),
+    ("edges not increasing", lambda d: d["conditions"]["v"].update(edges=[5, 5, 10]),
+     "conditions.v.edges"),
+    ("one edge", lambda d: d["conditions"]["v"].update(edges=[5]), "conditions.v.edges"),
+    ("alpha out of range", lambda d: d["comparison"].update(alpha=1.5), "comparison.alpha"),
+    ("rule distance without d_max", lambda d: d.update(acceptance={"rule": "distance"}),
+     "acceptance"),
+    ("bad rule", lambda d: d.update(acceptance={"rule": "vibes"}), "acceptance.rule"),
+    ("reserved condition name", lambda d: d.update(
+        conditions={"distance": {"edges": [0, 1]}}), "conditions"),
+    ("min_data too small", lambda d: d.update(min_data={"runs": 1}), "min_data.runs"),
+    ("no candidates", lambda d: d.update(candidates={}), "candidates"),
+    ("features not a list", lambda d: d.update(features="x"), "features"),
+]
+
+
+@pytest.mark.parametrize(("what", "change", "key"), CASES, ids=[c[0] for c in CASES])
+def test_bad_file_names_the_key(tmp_path, capsys, what, change, key):
+    path = _mutated(write_universe(tmp_path, runs=10, steps=20), change)
+    with pytest.raises(ValidationFileError) as info:
+        read_validation(path)
+    message = str(info.value)
+    assert "\n" not in message
+    assert message.startswith(f"{path}: {key}")
+    assert run(["validate", str(path), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and key in err
+
+
+def test_bad_yaml_and_duplicate_keys(tmp_path, capsys):
+    path = tmp_path / "v.yaml"
+    path.write_text("test_case: {conditions: 'v < 1'}\ntest_case: {conditions: 'v < 2'}\n")
+    assert run(["validate", str(path), "--out", str(tmp_path / "o")]) == 2
+    assert "duplicate key 'test_case'" in capsys.readouterr().err
+    path.write_text("- a list\n")
+    assert run(["validate", str(path), "--out", str(tmp_path / "o")]) == 2
+    assert "is a mapping" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(("change", "needle"), [
+    (lambda d: d["test_case"].update(conditions="10 <= speed"), "test_case.conditions"),
+    (lambda d: d["test_case"].update(conditions="10 <= v <="), "test_case.conditions"),
+    (lambda d: d.update(features=["nope"]), "no signal 'nope'"),
+    (lambda d: d["reference"].update(path="missing.parquet"), "missing.parquet"),
+])
+def test_bad_content_is_one_line_exit_2(tmp_path, capsys, change, needle):
+    path = _mutated(write_universe(tmp_path, runs=10, steps=20), change)
+    assert run(["validate", str(path), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert needle in err and "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1 or err.count("error:") == 1
+
+
+def test_outputs_never_overwrite_inputs(tmp_path, capsys):
+    path = write_universe(tmp_path, runs=10, steps=20,
+                          reference={"path": "verdict.json"})
+    assert run(["validate", str(path), "--out", str(tmp_path)]) == 2
+
+
+@pytest.mark.parametrize(("candidate", "needle"), [
+    ({"runs": {"path": "sim.parquet"},
+      "simulate": {"command": ["simulate", "cutin"], "output": "x.parquet"}},
+     "candidates.sim: give either runs or simulate"),
+    ({"cost": 1}, "candidates.sim: give either runs or simulate"),
+    ({"simulate": {"command": ["paper", "all"], "output": "x.parquet"}},
+     "candidates.sim.simulate.command: a simulator command starts with 'simulate'"),
+])
+def test_candidate_sources(tmp_path, candidate, needle):
+    path = _mutated(write_universe(tmp_path, runs=10, steps=20),
+                    lambda d: d.update(candidates={"sim": candidate}))
+    with pytest.raises(ValidationFileError, match=needle):
+        read_validation(path)
+
+
+def test_failing_simulator_command_names_the_candidate(tmp_path, capsys):
+    path = _mutated(write_universe(tmp_path, runs=10, steps=20), lambda d: d.update(
+        candidates={"sim": {"simulate": {"command": ["simulate", "sumo-following",
+                                                     "{base}/missing.parquet", "--out", "{out}"],
+                                         "output": "IDM.parquet"}}}))
+    assert run(["validate", str(path), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert "candidates.sim.simulate" in err and "Traceback" not in err
