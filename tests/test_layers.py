@@ -22,15 +22,16 @@ SRC = Path(__file__).resolve().parents[1] / "src"
 #: Layer of each top-level unit (``simcred.X``), lowest first. ``simcred`` itself is the root face:
 #: it may import the core and io (io registers the TraceSet file formats), nothing imports it
 #: from inside the package but the CLI.
-#: The core is ordered within itself (0.0 … 0.9), so its modules cannot import in a circle.
-CORE = ("_version", "_lazy", "errors", "limits", "_json", "outputs", "seeds", "engine", "traces",
-        "kinematics")
+#: The core is ordered within itself (0.00 … 0.10), so its modules cannot import in a circle.
+CORE = ("_version", "_lazy", "errors", "limits", "data", "_json", "outputs", "seeds", "engine",
+        "traces", "kinematics")
 LAYERS: dict[str, float] = {
-    **{unit: i / 10 for i, unit in enumerate(CORE)},
+    **{unit: i / 100 for i, unit in enumerate(CORE)},
     "io": 1,
     "compare": 2, "contracts": 2, "scenario": 2, "risk": 2,
     "sim": 3, "examples": 3,
-    "reprocess": 4,
+    "reprocess": 4, "study": 4,
+    "validate": 4.5,
     "report": 5,
     "paper": 6,
     "cli": 7,

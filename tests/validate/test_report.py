@@ -8,9 +8,9 @@ from pathlib import Path
 
 import matplotlib.image as mpimg
 import pytest
+from test_report import _headless, chromium  # noqa: F401  (the fixture: found or installed)
 
 from simcred.cli import run
-from test_report import _headless, chromium  # noqa: F401  (the fixture: found or installed)
 
 from .conftest import write_universe
 

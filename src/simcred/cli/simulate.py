@@ -151,5 +151,5 @@ def simulate_sumo_following(
         written = write_replays(results, partial, options={"models": models, "seed": seed,
                                                            "chunk_size": chunk_size})
     if not State.quiet:
-        out_console.print(f"wrote {out}/: {', '.join(p.name for p in written)}: "
-                          f"{source.n_runs} episodes x {len(results)} models")
+        say(f"wrote {out}/: {', '.join(p.name for p in written)}: "
+            f"{source.n_runs} episodes x {len(results)} models")

@@ -407,10 +407,10 @@ def write_replays(results: Mapping[str, TraceSet], out: str | Path, *,
     first = next(iter(results.values())).metadata
     import platform
 
-    import simcred
+    from simcred._version import __version__
 
     body = {"simulator": "SUMO", "sumo_version": first["sumo_version"],
-            "versions": {"simcred": simcred.__version__, "sumo": first["sumo_version"],
+            "versions": {"simcred": __version__, "sumo": first["sumo_version"],
                          "numpy": np.__version__, "python": platform.python_version()},
             "input": first["input"], "options": dict(options), "road": first["road"],
             "units": first["units"], "models": models}

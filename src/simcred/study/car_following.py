@@ -34,8 +34,8 @@ from typing import Any
 
 import numpy as np
 
-import simcred
 from simcred._json import dumps, envelope
+from simcred._version import __version__
 from simcred.compare import compare
 from simcred.compare.result import Comparison
 from simcred.engine import Engine, Progress, engine
@@ -267,7 +267,7 @@ def _subset(traces: TraceSet, limit: int | None) -> TraceSet:
 
 def _provenance(source: Path | None, options: StudyOptions, human: TraceSet, acc: TraceSet,
                 sims: dict[str, TraceSet]) -> dict[str, Any]:
-    from simcred import data
+    import simcred.data as data
 
     root = data.path("openacc") if source is None else Path(source)
     files = recording_files(root)
@@ -281,7 +281,7 @@ def _provenance(source: Path | None, options: StudyOptions, human: TraceSet, acc
         "sumo": {name: {"digest": s.digest(), "model": s.metadata["model"],
                         "negative_gap_runs": s.metadata["negative_gap_runs"]}
                  for name, s in sims.items()},
-        "versions": {"simcred": simcred.__version__, "sumo": sumo_version(),
+        "versions": {"simcred": __version__, "sumo": sumo_version(),
                      "numpy": np.__version__, "python": platform.python_version()},
         "seeds": {"study": options.seed, "sumo": derive_seed(options.seed, _SUMO),
                   "split": [derive_seed(options.seed, _SPLIT, k)

@@ -17,8 +17,8 @@ from typing import Any
 import numpy as np
 import scipy
 
-import simcred
 from simcred._json import dumps, envelope
+from simcred._version import __version__
 from simcred.validate.loop import MAX_VIOLATIONS, Inputs, Validation
 
 
@@ -65,7 +65,7 @@ def provenance(result: Validation, inputs: Inputs, validation_file: Path | None,
                    "monitor": [_set(t) for t in inputs.monitored]},
         "options": result.spec.model_dump(mode="json"),
         "seed": result.spec.comparison.seed,
-        "versions": {"simcred": simcred.__version__, "numpy": np.__version__,
+        "versions": {"simcred": __version__, "numpy": np.__version__,
                      "scipy": scipy.__version__, "python": platform.python_version()},
         "git_commit": git_commit(),
         "date": date,
@@ -79,7 +79,7 @@ def _set(traces) -> dict[str, Any]:
 
 def git_commit() -> str | None:
     """The commit of the checkout simcred runs from, if it is one (None otherwise)."""
-    here = Path(simcred.__file__).resolve().parent
+    here = Path(__file__).resolve().parents[1]
     try:
         done = subprocess.run(["git", "-C", str(here), "rev-parse", "HEAD"], capture_output=True,
                               text=True, timeout=10, check=False)
