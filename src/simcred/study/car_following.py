@@ -41,7 +41,7 @@ from simcred.compare.result import Comparison
 from simcred.engine import Engine, Progress, engine
 from simcred.errors import OptionError
 from simcred.io.openacc import ACC, HUMAN, UNITS, EpisodeRules, read_openacc, recording_files
-from simcred.sim.campaign import derive_seed
+from simcred.seeds import derive_seed
 from simcred.sim.sumo import replay, sumo_version
 from simcred.study.verdict import METHODS, CellVerdict, chain_verdict, check_test
 from simcred.traces import RUN_INFO, TraceSet, take
