@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from simcred.limits import check_count, check_finite
 from simcred.traces import TraceSet
 
 LANE_WIDTH = 3.5  # m
@@ -51,8 +52,17 @@ def lane_change_sets(
     >>> a.n_runs, b.n_rows, a.signals
     (3, 15, ('x', 'y', 'v', 'heading'))
     """
+    _lane_change_sets_iv(runs, steps, dt, duration_scale)
     ss_a, ss_b = np.random.SeedSequence(seed).spawn(2)
     a = lane_change_runs(runs, steps, dt, 1.0, np.random.default_rng(ss_a), "example:baseline")
     b = lane_change_runs(runs, steps, dt, duration_scale, np.random.default_rng(ss_b),
                          "example:variant")
     return a, b
+
+
+def _lane_change_sets_iv(runs: int, steps: int, dt: float, duration_scale: float) -> None:
+    check_count(runs, "runs", "runs")
+    check_count(steps, "steps", "steps", minimum=2)
+    check_count(runs * steps, "rows", "runs × steps")
+    check_finite(dt, "dt", minimum=0, open_minimum=True)
+    check_finite(duration_scale, "duration_scale", minimum=0, open_minimum=True)

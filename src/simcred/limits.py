@@ -45,6 +45,7 @@ class Limit:
 LIMITS = {limit.name: limit for limit in (
     Limit("runs", 1_000_000, "runs per campaign or trace set"),
     Limit("steps", 1_000_000, "steps per run"),
+    Limit("rows", 100_000_000, "rows (runs × steps) of a trace set held in memory"),
     Limit("permutations", 1_000_000, "permutations or resamples of a test"),
     Limit("bins", 10_000, "bins per feature"),
     Limit("variations", 1_000_000, "variations of a scenario"),

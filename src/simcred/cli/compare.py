@@ -273,8 +273,6 @@ def example(
     """Write the built-in example trace sets (seeded lane changes: baseline and variant)."""
     from simcred.examples import lane_change_sets
 
-    if runs < 1 or steps < 2:
-        raise OptionError(f"need runs ≥ 1 and steps ≥ 2, got runs={runs}, steps={steps}")
     suffix = ".parquet" if parquet else ""
     for traces, name in zip(lane_change_sets(runs, steps, seed=seed,
                                              duration_scale=duration_scale),
