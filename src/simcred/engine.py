@@ -12,7 +12,8 @@ from contextvars import ContextVar
 from types import MappingProxyType
 from typing import Any, TypeVar
 
-from simcred.errors import OptionError
+from simcred.errors import OptionError, SimcredError
+from simcred.limits import check_count
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -74,7 +75,7 @@ class DaskEngine(Engine):
 
         self._cluster = None
         if scheduler is not None:
-            self.client = Client(scheduler)
+            self.client = _connect(Client, scheduler)
         else:
             with dask.config.set({"distributed.nanny.pre-spawn-environ": WORKER_ENVIRON}):
                 self._cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
@@ -87,9 +88,16 @@ class DaskEngine(Engine):
         [values] = self.client.scatter([shared_values or {}], broadcast=True, hash=False)
         futures = self.client.map(_run_task, items, task=task, values=values, pure=False)
         done = as_completed(futures)
-        for _ in (progress(done, len(futures)) if progress else done):
-            pass
-        return self.client.gather(futures)
+        try:
+            for _ in (progress(done, len(futures)) if progress else done):
+                pass
+            return self.client.gather(futures)
+        except Exception as exc:
+            if type(exc).__name__ != "KilledWorker":
+                raise
+            raise EngineError(f"Dask workers died {ALLOWED_FAILURES + 1} times running one task "
+                              f"({exc}); the task may need more memory than a worker has"
+                              ) from None
 
     def close(self) -> None:
         self.client.close()
@@ -97,11 +105,35 @@ class DaskEngine(Engine):
             self._cluster.close()
 
 
+class EngineError(SimcredError):
+    """The distributed run cannot go on (no scheduler there, workers keep dying)."""
+
+
+#: Seconds to wait for a scheduler at ``--scheduler`` before giving up with one line.
+CONNECT_TIMEOUT_S = 5
+#: Dask's ``distributed.scheduler.allowed-failures``: a task whose worker died is run again on
+#: another worker this often (so one dying worker costs time, not results) before giving up.
+ALLOWED_FAILURES = 3
+
+
+def _connect(client_class: type, scheduler: str) -> Any:
+    """A client of the scheduler at ``scheduler``, or one line saying why there is none."""
+    import dask
+
+    try:
+        with dask.config.set({"distributed.comm.timeouts.connect": f"{CONNECT_TIMEOUT_S}s"}):
+            return client_class(scheduler, timeout=CONNECT_TIMEOUT_S)
+    except (OSError, TimeoutError, ValueError, TypeError) as exc:
+        reason = " ".join(str(exc).split()) or type(exc).__name__
+        raise EngineError(f"--scheduler {scheduler}: no Dask scheduler reachable "
+                          f"({reason[:200]})") from None
+
+
 @contextmanager
 def engine(workers: int | None = None, scheduler: str | None = None) -> Iterator[Engine]:
     """In-process without ``workers`` or ``scheduler``; else Dask, closed on exit."""
-    if workers is not None and workers < 1:
-        raise OptionError(f"workers must be at least 1, got {workers}")
+    if workers is not None:
+        check_count(workers, "workers", "--workers")
     if workers is not None and scheduler is not None:
         raise OptionError("give either workers (a local Dask cluster) or a scheduler address")
     runner = Engine() if workers is None and scheduler is None else DaskEngine(workers, scheduler)
