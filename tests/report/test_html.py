@@ -11,8 +11,6 @@ from __future__ import annotations
 import base64
 import json
 import re
-import shutil
-import subprocess
 from pathlib import Path
 
 import matplotlib
@@ -22,6 +20,7 @@ import matplotlib.image as mpimg  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 import pytest  # noqa: E402
 
+from browser import headless  # noqa: E402
 from simcred.cli import run  # noqa: E402
 from simcred.errors import SimcredError  # noqa: E402
 from simcred.report.html import MAX_VIOLATIONS, render_report, write_report  # noqa: E402
@@ -293,39 +292,12 @@ def test_cli_prints_the_written_path(full_dir, tmp_path, capsys):
 
 # --- the real browser ---------------------------------------------------------------------------
 
-def _find_chromium() -> str | None:
-    return shutil.which("chromium") or shutil.which("chromium-browser")
-
-
-@pytest.fixture(scope="session")
-def chromium() -> str:
-    """Chromium on PATH, installed once by scripts/ensure_chromium.sh if needed; else FAIL."""
-    found = _find_chromium()
-    if found is None:
-        script = ROOT / "scripts" / "ensure_chromium.sh"
-        done = subprocess.run(["bash", str(script)], capture_output=True, text=True,
-                              timeout=900, check=False)
-        found = _find_chromium()
-        if found is None:
-            pytest.fail("the HTML report's browser test needs Chromium: scripts/ensure_chromium.sh "
-                        f"could not install it (exit {done.returncode}): "
-                        f"{done.stderr.strip()[-500:]}", pytrace=False)
-    return found
-
-
-def _headless(chromium: str, profile: Path, *args: str) -> subprocess.CompletedProcess:
-    command = [chromium, "--headless", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
-               "--no-first-run", "--no-default-browser-check", "--hide-scrollbars",
-               f"--user-data-dir={profile}", *args]
-    return subprocess.run(command, capture_output=True, text=True, timeout=TIMEOUT, check=False)
-
-
 @pytest.mark.slow
 def test_report_renders_in_chromium(chromium, full_report, tmp_path):
     path, _ = full_report
     url = path.resolve().as_uri()
     screenshot = tmp_path / "report.png"
-    shot = _headless(chromium, tmp_path / "profile-shot", f"--screenshot={screenshot}",
+    shot = headless(chromium, tmp_path / "profile-shot", f"--screenshot={screenshot}",
                      "--window-size=1280,2000", url)
     assert screenshot.is_file(), f"no screenshot (exit {shot.returncode}): {shot.stderr[-800:]}"
     assert screenshot.stat().st_size > 10_000
@@ -333,7 +305,7 @@ def test_report_renders_in_chromium(chromium, full_report, tmp_path):
     assert pixels.shape[:2] == (2000, 1280)
     assert pixels[..., :3].std() > 0.01  # not a blank page
 
-    dumped = _headless(chromium, tmp_path / "profile-dom", "--dump-dom",
+    dumped = headless(chromium, tmp_path / "profile-dom", "--dump-dom",
                        "--virtual-time-budget=5000", url)
     dom = dumped.stdout
     assert dom.strip(), f"empty DOM (exit {dumped.returncode}): {dumped.stderr[-800:]}"

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import matplotlib.image as mpimg
 import pytest
-from test_report import _headless, chromium  # noqa: F401  (the fixture: found or installed)
 
+from browser import headless
 from simcred.cli import run
 
 from .conftest import write_universe
@@ -39,15 +39,15 @@ def test_report_text(report):
 
 
 @pytest.mark.slow
-def test_report_renders_in_chromium(chromium, report, tmp_path):  # noqa: F811
+def test_report_renders_in_chromium(chromium, report, tmp_path):
     url = report.resolve().as_uri()
     shot = tmp_path / "shot.png"
-    done = _headless(chromium, tmp_path / "p1", f"--screenshot={shot}", "--window-size=1280,1400",
+    done = headless(chromium, tmp_path / "p1", f"--screenshot={shot}", "--window-size=1280,1400",
                      url)
     assert shot.is_file(), f"no screenshot (exit {done.returncode}): {done.stderr[-800:]}"
     pixels = mpimg.imread(shot)
     assert pixels.shape[:2] == (1400, 1280) and pixels[..., :3].std() > 0.01
-    dom = _headless(chromium, tmp_path / "p2", "--dump-dom", "--virtual-time-budget=5000",
+    dom = headless(chromium, tmp_path / "p2", "--dump-dom", "--virtual-time-budget=5000",
                     url).stdout
     assert 'id="verdict"' in dom and "NOT VALID" in dom
     assert 'id="domain-map-sim"' in dom
