@@ -22,24 +22,43 @@ from simcred.cli import (  # noqa: F401  (importing registers the commands)
     study,
     validate,
 )
-from simcred.cli._app import app, error_line, plain_help
+from simcred.cli._app import EXIT_BAD_INPUT, State, app, error_line, plain_help
+from simcred.errors import SimcredError
 
 plain_help(app)
 
 __all__ = ["app", "entry", "run"]
 
 
+EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report it
+EXIT_INTERNAL = 70  # EX_SOFTWARE: a defect of simcred, not of the input
+
+
 def run(argv: Sequence[str] | None = None) -> int:
-    """Run the CLI and return its exit code; usage errors, too, are one line on stderr."""
+    """Run the CLI and return its exit code; every failure is one line on stderr.
+
+    Bad input and usage: exit 2. Ctrl-C: exit 130 (a command that can resume keeps
+    ``OUT.partial`` and says so). A defect of simcred itself: exit 70 with one line, the
+    traceback only under ``--debug``.
+    """
     args = list(sys.argv[1:] if argv is None else argv) or ["--help"]
     try:
         code = app(args=args, prog_name="simcred", standalone_mode=False)
     except typer.TyperException as exc:
         error_line(exc.format_message())
         return exc.exit_code
-    except typer.Abort:
-        error_line("aborted")
-        return 1
+    except (typer.Abort, KeyboardInterrupt):
+        error_line("interrupted (Ctrl-C); no output was completed")
+        return EXIT_INTERRUPTED
+    except SimcredError as exc:  # raised outside a command body, e.g. in an option callback
+        error_line(str(exc))
+        return EXIT_BAD_INPUT
+    except Exception as exc:
+        if State.debug or "--debug" in args:
+            raise
+        error_line(f"internal error ({type(exc).__name__}: {' '.join(str(exc).split())[:300]}); "
+                   "please report it; --debug shows the traceback")
+        return EXIT_INTERNAL
     return code if isinstance(code, int) else 0
 
 
