@@ -33,7 +33,8 @@ IDS = [" ".join(path) for path, _ in COMMANDS]
 
 
 def _flat(text: str) -> str:
-    return re.sub(r"\s+", " ", text)
+    """Whitespace collapsed, and words the terminal wrapped at a hyphen joined again."""
+    return re.sub(r"(\w)- (\w)", r"\1-\2", re.sub(r"\s+", " ", text))
 
 
 def _one_line(err: str) -> str:
