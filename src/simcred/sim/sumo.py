@@ -142,9 +142,8 @@ def _libsumo():
 
 
 def sumo_version() -> str:
-    from importlib.metadata import version
-
-    return version("eclipse-sumo")
+    """The version of the SUMO that runs the replays (libsumo's)."""
+    return str(_libsumo().__version__)
 
 
 def _network() -> Path:
