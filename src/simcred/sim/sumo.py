@@ -44,6 +44,7 @@ import numpy as np
 
 from simcred.engine import Engine, Progress, engine, shared
 from simcred.errors import OptionError, TraceSetError
+from simcred.limits import check_count
 from simcred.traces import RUN_INFO, TIME, TraceSet, concat
 
 REQUIRED = ("gap", "v", "v_leader")
@@ -316,8 +317,8 @@ class Replay:
     def __post_init__(self) -> None:
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise OptionError(f"seed must be a non-negative integer, got {self.seed!r}")
-        if self.chunk_size < 1:
-            raise OptionError(f"chunk size must be at least 1, got {self.chunk_size}")
+        check_count(self.chunk_size, "runs", "chunk size")
+        check_count(self.traces.n_runs, "runs", "episodes to replay")
         _validate(self.traces)
 
     def tasks(self) -> list[tuple[SumoModel, int, range]]:
