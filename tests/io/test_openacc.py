@@ -161,7 +161,8 @@ def test_no_episode_is_an_error():
         episodes([_recording(n=50)])
 
 
-@pytest.mark.parametrize("kwargs", [{"duration": 0.0}, {"gap_range": (5.0, 1.0)}])
+@pytest.mark.parametrize("kwargs", [{"duration": 0.0}, {"gap_range": (5.0, 1.0)},
+                                    {"step": float("nan")}, {"min_leader_speed": float("inf")}])
 def test_bad_rules(kwargs):
     with pytest.raises(OptionError):
         EpisodeRules(**kwargs)

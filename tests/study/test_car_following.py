@@ -79,7 +79,9 @@ def test_thin_keeps_every_kth_sample():
 
 @pytest.mark.parametrize("kwargs", [{"test": "bound"}, {"bands": ((10, 0),)},
                                     {"bands": ((0, 10), (5, 15))}, {"models": ()},
-                                    {"sample_step": 0.25}, {"permutations": 49}])
+                                    {"sample_step": 0.25}, {"permutations": 49},
+                                    {"alpha": 1.5}, {"bins": 1}, {"max_episodes": 1},
+                                    {"bands": ((0, float("inf")),)}])
 def test_bad_options(kwargs):
     with pytest.raises(OptionError):
         StudyOptions(**kwargs).every  # noqa: B018  (sample step is checked against the rules)

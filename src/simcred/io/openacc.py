@@ -45,6 +45,7 @@ import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 
 from simcred.errors import OptionError, TraceSetError
+from simcred.limits import check_count, check_finite
 from simcred.traces import RUN_INFO, TIME, TraceSet
 
 SIGNALS = ("gap", "dv", "v", "a", "v_leader")
@@ -279,6 +280,10 @@ class EpisodeRules:
     gap_range: tuple[float, float] = (0.5, 120.0)
 
     def __post_init__(self) -> None:
+        for name in ("duration", "step", "min_leader_speed"):
+            check_finite(getattr(self, name), name.replace("_", " "))
+        for value in self.gap_range:
+            check_finite(value, "gap range")
         if not (self.step > 0 and self.duration >= self.step):
             raise OptionError(f"episode duration ({self.duration} s) and step ({self.step} s) "
                               "must be positive, duration ≥ step")
@@ -289,7 +294,8 @@ class EpisodeRules:
 
     @property
     def samples(self) -> int:
-        return int(round(self.duration / self.step)) + 1
+        return check_count(int(round(self.duration / self.step)) + 1, "steps",
+                           "episode samples (duration / step + 1)", minimum=2)
 
 
 @dataclass(frozen=True, slots=True)

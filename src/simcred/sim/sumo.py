@@ -44,6 +44,7 @@ import numpy as np
 
 from simcred.engine import Engine, Progress, engine, shared
 from simcred.errors import OptionError, TraceSetError
+from simcred.limits import check_count
 from simcred.traces import RUN_INFO, TIME, TraceSet, concat
 
 REQUIRED = ("gap", "v", "v_leader")
@@ -142,9 +143,8 @@ def _libsumo():
 
 
 def sumo_version() -> str:
-    from importlib.metadata import version
-
-    return version("eclipse-sumo")
+    """The version of the SUMO that runs the replays (libsumo's)."""
+    return str(_libsumo().__version__)
 
 
 def _network() -> Path:
@@ -317,8 +317,8 @@ class Replay:
     def __post_init__(self) -> None:
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise OptionError(f"seed must be a non-negative integer, got {self.seed!r}")
-        if self.chunk_size < 1:
-            raise OptionError(f"chunk size must be at least 1, got {self.chunk_size}")
+        check_count(self.chunk_size, "runs", "chunk size")
+        check_count(self.traces.n_runs, "runs", "episodes to replay")
         _validate(self.traces)
 
     def tasks(self) -> list[tuple[SumoModel, int, range]]:

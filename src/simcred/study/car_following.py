@@ -41,6 +41,7 @@ from simcred.compare.result import Comparison
 from simcred.engine import Engine, Progress, engine
 from simcred.errors import OptionError
 from simcred.io.openacc import ACC, HUMAN, UNITS, EpisodeRules, read_openacc, recording_files
+from simcred.limits import check_count, check_finite
 from simcred.seeds import derive_seed
 from simcred.sim.sumo import replay, sumo_version
 from simcred.study.verdict import METHODS, CellVerdict, chain_verdict, check_test
@@ -78,6 +79,16 @@ class StudyOptions:
         object.__setattr__(self, "features", tuple(self.features))
         object.__setattr__(self, "bands", tuple((float(lo), float(hi)) for lo, hi in self.bands))
         check_test(self.test)
+        check_finite(self.alpha, "alpha", minimum=0, maximum=1, open_minimum=True,
+                     open_maximum=True)
+        check_count(self.permutations, "permutations", "permutations")
+        check_count(self.bins, "bins", "bins", minimum=2)
+        check_finite(self.sample_step, "sample step", minimum=0, open_minimum=True)
+        for lo, hi in self.bands:
+            check_finite(lo, "speed band low end")
+            check_finite(hi, "speed band high end")
+        if self.max_episodes is not None:
+            check_count(self.max_episodes, "episodes", "max episodes", minimum=2)
         if not self.models:
             raise OptionError("give at least one SUMO model")
         if not self.bands or any(not lo < hi for lo, hi in self.bands):
@@ -88,12 +99,8 @@ class StudyOptions:
         if self.test == "permutation" and (self.permutations + 1) * self.alpha < 1:
             raise OptionError(f"{self.permutations} permutations cannot reject at alpha="
                               f"{self.alpha}: give at least {int(np.ceil(1 / self.alpha)) - 1}")
-        if not self.sample_step > 0:
-            raise OptionError(f"sample step must be positive, got {self.sample_step}")
         if self.min_runs < 2:
             raise OptionError(f"min runs must be at least 2, got {self.min_runs}")
-        if self.max_episodes is not None and self.max_episodes < 2:
-            raise OptionError(f"max episodes must be at least 2, got {self.max_episodes}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise OptionError(f"seed must be a non-negative integer, got {self.seed!r}")
 
