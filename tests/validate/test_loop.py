@@ -152,3 +152,27 @@ def _groups(values):
         out.append((values[k], j - k))
         k = j
     return out
+
+
+def test_each_cell_is_the_comparison_of_its_segments(tmp_path):
+    """Oracle: compare() called directly on the reference's and the candidate's segments of a
+    cell, with the cell's seed, gives the cell's p-value, distance and baseline."""
+    from simcred.compare import compare
+    from simcred.validate.cells import grid_of
+    from simcred.validate.domain import cell_seed
+
+    path = write_universe(tmp_path, comparison={"bins": 4, "permutations": 99, "seed": 7,
+                                                "baseline": 3})
+    spec, base = read_validation(path)
+    inputs = read_inputs(spec, base)
+    result = validate(spec, inputs)
+    grid = grid_of(spec.conditions)
+    ref = segments(inputs.reference, grid, spec.segments.min_length)
+    cand = segments(inputs.candidates["sim"], grid, spec.segments.min_length)
+    for cell in result.domains["sim"].cells:
+        direct = compare(ref.by_cell[cell.cell], cand.by_cell[cell.cell], features=["x"], bins=4,
+                         alpha=0.05, permutations=99, seed=cell_seed(7, "sim", cell.cell),
+                         baseline=3)
+        assert cell.pvalue == direct.chain.pvalue and cell.distance == direct.distance
+        assert cell.baseline == (direct.baseline.low, direct.baseline.high)
+        assert cell.status.value == ("not valid" if direct.chain.rejected else "valid")
