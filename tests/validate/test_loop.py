@@ -176,3 +176,18 @@ def test_each_cell_is_the_comparison_of_its_segments(tmp_path):
         assert cell.pvalue == direct.chain.pvalue and cell.distance == direct.distance
         assert cell.baseline == (direct.baseline.low, direct.baseline.high)
         assert cell.status.value == ("not valid" if direct.chain.rejected else "valid")
+
+
+def test_provenance_names_the_inputs(tmp_path):
+    import hashlib
+
+    path = write_universe(tmp_path)
+    code, verdict = _run(path, tmp_path / "out", "--date", "2026-11-23")
+    provenance = verdict["provenance"]
+    assert provenance["date"] == "2026-11-23"
+    assert provenance["validation_file"]["sha256"] == hashlib.sha256(path.read_bytes()).hexdigest()
+    assert provenance["inputs"]["reference"]["digest"] == \
+        TraceSet.read(tmp_path / "ref.parquet").digest()
+    assert provenance["seed"] == 7 and provenance["options"]["comparison"]["seed"] == 7
+    _, undated = _run(path, tmp_path / "undated")
+    assert undated["provenance"]["date"] is None
