@@ -191,3 +191,38 @@ def test_provenance_names_the_inputs(tmp_path):
     assert provenance["seed"] == 7 and provenance["options"]["comparison"]["seed"] == 7
     _, undated = _run(path, tmp_path / "undated")
     assert undated["provenance"]["date"] is None
+
+
+def _with_run_constant(traces: TraceSet, name: str, seed: int) -> TraceSet:
+    """``traces`` plus a signal that is constant within each run (an exogenous condition)."""
+    rng = np.random.default_rng(seed)
+    per_run = rng.uniform(0.0, 2.0, size=traces.n_runs)
+    column = np.repeat(per_run, traces.lengths)
+    return TraceSet((*traces.signals, name), traces.time,
+                    np.column_stack([traces.values, column]), traces.offsets, traces.run_ids,
+                    source=traces.source)
+
+
+def test_two_condition_variables(tmp_path):
+    from simcred.report.validate import write_validation_report
+    from simcred.validate.loop import Inputs
+    from simcred.validate.synthetic import universe
+    from simcred.validate.verdict import verdict_document
+
+    path = write_universe(tmp_path, conditions={"v": {"unit": "m/s", "edges": [5, 20, 30]},
+                                                "g": {"unit": "m", "edges": [0, 1, 2]}})
+    spec, _ = read_validation(path)
+    reference = _with_run_constant(universe(160, 150, seed=1), "g", 11)
+    candidate = _with_run_constant(universe(160, 150, seed=2, effect=0.15, v_switch=20,
+                                            name="sim"), "g", 12)
+    inputs = Inputs(reference, {"sim": candidate}, ())
+    result = validate(spec, inputs)
+    status = {c.index: c.status.value for c in result.domains["sim"].cells}
+    assert status == {(0, 0): "valid", (0, 1): "valid", (1, 0): "not valid",
+                      (1, 1): "not valid"}
+    assumption = result.library["models"]["sim"]["contract"]["assumption"]
+    assert assumption == "(5 <= v <= 20 and 0 <= g <= 1) or (5 <= v <= 20 and 1 <= g <= 2)"
+    out = tmp_path / "out"
+    out.mkdir()
+    html = write_validation_report(result, verdict_document(result, inputs), out).read_text()
+    assert html.count("data:image/png;base64,") == 1 + 4
