@@ -211,6 +211,38 @@ def bench_monitor(samples: int) -> list[dict]:
              "ratio_to_numpy_reference": seconds / reference, "target": "≥ 1e7 samples/s"}]
 
 
+def bench_temporal(samples: int) -> list[dict]:
+    """A temporal clause over recorded runs (100 runs, 100 Hz) against rtamt's discrete-time
+    offline monitor on one run of the same signal, in samples per second."""
+    rng = np.random.default_rng(1)
+    runs, steps = 100, samples // 100
+    t = np.arange(steps) * 0.01
+    a = (3 * np.sin(t[None, :] / 2 + rng.uniform(0, 6, (runs, 1)))
+         + rng.normal(0, 0.3, (runs, steps))).ravel()
+    traces = TraceSet(("ego.a_long",), np.tile(t, runs), a[:, None],
+                      np.arange(runs + 1) * steps, tuple(f"r{i}" for i in range(runs)))
+    text = "ego.a_long < -2 implies eventually[0, 0.5] ego.a_long >= -1"
+    contract = Contract.from_strings("true", text)
+    seconds, report = best_of(lambda: monitor(traces, {"M": contract}), 3)
+    row = {"case": f"(d) temporal monitor '{text}', {runs * steps:,} samples",
+           "seconds": seconds, "samples_per_s": runs * steps / seconds,
+           "violations": len(report.violations)}
+    try:
+        import rtamt
+    except ImportError:
+        return [row | {"rtamt": "not installed"}]
+    n = min(steps, 20_000)
+    spec = rtamt.StlDiscreteTimeSpecification()
+    spec.declare_var("a", "float")
+    spec.spec = "(a < -2) implies (eventually[0,50] (a >= -1))"  # 0.5 s at 100 Hz
+    spec.set_sampling_period(10, "ms", 0.1)
+    spec.parse()
+    data = {"time": (np.arange(n) * 10).tolist(), "a": a[:n].tolist()}
+    rt_seconds, _ = best_of(lambda: spec.evaluate(data), 1)
+    return [row | {"rtamt_samples_per_s": n / rt_seconds,
+                   "speedup_vs_rtamt": (runs * steps / seconds) / (n / rt_seconds)}]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--quick", action="store_true")
@@ -218,7 +250,8 @@ def main() -> None:
     results = {"machine": machine(),
                "configuration": bench_configuration(range(2) if args.quick else range(5)),
                "scale": bench_dag(range(2) if args.quick else range(5)),
-               "monitor": bench_monitor(10**6 if args.quick else 10**7)}
+               "monitor": bench_monitor(10**6 if args.quick else 10**7),
+               "temporal": bench_temporal(10**5 if args.quick else 10**6)}
     table = Table(title="simcred contracts benchmarks")
     for column in ("case", "seconds", "result", "note"):
         table.add_column(column)
@@ -236,6 +269,11 @@ def main() -> None:
         table.add_row(r["case"], f"{r['seconds']:.3f}", f"{r['samples_per_s']:.3g} samples/s",
                       f"{r['ratio_to_numpy_reference']:.1f}× the bare numpy expression; "
                       f"{r['target']}")
+    for r in results["temporal"]:
+        note = (f"{r['speedup_vs_rtamt']:.0f}× rtamt's samples/s "
+                f"({r['rtamt_samples_per_s']:.3g})" if "speedup_vs_rtamt" in r else r["rtamt"])
+        table.add_row(r["case"], f"{r['seconds']:.3f}", f"{r['samples_per_s']:.3g} samples/s",
+                      note)
     Console(width=160).print(table)
     out = ROOT / "benchmarks" / "results" / ("contracts-quick.json" if args.quick
                                              else "contracts.json")

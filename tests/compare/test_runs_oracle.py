@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from helpers import random_walk_set
+from helpers import ar_set, random_walk_set
 from simcred.compare import compare, kernels, runs
 from simcred.compare.calibrate import pooled_counts, run_spec
 from simcred.compare.kernels import Kernel, KernelOperator, pooled_bandwidth
@@ -263,3 +263,23 @@ def test_separable_kernel_equals_dense(kernel):
     matrix = np.exp(-levels / (2 * 1.7 ** 2)) if kernel is Kernel.GAUSSIAN \
         else np.exp(-levels / 1.7)
     np.testing.assert_allclose(separable.apply(d), matrix @ d, rtol=1e-12, atol=1e-12)
+
+
+def test_relevance_names_the_feature_that_differs():
+    rng = np.random.default_rng(11)
+    a = ar_set(rng, runs=50, phi=0.6)
+    b = ar_set(rng, runs=50, phi=0.6)
+    b = type(b).from_runs([{**b.run(i), "y": -b.run(i)["y"] * 0.3 + 1.5}
+                           for i in range(b.n_runs)])
+    result = compare(a, b, features=FEATURES, bins=4, permutations=199, seed=4, relevance=True)
+    x, y = result.relevance
+    assert (x.feature, y.feature) == ("x", "y")
+    assert y.alone_pvalue <= 0.01 and x.without_pvalue <= 0.01  # y alone / all but x: differ
+    assert x.alone_pvalue > 0.05 and y.without_pvalue > 0.05    # x alone / all but y: same
+
+
+def test_baseline_needs_four_runs():
+    rng = np.random.default_rng(1)
+    a, b = random_walk_set(rng, runs=3, drift=0), random_walk_set(rng, runs=10, drift=0)
+    with pytest.raises(ValueError, match="needs at least 4 runs"):
+        compare(a, b, features=FEATURES, bins=3, baseline=2)

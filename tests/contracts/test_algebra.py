@@ -43,20 +43,19 @@ from simcred.contracts.algebra import (
     refines,
     valid,
 )
+from simcred.contracts.evaluate import evaluate
 from simcred.contracts.expr import (
     ExpressionError,
     conjoin,
     conjuncts,
     disjoin,
-    evaluate,
     implies,
     negate,
-    parse,
     to_text,
-    to_z3,
     variables,
-    z3_variables,
 )
+from simcred.contracts.parse import parse
+from simcred.contracts.smt import to_z3, z3_variables
 
 SETTINGS = settings(derandomize=True, database=None, deadline=None,
                     suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much,

@@ -85,6 +85,7 @@ CASES = [
     ("cost-negative", model("M1", cost=-1), "models.M1.cost", None),
     ("cost-text", model("M1", cost="cheap"), "models.M1.cost", None),
     ("cost-huge", model("M1", cost=1e13), "models.M1.cost", None),
+    ("cost-bool", model("M1", cost=True), "models.M1.cost", None),
     ("division-by-zero-term", contract("M2a", guarantee="err <= q / (q - q) * 1 m"), "division by",
      None),
     ("division-by-variable", contract("M2a", guarantee="err <= 1 m^2 / q"), "division by",
@@ -188,10 +189,10 @@ def _library(tmp_path: Path, library) -> Path:
         path.write_text(FIGURE2.read_text())
     elif library == "COST:1e400":
         path.write_text(FIGURE2.read_text().replace("cost: 1", "cost: 1e400", 1))
-    elif library == "BIG-OR":
-        spec = copy.deepcopy(BASE)
-        spec["models"]["M2a"]["contract"]["guarantee"] = " or ".join(["err <= 1"] * 10**5)
-        path.write_text(yaml.safe_dump(spec, width=10**9))
+    elif library == "BIG-OR":  # a 10^6-term or (10 MB)
+        huge = " or ".join(["err <= 1"] * 10**6)
+        path.write_text(FIGURE2.read_text().replace('guarantee: "err <= 0.1"}',
+                                                    f'guarantee: "{huge}"}}', 1))
     elif isinstance(library, bytes):
         path.write_bytes(library)
     elif isinstance(library, str):

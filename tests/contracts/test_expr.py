@@ -13,6 +13,7 @@ import z3
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from simcred.contracts.evaluate import evaluate, margin
 from simcred.contracts.expr import (
     Arith,
     Bool,
@@ -21,15 +22,12 @@ from simcred.contracts.expr import (
     Logic,
     Num,
     Var,
-    evaluate,
     is_boolean,
-    margin,
-    parse,
     to_text,
-    to_z3,
     variables,
-    z3_variables,
 )
+from simcred.contracts.parse import parse
+from simcred.contracts.smt import to_z3, z3_variables
 from simcred.errors import SimcredError
 
 # names that brush against keywords and function names, a dotted one, and plain ones

@@ -136,7 +136,8 @@ def test_cli_configure_and_quotient(capsys):
 
 def test_projected_quotient_is_the_requirement_over_the_missing_ports():
     from simcred.contracts.configure import missing_ports
-    from simcred.contracts.expr import evaluate, variables
+    from simcred.contracts.evaluate import evaluate
+    from simcred.contracts.expr import variables
     from simcred.contracts.project import project
 
     lib = Library.read(FIGURE2)

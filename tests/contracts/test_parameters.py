@@ -11,7 +11,8 @@ import pytest
 
 from simcred.contracts.algebra import Contract, refines
 from simcred.contracts.configure import configure
-from simcred.contracts.expr import Num, Var, evaluate, to_text
+from simcred.contracts.evaluate import evaluate
+from simcred.contracts.expr import Num, Var, to_text
 from simcred.contracts.library import Library
 from simcred.errors import SimcredError
 

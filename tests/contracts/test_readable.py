@@ -14,7 +14,8 @@ from hypothesis import strategies as st
 from simcred.cli import run
 from simcred.contracts import readable
 from simcred.contracts.algebra import Contract, equivalent, valid
-from simcred.contracts.expr import Arith, Compare, Logic, Num, Var, conjoin, parse
+from simcred.contracts.expr import Arith, Compare, Logic, Num, Var, conjoin
+from simcred.contracts.parse import parse
 
 VEHICLE = Path(__file__).resolve().parents[2] / "examples" / "contracts" / "vehicle.yaml"
 SETTINGS = settings(derandomize=True, database=None, deadline=None, max_examples=200,

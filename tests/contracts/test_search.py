@@ -118,7 +118,38 @@ def test_outside_the_fragment_cegis_is_used():
     ("x != 1", None),
 ])
 def test_boxes_of_assertions(text, expected):
-    from simcred.contracts.expr import parse
+    from simcred.contracts.parse import parse
 
     found = box(parse(text))
     assert (None if found is None else {k: v.text(k) for k, v in found.items()}) == expected
+
+
+def random_linear(seed: int) -> Library:
+    """A random DAG whose contracts are outside the interval fragment: sums of inputs in the
+    assumptions, outputs bounded by inputs in the guarantees."""
+    rng = np.random.default_rng(seed)
+    lib = random_dag(seed)
+    spec = lib.spec.model_dump()
+    for model in spec["models"].values():
+        inputs = spec["components"][model["implements"]]["inputs"]
+        output = spec["components"][model["implements"]]["outputs"][0]
+        if rng.random() < 0.5:
+            total = " + ".join(inputs)
+            model["contract"]["assumption"] = f"-8 <= {total} and {total} <= {rng.integers(3, 14)}"
+        if rng.random() < 0.5:
+            model["contract"]["guarantee"] = (f"{output} <= {inputs[0]} * 0.5 + "
+                                              f"{rng.integers(0, 5)} and {output} >= -3")
+    return Library.from_dict(spec, source=f"linear({seed})")
+
+
+@pytest.mark.parametrize("seed", range(100, 125))
+def test_cegis_is_the_cheapest_by_z3_enumeration_outside_the_fragment(seed):
+    lib = random_linear(seed)
+    target = lib.test_case("tc")
+    costs = [sum(lib.spec.models[m].cost for m in s.values()) for s in _setups(lib)
+             if setup_refines(lib, s, target).holds]
+    result = configure(lib, "tc")
+    if not costs:
+        assert result.status is Status.FAILS
+    else:
+        assert result.status is Status.HOLDS and result.cost == min(costs), result.method

@@ -16,18 +16,9 @@ import numpy as np
 import pytest
 
 from simcred.contracts.algebra import Contract, refines
-from simcred.contracts.expr import (
-    Compare,
-    ExpressionError,
-    Logic,
-    Num,
-    Temporal,
-    Var,
-    evaluate,
-    margin,
-    parse,
-    to_text,
-)
+from simcred.contracts.evaluate import evaluate, margin
+from simcred.contracts.expr import Compare, ExpressionError, Logic, Num, Temporal, Var, to_text
+from simcred.contracts.parse import parse
 from simcred.contracts.temporal import Timeline
 
 rtamt = pytest.importorskip("rtamt")

@@ -15,16 +15,9 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from simcred.contracts.expr import (
-    Arith,
-    Compare,
-    ExpressionError,
-    Quantity,
-    Var,
-    evaluate,
-    parse,
-    to_text,
-)
+from simcred.contracts.evaluate import evaluate
+from simcred.contracts.expr import Arith, Compare, ExpressionError, Quantity, Var, to_text
+from simcred.contracts.parse import parse
 from simcred.contracts.units import _registry
 
 UNITS = {"d1": "m", "d2": "km", "t1": "s", "t2": "min", "v1": "m/s", "v2": "km/h",

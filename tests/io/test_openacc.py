@@ -39,7 +39,7 @@ def human():
 def test_shipped_data_has_licence_and_attribution():
     for folder in ("openacc", "a9"):
         assert (data.path(folder) / "LICENSE.txt").stat().st_size > 5000
-    assert "CC BY 4.0" in (SHIPPED / "README.md").read_text()
+    assert "CC BY 4.0" in (SHIPPED / "ATTRIBUTION.md").read_text()
     assert "Apache License 2.0" in data.path("a9/ATTRIBUTION.md").read_text()
     assert len(recording_files(SHIPPED)) == 38
     size = sum(p.stat().st_size for p in SHIPPED.rglob("*.parquet"))

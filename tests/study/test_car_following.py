@@ -134,6 +134,8 @@ def test_write_and_cli(small, tmp_path, capsys):
                 "--bands", "0-10,10-20"])
     assert code == 0
     assert (tmp_path / "c" / "matrix.png").is_file() and (tmp_path / "c" / "maps").is_dir()
+    assert run(["study", "car-following", "--out", str(tmp_path / "c")]) == 2  # no clobbering
+    assert "--overwrite" in capsys.readouterr().err
     assert run(["study", "car-following", "--out", str(tmp_path / "d"), "--bands", "0..10"]) == 2
     assert "LOW-HIGH" in capsys.readouterr().err
 

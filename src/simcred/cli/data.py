@@ -47,15 +47,28 @@ def data_openacc(
                                                          "this \\[m/s].")] = 2.0,
     min_gap: Annotated[float, typer.Option(help="Smallest plausible gap \\[m].")] = 0.5,
     max_gap: Annotated[float, typer.Option(help="Largest plausible gap \\[m].")] = 120.0,
+    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing OUT (never "
+                                                                "the input).")] = False,
 ) -> None:
     """Cut OpenACC leader–follower episodes (gap \\[m], dv \\[m/s], v \\[m/s], a \\[m/s²],
     v_leader \\[m/s]) into a trace set; prints what each episode rule removed."""
+    from simcred import data
     from simcred.io.openacc import EpisodeRules, read_openacc
+    from simcred.outputs import check_out, output_dir
+
+    inputs = [source if source is not None else data.path("openacc")]
+    is_file = out.suffix.lower() in (".parquet", ".pq")
+    check_out(out, inputs, overwrite=overwrite, kind="file" if is_file else "directory")
 
     rules = EpisodeRules(duration=duration, min_leader_speed=min_leader_speed,
                          gap_range=(min_gap, max_gap))
     traces = read_openacc(source, rules, follower=follower)
-    path = traces.write(out)
+    if is_file:
+        path = traces.write(out)
+    else:
+        with output_dir(out, inputs, overwrite=overwrite) as partial:
+            traces.write(partial)
+        path = out
     cut = traces.metadata["cut"]
     out_console.print(
         f"wrote {path}: {traces.n_runs} episodes of {duration} s from {cut['files']} files, "

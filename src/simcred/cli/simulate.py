@@ -130,6 +130,8 @@ def simulate_sumo_following(
     chunk_size: Annotated[int, typer.Option(help="Episodes per task.")] = 50,
     workers: Workers = None,
     scheduler: Scheduler = None,
+    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing OUT (never "
+                                                                "the input).")] = False,
 ) -> None:
     """Replay the recorded leaders in SUMO; each model drives the follower (lane changes off).
 
@@ -137,22 +139,17 @@ def simulate_sumo_following(
     recorded gap \\[m] and speed \\[m/s]. Outputs: gap \\[m], dv \\[m/s] (leader −
     follower), v \\[m/s], a \\[m/s²], v_leader \\[m/s] on the input's time stamps \\[s].
     """
+    from simcred.outputs import output_dir
     from simcred.sim.sumo import replay, write_replays
-
-    source = _read_traces(traces, out)
-    results = replay(source, _sumo_models(models), seed=seed, workers=workers,
-                     scheduler=scheduler, chunk_size=chunk_size,
-                     progress=progress("SUMO episodes (chunks)"))
-    written = write_replays(results, out, options={"models": models, "seed": seed,
-                                                   "chunk_size": chunk_size})
-    if not State.quiet:
-        out_console.print(f"wrote {', '.join(str(p) for p in written)}: {source.n_runs} "
-                          f"episodes x {len(results)} models")
-
-
-def _read_traces(path: Path, out: Path):
     from simcred.traces import TraceSet
 
-    if out.resolve() == path.resolve() or path.resolve() in out.resolve().parents:
-        raise OptionError(f"--out {out} would write into the input {path}")
-    return TraceSet.read(path)
+    with output_dir(out, [traces], overwrite=overwrite) as partial:
+        source = TraceSet.read(traces)
+        results = replay(source, _sumo_models(models), seed=seed, workers=workers,
+                         scheduler=scheduler, chunk_size=chunk_size,
+                         progress=progress("SUMO episodes (chunks)"))
+        written = write_replays(results, partial, options={"models": models, "seed": seed,
+                                                           "chunk_size": chunk_size})
+    if not State.quiet:
+        out_console.print(f"wrote {out}/: {', '.join(p.name for p in written)}: "
+                          f"{source.n_runs} episodes x {len(results)} models")

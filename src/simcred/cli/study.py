@@ -75,9 +75,13 @@ def car_following(
                                                      "the copy shipped with simcred).")] = None,
     workers: Workers = None,
     scheduler: Scheduler = None,
+    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing OUT (never "
+                                                                "the input).")] = False,
     as_json: Json = False,
 ) -> None:
     """Real human car following (OpenACC) vs SUMO models and real ACC, per speed band."""
+    from simcred import data
+    from simcred.outputs import output_dir
     from simcred.report.study import study_figures
     from simcred.study.car_following import StudyOptions, run_study, write_study
 
@@ -85,13 +89,12 @@ def car_following(
                            bins=bins, sample_step=sample_step, test=test, alpha=alpha,
                            permutations=permutations, seed=seed, min_runs=min_runs,
                            max_episodes=max_episodes)
-    if source is not None and (out.resolve() == source.resolve()
-                               or source.resolve() in out.resolve().parents):
-        raise OptionError(f"--out {out} would write into the input {source}")
-    result = run_study(options, source=source, workers=workers, scheduler=scheduler,
-                       progress=progress("SUMO replays (chunks)"))
-    write_study(result, out)
-    study_figures(result, out)
+    inputs = [source if source is not None else data.path("openacc")]
+    with output_dir(out, inputs, overwrite=overwrite) as partial:
+        result = run_study(options, source=source, workers=workers, scheduler=scheduler,
+                           progress=progress("SUMO replays (chunks)"))
+        write_study(result, partial)
+        study_figures(result, partial)
     if not as_json and not State.quiet:
         _print(result, out)
     _emit(result.to_dict(), as_json, "")

@@ -147,7 +147,8 @@ def compare(
     >>> result = compare(a, b, features=["x", "y"], bins=5, test="bound")
     >>> result.n_states, result.stopped
     (25, False)
-    >>> result = compare(a, b, features=["x", "y"], bins=5, permutations=199, seed=3)
+    >>> a, b = lane_change_sets(runs=150, steps=40, seed=1)
+    >>> result = compare(a, b, features=["y"], bins=5, permutations=199, seed=3)
     >>> result.chain.pvalue <= 0.01, result.distance > 0
     (True, True)
     """
@@ -330,6 +331,9 @@ def comparison_options(
         raise OptionError(f"the {estimator.value} estimator needs at least "
                           f"{estimator.min_samples} runs per trace set ({small[0].source}: "
                           f"{small[0].n_runs})")
+    if runs and baseline and sets[0].n_runs < 4:
+        raise OptionError(f"a same-model baseline splits set A into halves and needs at least 4 "
+                          f"runs ({sets[0].source}: {sets[0].n_runs}); use --baseline 0")
     resample = check_resample(resample)
     if resample is None:
         check_periods(list(sets))

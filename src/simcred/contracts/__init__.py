@@ -27,9 +27,11 @@ from simcred.contracts.configure import (
     setup_refines,
     uncovered_assumptions,
 )
-from simcred.contracts.expr import ExpressionError, evaluate, margin, parse, to_text
+from simcred.contracts.evaluate import evaluate, margin
+from simcred.contracts.expr import ExpressionError, to_text
 from simcred.contracts.library import Library, LibraryError
 from simcred.contracts.monitor import MonitorReport, Violation, monitor
+from simcred.contracts.parse import parse
 from simcred.contracts.project import project
 from simcred.contracts.readable import text as readable_text
 from simcred.contracts.temporal import Timeline

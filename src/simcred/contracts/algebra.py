@@ -32,12 +32,11 @@ from simcred.contracts.expr import (
     disjoin,
     implies,
     negate,
-    parse,
     to_text,
-    to_z3,
     variables,
-    z3_variables,
 )
+from simcred.contracts.parse import parse
+from simcred.contracts.smt import to_z3, z3_variables
 
 DEFAULT_TIMEOUT_MS = 10_000
 

@@ -3,16 +3,16 @@
 A setup picks one model per component of the architecture; it is sufficiently valid for a test
 case when the composition of the models' contracts refines the test case's contract.
 
-Search (our design): counterexample-guided, over a propositional encoding of the choice. Boolean
-selectors s[c, m] pick model m for component c (exactly one per component); z3's ``Optimize``
-returns the cheapest selection that satisfies every constraint learned so far. That selection is
-checked exactly with :func:`refines`; if it fails, the counterexample is an operating point p,
-and at p every model's assumption and guarantee evaluate to constants, so "the composition
-refines the test case at p" becomes a propositional constraint on the selectors, which excludes
-every selection that fails at p — not only the one checked. Each learned constraint is necessary
-for validity, so the first selection that passes is the cheapest valid one (optimality proof: the
-optimizer's bound over all selections that pass the learned constraints). No enumeration of the
-product of candidates is needed.
+Search (our design). In the interval fragment (boxes), exact interval propagation with
+branch-and-bound (:mod:`.search`). Otherwise counterexample-guided: the cheapest selection that
+passes every constraint learned so far is proposed (exact branch-and-bound over the selections,
+:mod:`.selection`) and checked exactly with z3; if it fails, the counterexample is an operating
+point p, and at p every model's assumption and guarantee evaluate to constants, so "the
+composition refines the test case at p" becomes a propositional constraint on the selection,
+which excludes every selection that fails at p — not only the one checked. Each learned
+constraint is necessary for validity, so the first selection that passes is the cheapest valid
+one (optimality: the proposal is the exact optimum over all selections passing the learned
+constraints). No enumeration of the product of candidates is needed.
 """
 
 from __future__ import annotations
@@ -30,9 +30,11 @@ from simcred.contracts.algebra import (
     compose_all,
     valid,
 )
-from simcred.contracts.expr import conjoin, evaluate, variables
+from simcred.contracts.evaluate import evaluate
+from simcred.contracts.expr import conjoin, variables
 from simcred.contracts.library import Library, LibraryError
 from simcred.contracts.search import branch_and_bound, interval_problem
+from simcred.contracts.selection import Constraints, cheapest
 
 
 @dataclass(frozen=True, slots=True)
@@ -48,7 +50,7 @@ class Configuration:
     iterations: int
     counterexamples: list[dict] = field(default_factory=list)  # exact values (Fraction)
     reason: str = ""
-    method: str = "CEGIS over z3 Optimize"
+    method: str = ""
 
     def to_dict(self) -> dict:
         return {"test_case": self.test_case, "status": self.status.value, "setup": self.setup,
@@ -128,37 +130,47 @@ def _point_text(point) -> str:
 
 
 def _by_cegis(library, test_case, target, choices, timeout_ms, max_iterations):
-    """Counterexample-guided search (module docs) for contracts outside the interval fragment."""
-    import z3
-
-    selector = {(c, m): z3.Bool(f"{c}={m}") for c, models in choices.items() for m in models}
-    optimizer = z3.Optimize()
-    for c, models in choices.items():
-        optimizer.add(z3.PbEq([(selector[c, m], 1) for m in models], 1))
-    costs = {m: Fraction(library.spec.models[m].cost).limit_denominator(10**6)
-             for models in choices.values() for m in models}
-    optimizer.minimize(z3.Sum([z3.If(selector[c, m], z3.RealVal(str(costs[m])), 0)
-                               for (c, m) in selector]))
+    """Counterexample-guided search (module docs) for contracts outside the interval fragment:
+    propose the cheapest selection passing every learned point (:mod:`.selection`), check it
+    with z3, learn its counterexample point."""
+    learned = Constraints(list(choices), {c: list(m) for c, m in choices.items()})
+    costs = {m: Fraction(library.spec.models[m].cost) for ms in choices.values() for m in ms}
     points: list[dict] = []
+    method = "CEGIS: branch-and-bound proposals, z3 checks"
     for iteration in range(1, max_iterations + 1):
-        if optimizer.check() != z3.sat:
+        setup = cheapest(learned, costs)
+        if setup is None:
             return Configuration(test_case, Status.FAILS, None, None, None, iteration, points,
                                  "no setup refines the test case: every candidate fails at one "
-                                 "of the counterexample points")
-        model = optimizer.model()
-        setup = {c: m for (c, m), s in selector.items() if z3.is_true(model.eval(s))}
+                                 "of the counterexample points", method)
         proof = setup_refines(library, setup, target, timeout_ms=timeout_ms)
         if proof.status is Status.HOLDS:
-            cost = float(sum(library.spec.models[m].cost for m in setup.values()))
-            return Configuration(test_case, Status.HOLDS, setup, cost, proof, iteration, points)
+            cost = float(sum(costs[m] for m in setup.values()))
+            return Configuration(test_case, Status.HOLDS, setup, cost, proof, iteration, points,
+                                 "", method)
         if proof.status is Status.UNKNOWN:
             return Configuration(test_case, Status.UNKNOWN, setup, None, proof, iteration, points,
-                                 f"the solver could not decide {setup}: {proof.reason}")
-        point = proof.counterexample
-        points.append(dict(point))
-        optimizer.add(_valid_at(library, target, choices, selector, point))
+                                 f"the solver could not decide {setup}: {proof.reason}", method)
+        points.append(dict(proof.counterexample))
+        learned.add(*_tables_at(library, target, choices, proof.counterexample))
     return Configuration(test_case, Status.UNKNOWN, None, None, None, max_iterations, points,
-                         "iteration limit reached")
+                         "iteration limit reached", method)
+
+
+def _tables_at(library, target: Contract, choices, point):
+    """At the operating point ``point``: each candidate's assumption and saturated guarantee,
+    and the test case's (constants there)."""
+    columns = {k: np.array([v], dtype=object) for k, v in point.items()}
+    for name in library.spec.variables:
+        columns.setdefault(name, np.array([Fraction(0)], dtype=object))
+
+    def holds(expr) -> bool:
+        return bool(np.asarray(evaluate(expr, columns)).reshape(-1)[0])
+
+    contracts = library.model_contracts
+    a = {c: [holds(contracts[m].assumption) for m in ms] for c, ms in choices.items()}
+    g = {c: [holds(contracts[m].saturated_guarantee) for m in ms] for c, ms in choices.items()}
+    return a, g, holds(target.assumption), holds(target.saturated_guarantee)
 
 
 def setup_refines(library: Library, setup: dict[str, str], target: Contract, *,
@@ -189,32 +201,6 @@ def _choices(library: Library, components, fixed) -> dict[str, list[str]]:
             raise LibraryError(f"{library.source}: component '{c}' has no model")
         choices[c] = models
     return choices
-
-
-def _valid_at(library, target: Contract, choices, selector, point) -> object:
-    """At the operating point ``point``: the propositional condition on the selectors under which
-    the composed setup's contract satisfies both refinement implications there."""
-    import z3
-
-    def holds(expr) -> bool:
-        columns = {k: np.array([v], dtype=object) for k, v in point.items()}
-        for name in library.spec.variables:
-            columns.setdefault(name, np.array([Fraction(0)], dtype=object))
-        return bool(np.asarray(evaluate(expr, columns)).reshape(-1)[0])
-
-    assumption_holds, guarantee_holds = [], []
-    for c, models in choices.items():
-        assumption_holds.append(z3.Or([selector[c, m] for m in models
-                                       if holds(library.model_contracts[m].assumption)] or
-                                      [z3.BoolVal(False)]))
-        guarantee_holds.append(z3.Or([selector[c, m] for m in models
-                                      if holds(library.model_contracts[m].saturated_guarantee)]
-                                     or [z3.BoolVal(False)]))
-    g_setup = z3.And(guarantee_holds)
-    a_setup = z3.Or(z3.And(assumption_holds), z3.Not(g_setup))
-    a_target = z3.BoolVal(holds(target.assumption))
-    g_target = z3.BoolVal(holds(target.saturated_guarantee))
-    return z3.And(z3.Implies(a_target, a_setup), z3.Implies(g_setup, g_target))
 
 
 def missing_model_requirement(library: Library, test_case: str, given: dict[str, str]

@@ -78,7 +78,7 @@ class ParameterSpec(_Strict):
 
 class ModelSpec(_Strict):
     implements: str
-    cost: float = Field(ge=0, le=MAX_COST, allow_inf_nan=False)
+    cost: float = Field(ge=0, le=MAX_COST, allow_inf_nan=False, strict=True)  # no 'true'
     contract: ContractSpec | list[ContractSpec] | Literal["trivial"]
     parameters: dict[str, ParameterSpec] = Field(default_factory=dict)
     description: str = ""

@@ -16,7 +16,8 @@ import numpy as np
 
 from simcred._json import dumps, envelope
 from simcred.contracts.algebra import Contract
-from simcred.contracts.expr import Expr, conjuncts, evaluate, implies, margin, to_text, variables
+from simcred.contracts.evaluate import evaluate, margin
+from simcred.contracts.expr import Expr, conjuncts, implies, to_text, variables
 from simcred.contracts.temporal import Timeline
 from simcred.errors import SimcredError
 from simcred.traces import TraceSet

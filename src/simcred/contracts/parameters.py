@@ -21,8 +21,9 @@ from collections.abc import Mapping
 from fractions import Fraction
 
 from simcred.contracts.algebra import Contract
-from simcred.contracts.expr import ExpressionError, to_z3, variables, z3_variables
+from simcred.contracts.expr import ExpressionError, variables
 from simcred.contracts.readable import within
+from simcred.contracts.smt import to_z3, z3_variables
 
 DEFAULT_TIMEOUT_MS = 5_000
 

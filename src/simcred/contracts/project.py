@@ -15,18 +15,8 @@ from fractions import Fraction
 from functools import cache
 
 from simcred.contracts.algebra import Contract
-from simcred.contracts.expr import (
-    Arith,
-    Bool,
-    Compare,
-    Expr,
-    Logic,
-    Num,
-    Var,
-    to_z3,
-    variables,
-    z3_variables,
-)
+from simcred.contracts.expr import Arith, Bool, Compare, Expr, Logic, Num, Var, variables
+from simcred.contracts.smt import to_z3, z3_variables
 
 
 def project(contract: Contract, keep: Iterable[str], *, types: Mapping[str, str] | None = None,

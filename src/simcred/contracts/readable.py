@@ -97,6 +97,19 @@ def _union(parts: list[Expr]) -> Expr | None:
     return conjoin(*_clauses(found[0][0], merged))
 
 
+def _common_factor(disjuncts: list[Expr]) -> Expr | None:
+    """(c and a) or (c and b) → c and (a or b) (distributivity), then tidied; None if the
+    disjuncts share no conjunct."""
+    parts = [d.args if isinstance(d, Logic) and d.op == "and" else (d,) for d in disjuncts]
+    common = [c for c in parts[0] if all(c in p for p in parts[1:])]
+    if not common:
+        return None
+    rests = [conjoin(*(c for c in p if c not in common)) for p in parts]
+    if Bool(True) in rests:
+        return tidy(conjoin(*common))  # one disjunct is the common part: absorption
+    return tidy(Logic("and", (*common, Logic("or", tuple(rests)))))
+
+
 def _lower_key(i: Interval):
     return (float("-inf"), 0) if i.lo is None else (i.lo, int(i.lo_open))
 
@@ -168,6 +181,9 @@ def _junction(op: str, args: list[Expr]) -> Expr:
         union = _union(flat)
         if union is not None:
             return union
+        factored = _common_factor(flat)
+        if factored is not None:
+            return factored
     if not flat:
         return unit
     return flat[0] if len(flat) == 1 else Logic(op, tuple(flat))

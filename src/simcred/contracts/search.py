@@ -31,7 +31,16 @@ from __future__ import annotations
 from dataclasses import dataclass
 from fractions import Fraction
 
-from simcred.contracts.intervals import REAL_LINE, Interval, box
+from simcred.contracts.intervals import REAL_LINE, Interval
+from simcred.contracts.intervals import box as _box
+from simcred.contracts.readable import tidy
+
+
+def box(expr, types):
+    """The box of ``expr`` or of its tidied form (an equivalent one: ``tidy`` merges the
+    viewpoints' ``(c and a) or (c and b)`` and unions of intervals), else None."""
+    found = _box(expr, types)
+    return found if found is not None else _box(tidy(expr), types)
 
 
 @dataclass(frozen=True, slots=True)
