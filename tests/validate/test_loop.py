@@ -152,3 +152,77 @@ def _groups(values):
         out.append((values[k], j - k))
         k = j
     return out
+
+
+def test_each_cell_is_the_comparison_of_its_segments(tmp_path):
+    """Oracle: compare() called directly on the reference's and the candidate's segments of a
+    cell, with the cell's seed, gives the cell's p-value, distance and baseline."""
+    from simcred.compare import compare
+    from simcred.validate.cells import grid_of
+    from simcred.validate.domain import cell_seed
+
+    path = write_universe(tmp_path, comparison={"bins": 4, "permutations": 99, "seed": 7,
+                                                "baseline": 3})
+    spec, base = read_validation(path)
+    inputs = read_inputs(spec, base)
+    result = validate(spec, inputs)
+    grid = grid_of(spec.conditions)
+    ref = segments(inputs.reference, grid, spec.segments.min_length)
+    cand = segments(inputs.candidates["sim"], grid, spec.segments.min_length)
+    for cell in result.domains["sim"].cells:
+        direct = compare(ref.by_cell[cell.cell], cand.by_cell[cell.cell], features=["x"], bins=4,
+                         alpha=0.05, permutations=99, seed=cell_seed(7, "sim", cell.cell),
+                         baseline=3)
+        assert cell.pvalue == direct.chain.pvalue and cell.distance == direct.distance
+        assert cell.baseline == (direct.baseline.low, direct.baseline.high)
+        assert cell.status.value == ("not valid" if direct.chain.rejected else "valid")
+
+
+def test_provenance_names_the_inputs(tmp_path):
+    import hashlib
+
+    path = write_universe(tmp_path)
+    code, verdict = _run(path, tmp_path / "out", "--date", "2026-11-23")
+    provenance = verdict["provenance"]
+    assert provenance["date"] == "2026-11-23"
+    assert provenance["validation_file"]["sha256"] == hashlib.sha256(path.read_bytes()).hexdigest()
+    assert provenance["inputs"]["reference"]["digest"] == \
+        TraceSet.read(tmp_path / "ref.parquet").digest()
+    assert provenance["seed"] == 7 and provenance["options"]["comparison"]["seed"] == 7
+    _, undated = _run(path, tmp_path / "undated")
+    assert undated["provenance"]["date"] is None
+
+
+def _with_run_constant(traces: TraceSet, name: str, seed: int) -> TraceSet:
+    """``traces`` plus a signal that is constant within each run (an exogenous condition)."""
+    rng = np.random.default_rng(seed)
+    per_run = rng.uniform(0.0, 2.0, size=traces.n_runs)
+    column = np.repeat(per_run, traces.lengths)
+    return TraceSet((*traces.signals, name), traces.time,
+                    np.column_stack([traces.values, column]), traces.offsets, traces.run_ids,
+                    source=traces.source)
+
+
+def test_two_condition_variables(tmp_path):
+    from simcred.report.validate import write_validation_report
+    from simcred.validate.loop import Inputs
+    from simcred.validate.synthetic import universe
+    from simcred.validate.verdict import verdict_document
+
+    path = write_universe(tmp_path, conditions={"v": {"unit": "m/s", "edges": [5, 20, 30]},
+                                                "g": {"unit": "m", "edges": [0, 1, 2]}})
+    spec, _ = read_validation(path)
+    reference = _with_run_constant(universe(160, 150, seed=1), "g", 11)
+    candidate = _with_run_constant(universe(160, 150, seed=2, effect=0.15, v_switch=20,
+                                            name="sim"), "g", 12)
+    inputs = Inputs(reference, {"sim": candidate}, ())
+    result = validate(spec, inputs)
+    status = {c.index: c.status.value for c in result.domains["sim"].cells}
+    assert status == {(0, 0): "valid", (0, 1): "valid", (1, 0): "not valid",
+                      (1, 1): "not valid"}
+    assumption = result.library["models"]["sim"]["contract"]["assumption"]
+    assert assumption == "(5 <= v <= 20 and 0 <= g <= 1) or (5 <= v <= 20 and 1 <= g <= 2)"
+    out = tmp_path / "out"
+    out.mkdir()
+    html = write_validation_report(result, verdict_document(result, inputs), out).read_text()
+    assert html.count("data:image/png;base64,") == 1 + 4

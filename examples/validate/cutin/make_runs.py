@@ -10,7 +10,8 @@ Manufactured data (simcred's cut-in universe, seed 002), not recordings:
   with independent sensor noise.
 
 Signals at 10 Hz: ``ego.v``, ``ego.a`` (acceleration command), ``ego.y``, ``ego.heading``,
-``range`` (TO centre ahead of the EGO's centre). Usage::
+``range`` (TO centre ahead of the EGO's centre) and ``to.brake``, the TO's scripted braking
+deceleration (m/s², constant per run: the exogenous operating condition). Usage::
 
     python examples/validate/cutin/make_runs.py --out examples/validate/cutin --runs 120
 """
@@ -48,7 +49,8 @@ def scripts(runs: int, seed: int, base: CutInConfig):
 def drive(model: str, runs: int, seed: int, noise_seed: int, name: str) -> TraceSet:
     config = CutInConfig()
     t = np.arange(config.steps) * config.dt
-    truth = np.stack([scripted_object(s, t) for s in scripts(runs, seed, config)])[:, :, None, :]
+    drawn = list(scripts(runs, seed, config))
+    truth = np.stack([scripted_object(s, t) for s in drawn])[:, :, None, :]
     noise = np.stack([run_rng(noise_seed, i).standard_normal((config.steps, 1, 2))
                       for i in range(runs)])
     ego_start = np.tile([0.0, 0.0, config.ego_speed, 0.0], (runs, 1))
@@ -58,8 +60,9 @@ def drive(model: str, runs: int, seed: int, noise_seed: int, name: str) -> Trace
     rng = np.random.default_rng(noise_seed + 1)
     ego, to = record.ego[:, ::THIN], record.objects[:, ::THIN, 0]
     v = ego[..., 2] + dgps.speed * rng.standard_normal(ego[..., 2].shape)
+    brake = np.repeat([[s.brake_decel] for s in drawn], ego.shape[1], axis=1)
     columns = {"ego.v": v, "ego.a": ego[..., 4], "ego.y": ego[..., 1],
-               "ego.heading": ego[..., 3], "range": to[..., 0] - ego[..., 0]}
+               "ego.heading": ego[..., 3], "range": to[..., 0] - ego[..., 0], "to.brake": brake}
     return TraceSet.from_runs([{"t": record.t[::THIN], **{k: c[i] for k, c in columns.items()}}
                                for i in range(runs)],
                               run_ids=[f"{name}{i:03d}" for i in range(runs)],

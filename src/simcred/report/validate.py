@@ -28,6 +28,7 @@ from simcred.validate.loop import Validation  # noqa: E402
 
 COLORS = {CellStatus.VALID: "#8fd18a", CellStatus.NOT_VALID: "#e3634f",
           CellStatus.UNKNOWN: "#d6d6d6"}
+TEST_CASE_EDGE = "#1f4e9c"
 MAX_STATE_MAPS = 8  # per candidate: not-valid cells first, then valid ones, in cell order
 
 
@@ -61,7 +62,8 @@ def _candidate(result: Validation, name: str, domain: Domain, figures: Path) -> 
         "verdict": verdict.verdict,
         "reasons": list(verdict.reasons),
         "domain_map": _uri(domain_map(domain, figures / f"{name}_domain.png",
-                                      result.spec.test_case.conditions)),
+                                      result.spec.test_case.conditions,
+                                      verdict.relevant_cells)),
         "cells": [c.to_dict() for c in domain.cells],
         "state_maps": [{"label": c.label, "status": c.status.value,
                         "uri": _uri(state_map(c.comparison,
@@ -79,9 +81,11 @@ def _drawable(comparison) -> bool:
     return all(len(e) > 0 for e in comparison.space.edges[:2])
 
 
-def domain_map(domain: Domain, path: Path, conditions: str) -> Path:
+def domain_map(domain: Domain, path: Path, conditions: str,
+               test_case_cells: tuple[int, ...] = ()) -> Path:
     """The grid over the first one or two condition variables, cells coloured by status and
-    annotated with segments (reference / candidate)."""
+    annotated with segments (reference / candidate); the cells that meet the test case's
+    conditions are outlined."""
     grid = domain.grid
     x_edges = np.asarray(grid.edges[0])
     two = len(grid.variables) > 1
@@ -95,6 +99,9 @@ def domain_map(domain: Domain, path: Path, conditions: str) -> Path:
         y0, y1 = (y_edges[i[1]], y_edges[i[1] + 1]) if two else (0.0, 1.0)
         ax.add_patch(plt.Rectangle((x0, y0), x1 - x0, y1 - y0, facecolor=COLORS[cell.status],
                                    edgecolor="#555555", linewidth=0.8))
+        if cell.cell in test_case_cells:
+            ax.add_patch(plt.Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False,
+                                       edgecolor=TEST_CASE_EDGE, linewidth=2.5, linestyle="--"))
         text = f"{cell.status.value}\n{cell.reference_segments} / {cell.candidate_segments}"
         if cell.distance is not None:
             text += f"\nd = {cell.distance:.2f}"
@@ -106,9 +113,11 @@ def domain_map(domain: Domain, path: Path, conditions: str) -> Path:
         ax.set_ylabel(f"{grid.variables[1]} [{grid.units[1]}]")
     else:
         ax.set_yticks([])
-    ax.legend(handles=[Patch(facecolor=c, edgecolor="#555555", label=s.value)
-                       for s, c in COLORS.items()], loc="upper center",
-              bbox_to_anchor=(0.5, -0.25 if not two else -0.14), ncol=3, fontsize=8)
+    handles = [Patch(facecolor=c, edgecolor="#555555", label=s.value) for s, c in COLORS.items()]
+    handles.append(Patch(fill=False, edgecolor=TEST_CASE_EDGE, linewidth=2, linestyle="--",
+                         label="meets the test case"))
+    ax.legend(handles=handles, loc="upper center",
+              bbox_to_anchor=(0.5, -0.25 if not two else -0.14), ncol=4, fontsize=8)
     ax.set_title(f"{domain.candidate}: validity domain (segments reference / candidate per "
                  f"cell); test case: {conditions}", fontsize=9)
     path.parent.mkdir(parents=True, exist_ok=True)

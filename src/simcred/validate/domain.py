@@ -52,6 +52,7 @@ class CellResult:
     statistic: float | None = None
     distance: float | None = None
     seed: int | None = None
+    baseline: tuple[float, float] | None = None
     comparison: Comparison | None = None
 
     def to_dict(self) -> dict[str, Any]:
@@ -62,7 +63,9 @@ class CellResult:
                 "candidate": {"segments": self.candidate_segments,
                               "samples": self.candidate_samples},
                 "chain_pvalue": self.pvalue, "chain_statistic": self.statistic,
-                "distance": self.distance, "seed": self.seed}
+                "distance": self.distance,
+                "baseline": None if self.baseline is None else list(self.baseline),
+                "seed": self.seed}
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -117,7 +120,7 @@ def _cell(spec: ValidationSpec, grid: Grid, reference: Segments, candidate: Segm
                      bins=options.bins, kernel=options.kernel, test="runs", alpha=options.alpha,
                      permutations=options.permutations, seed=seed,
                      multiplicity=options.multiplicity, chain=options.chain,
-                     resample=options.resample)
+                     resample=options.resample, baseline=options.baseline)
     chain = result.chain
     distance = result.distance
     if spec.acceptance.rule == "chain":
@@ -128,8 +131,9 @@ def _cell(spec: ValidationSpec, grid: Grid, reference: Segments, candidate: Segm
         ok = distance is not None and distance <= spec.acceptance.d_max
         reason = f"distance {distance:.3g} {'≤' if ok else '>'} d_max = {spec.acceptance.d_max:g}"
     status = CellStatus.VALID if ok else CellStatus.NOT_VALID
+    baseline = None if result.baseline is None else (result.baseline.low, result.baseline.high)
     return CellResult(*head, status, reason, *counts, float(chain.pvalue),
-                      float(chain.statistic), distance, seed, result)
+                      float(chain.statistic), distance, seed, baseline, result)
 
 
 def _too_little(spec: ValidationSpec, counts: tuple[int, int, int, int]) -> str:

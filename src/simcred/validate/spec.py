@@ -108,7 +108,9 @@ class ConditionSpec(_Strict):
 
 
 class ComparisonSpec(_Strict):
-    """Options of the calibrated comparison (run-level test) in every cell."""
+    """Options of the calibrated comparison (run-level test) in every cell; ``baseline``: random
+    half-splits of the reference's segments compared with each other (the same-model distance
+    range a cell's distance is read against)."""
 
     bins: int | list[int] = 4
     kernel: Literal["gaussian", "laplace", "linear"] = "gaussian"
@@ -118,6 +120,7 @@ class ComparisonSpec(_Strict):
     chain: Literal["sum", "max"] = "sum"
     multiplicity: Literal["fwer", "fdr", "none"] = "fwer"
     resample: float | None = Field(default=None, gt=0)
+    baseline: int = Field(default=0, ge=0, le=100)
 
 
 class AcceptanceSpec(_Strict):
