@@ -4,9 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from simcred.kinematics import LANE_WIDTH
 from simcred.traces import TraceSet
-
-LANE_WIDTH = 3.5  # m
 
 
 def lane_change_runs(

@@ -12,7 +12,7 @@ import numpy as np
 from simcred.report.figures import _save, plt
 from simcred.reprocess import output
 from simcred.reprocess.errors import QUANTITIES, STEPS
-from simcred.reprocess.pipeline import Reprocessed, log_risk
+from simcred.reprocess.pipeline import LOG_RISK_FLOOR, Reprocessed, log_risk
 from simcred.reprocess.representation import GT, SD, Rep, Sensor
 from simcred.reprocess.vary import Campaign, write_campaign
 
@@ -217,13 +217,13 @@ def fig8_variations(campaign, path: str | Path) -> Path:
               title=f"{runs.n_runs} kept variations of {campaign.variations.generated}: paths")
     paths.legend(fontsize=8, ncols=3)
     speeds.set(xlabel="t [s]", ylabel="v [m/s]", title="speeds (TO purple, EGO blue)")
-    values = np.log10(np.maximum(campaign.max_risks, 1e-9))
+    values = np.log10(np.maximum(campaign.max_risks, LOG_RISK_FLOOR))
     risks.hist(values, bins=30, color=VARIATION_TO, alpha=0.7, label="variations")
     p5, p95 = np.percentile(values, [5, 95])
     for q, label in ((p5, "5th / 95th percentile"), (p95, None)):
         risks.axvline(q, color="black", ls="--", lw=1, label=label)
-    risks.axvline(np.log10(max(campaign.reference.max_risk, 1e-9)), color=REFERENCE_COLOR, lw=3,
-                  label="rGT")
+    risks.axvline(np.log10(max(campaign.reference.max_risk, LOG_RISK_FLOOR)),
+                  color=REFERENCE_COLOR, lw=3, label="rGT")
     risks.set(xlabel="log10 maximum risk", ylabel="variations",
               title="distribution of the maximum TTR risk")
     risks.legend(fontsize=8)

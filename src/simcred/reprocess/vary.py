@@ -31,7 +31,7 @@ from simcred._json import JsonResult
 from simcred.compare import compare
 from simcred.compare.result import Comparison
 from simcred.engine import Engine, shared
-from simcred.kinematics import MOTION_SIGNALS
+from simcred.kinematics import LANE_WIDTH, MOTION_SIGNALS
 from simcred.reprocess.reaction import Reaction, ReactionCriteria, reaction
 from simcred.risk import risk_series
 from simcred.scenario.description import ScenarioDescription
@@ -62,7 +62,7 @@ class VaryConfig:
     to: str = "to"
     chunk_size: int = 50
     max_deviation: float = 1.0  # m: corridor around the original TO path (≈ 3 σ of the offsets)
-    lane_width: float = 3.5
+    lane_width: float = LANE_WIDTH
     compare_bins: int = 8
     options: VariationOptions = field(default_factory=lambda: VariationOptions(sample_dt=0.1))
     limits: PlausibilityLimits = field(default_factory=PlausibilityLimits)

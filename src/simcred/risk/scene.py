@@ -12,6 +12,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from simcred.errors import OptionError, SimcredError
+from simcred.kinematics import LANE_WIDTH
 
 _STATE_FIELDS = ("x", "y", "v", "heading", "acceleration", "yaw_rate", "length", "width")
 # peak |d²p/dτ²| of the quintic smoothstep p(τ) = 10τ³ - 15τ⁴ + 6τ⁵, at τ = (3 ∓ √3)/6
@@ -124,7 +125,7 @@ class Lanes:
         ``centre + k * width`` for every integer k. Road edges are not modelled.
     """
 
-    width: float = 3.5
+    width: float = LANE_WIDTH
     centre: float = 0.0
 
     def __post_init__(self) -> None:

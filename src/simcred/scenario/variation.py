@@ -42,6 +42,7 @@ from scipy.special import ndtr, ndtri
 
 from simcred.engine import Engine, Progress, shared
 from simcred.errors import OptionError, SimcredError
+from simcred.kinematics import LANE_WIDTH
 from simcred.scenario.bezier import BezierPath, _array_iv
 from simcred.scenario.description import (
     ObjectTrack,
@@ -66,7 +67,7 @@ from simcred.scenario.variation_set import (
 )
 from simcred.seeds import stream
 
-BOUNDARY_Y = 1.75
+BOUNDARY_Y = LANE_WIDTH / 2
 """Default lateral position (m) of the EGO's lane boundary: half a 3.5 m lane left of y = 0."""
 
 

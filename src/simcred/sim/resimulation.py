@@ -19,7 +19,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from simcred.errors import SimcredError
-from simcred.kinematics import MOTION_SIGNALS
+from simcred.kinematics import MOTION_SIGNALS, TIME_TOLERANCE
 from simcred.scenario.description import ScenarioDescription
 from simcred.seeds import stream
 from simcred.sim.campaign import run_id
@@ -34,7 +34,7 @@ MODE_SIGNAL = "ad.mode"
 
 def time_grid(description: ScenarioDescription, dt: float) -> np.ndarray:
     """``t0 + k dt`` for every k that stays inside the description's span."""
-    steps = int(np.floor((description.t1 - description.t0) / dt + 1e-9)) + 1
+    steps = int(np.floor((description.t1 - description.t0) / dt + TIME_TOLERANCE)) + 1
     return description.t0 + np.arange(steps) * dt
 
 
@@ -89,7 +89,7 @@ def _object_names(batch: Sequence[ScenarioDescription], ego: str) -> list[str]:
 def _object_states(description: ScenarioDescription, names: Sequence[str], t: np.ndarray
                    ) -> np.ndarray:
     """``(steps, objects, 4)``: x, y, v, heading of every traffic object on ``t``."""
-    if t[-1] > description.t1 + 1e-9 or t[0] < description.t0 - 1e-9:
+    if t[-1] > description.t1 + TIME_TOLERANCE or t[0] < description.t0 - TIME_TOLERANCE:
         raise SimcredError(f"description spans [{description.t0}, {description.t1}] s, the "
                            f"batch needs [{t[0]}, {t[-1]}] s")
     sampled = description.sample(t)
