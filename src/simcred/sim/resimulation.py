@@ -19,7 +19,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from simcred.errors import SimcredError
-from simcred.kinematics import MOTION_SIGNALS, TIME_TOLERANCE
+from simcred.kinematics import MOTION_SIGNALS, TIME_TOLERANCE, Track
 from simcred.scenario.description import ScenarioDescription
 from simcred.seeds import stream
 from simcred.sim.campaign import run_id
@@ -98,19 +98,16 @@ def _object_states(description: ScenarioDescription, names: Sequence[str], t: np
 
 
 def _ego_start(description: ScenarioDescription, ego: str) -> np.ndarray:
-    states = description.objects[ego].states(np.array([description.t0]))
-    return np.array([states.x[0], states.y[0], states.v[0], states.heading[0]])
+    return description.objects[ego].states(np.array([description.t0])).states()[0]
 
 
 def _traceset(record: LoopRecord, t: np.ndarray, names: Sequence[str], ego: str,
               run_ids: Sequence[str]) -> TraceSet:
     runs = []
     for r in range(record.ego.shape[0]):
-        run = {TIME: t}
-        run.update({f"{ego}.{s}": record.ego[r, :, j] for j, s in enumerate(MOTION_SIGNALS)})
+        run = {TIME: t, **Track.from_states(t, record.ego[r, :, :4]).to_columns(ego)}
         for k, name in enumerate(names):
-            run.update({f"{name}.{s}": record.objects[r, :, k, j]
-                        for j, s in enumerate(MOTION_SIGNALS)})
+            run.update(Track.from_states(t, record.objects[r, :, k]).to_columns(name))
         run[MODE_SIGNAL] = record.mode[r].astype(float)
         runs.append(run)
     return TraceSet.from_runs(runs, run_ids=run_ids, source="resimulation")
