@@ -171,7 +171,7 @@ def test_separating_axis_test_agrees_with_shapely():
     def sat(p):
         return (p[0], p[1], np.cos(p[2]), np.sin(p[2]), p[3] / 2, p[4] / 2)
 
-    got = ttr_module._overlap(sat(a), sat(b))
+    got = ttr_module.rectangles_overlap(sat(a), sat(b))
     assert 0.2 < expected.mean() < 0.8
     np.testing.assert_array_equal(got, expected)
 

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from simcred.report.figures import _save, plt
+from simcred.report.figures import plt, save_figure
 from simcred.reprocess import output
 from simcred.reprocess.errors import QUANTITIES, STEPS
 from simcred.reprocess.pipeline import LOG_RISK_FLOOR, Reprocessed, log_risk
@@ -62,7 +62,7 @@ def fig3_fit(result: Reprocessed, path: str | Path, source: str = "GT") -> Path:
     heading.set(xlabel="t [s]", ylabel="θ [rad]", title="heading")
     for ax in (xy, speed, heading):
         ax.grid(alpha=0.3)
-    return _save(fig, Path(path))
+    return save_figure(fig, Path(path))
 
 
 def fig4_errors(result: Reprocessed, path: str | Path, sensor: str = "ideal") -> Path:
@@ -93,7 +93,7 @@ def fig4_errors(result: Reprocessed, path: str | Path, sensor: str = "ideal") ->
     axes[-1].set_xticks(range(len(steps)), [f"Δ{s}" for s in steps])
     title = "errors of the reprocessing pipeline (boxes: quartiles, whiskers: full extent)"
     axes[0].set_title(f"{title} — {sensor} sensor in the resimulation; EGO blue, TO green")
-    return _save(fig, Path(path))
+    return save_figure(fig, Path(path))
 
 
 def _box(stats) -> dict[str, float]:
@@ -115,7 +115,7 @@ def fig5_sd_velocity(result: Reprocessed, path: str | Path) -> Path:
            title="TO speed: the fit of SD positions converges towards GT")
     ax.legend(fontsize=9)
     ax.grid(alpha=0.3)
-    return _save(fig, Path(path))
+    return save_figure(fig, Path(path))
 
 
 def fig6_traces(result: Reprocessed, path: str | Path, before: float = 0.5,
@@ -143,7 +143,7 @@ def fig6_traces(result: Reprocessed, path: str | Path, before: float = 0.5,
                  "who evades")
     ax.legend(fontsize=8, ncols=2)
     ax.grid(alpha=0.3)
-    return _save(fig, Path(path))
+    return save_figure(fig, Path(path))
 
 
 def fig7_velocity_risk(result: Reprocessed, path: str | Path) -> Path:
@@ -165,7 +165,7 @@ def fig7_velocity_risk(result: Reprocessed, path: str | Path) -> Path:
     for ax in (speed, risk):
         ax.legend(fontsize=8)
         ax.grid(alpha=0.3)
-    return _save(fig, Path(path))
+    return save_figure(fig, Path(path))
 
 
 FIGURES = {"fig3_fit.png": fig3_fit, "fig4_errors.png": fig4_errors,
@@ -229,7 +229,7 @@ def fig8_variations(campaign, path: str | Path) -> Path:
     risks.legend(fontsize=8)
     for ax in (paths, speeds, risks):
         ax.grid(alpha=0.3)
-    return _save(fig, Path(path))
+    return save_figure(fig, Path(path))
 
 
 def write_reprocessed(result: Reprocessed, directory: str | Path) -> dict[str, Path]:
