@@ -55,7 +55,7 @@ class VaryConfig:
     """Options of the campaign (defaults: [1] Fig. 8's 300 variations)."""
 
     n: int = 300
-    seed: int = 1
+    seed: int = 0  # as every seed-002 command; paper 002 passes its seed + 1
     vehicle: str = "ks"
     dt: float = 0.01
     risk_dt: float = 0.1
