@@ -23,7 +23,8 @@ SRC = Path(__file__).resolve().parents[1] / "src"
 #: it may import the core and io (io registers the TraceSet file formats), nothing imports it
 #: from inside the package but the CLI.
 #: The core is ordered within itself (0.0 … 0.6), so its modules cannot import in a circle.
-CORE = ("_version", "_lazy", "errors", "_json", "seeds", "engine", "traces", "kinematics")
+CORE = ("_version", "_lazy", "errors", "limits", "outputs", "_json", "seeds", "engine", "traces",
+        "kinematics")
 LAYERS: dict[str, float] = {
     **{unit: i / 10 for i, unit in enumerate(CORE)},
     "io": 1,

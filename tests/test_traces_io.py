@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import tempfile
 from pathlib import Path
 
@@ -350,10 +351,12 @@ def test_txt_file_is_not_a_trace_set(tmp_path):
     assert "runs.txt" in message and "not a trace set" in message
 
 
-def test_csv_file_path_is_not_a_trace_set(tmp_path):
+def test_csv_file_path_is_one_long_format_run(tmp_path):
+    # a single CSV file is the long format (simcred.io.longformat): one run named by its stem
     path = write_csv(tmp_path / "run_1.csv", "t,x\n0,0\n1,1\n")
-    message = read_error(path)
-    assert "run_1.csv" in message and "not a trace set" in message
+    traces = TraceSet.read(path)
+    assert traces.run_ids == ("run_1",) and traces.signals == ("x",)
+    assert traces.column("x").tolist() == [0.0, 1.0]
 
 
 # -- 3. bad input: Parquet ------------------------------------------------------------------------
@@ -489,3 +492,39 @@ def test_column_unknown_signal_names_source(tmp_path):
     traces = TraceSet.read(tmp_path)
     message = error_of(traces.column, "y")
     assert "'y'" in message and str(tmp_path) in message
+
+
+def test_csv_directory_reads_any_case_suffix_and_refuses_non_files(tmp_path):
+    directory = tmp_path / "runs"
+    directory.mkdir()
+    for name in ("run_0.csv", "run_1.CSV"):
+        (directory / name).write_text("t,x\n0,1\n0.1,2\n")
+    assert TraceSet.read(directory).run_ids == ("run_0", "run_1")
+    (directory / "run_1.csv").write_text("t,x\n0,1\n0.1,2\n")
+    with pytest.raises(TraceSetError, match="run 'run_1' also in"):
+        TraceSet.read(directory)
+    (directory / "run_1.csv").unlink()
+    os.mkfifo(directory / "run_2.csv")
+    with pytest.raises(TraceSetError, match="run_2.csv: not a regular file"):
+        TraceSet.read(directory)
+
+
+@pytest.mark.parametrize(("header", "message"), [
+    (b"t,\xff\n", "header is not UTF-8"),
+    (("t," + ",".join(f"c{i}" for i in range(10_000)) + "\n").encode(), "more than 10000"),
+])
+def test_csv_headers_are_checked_before_parsing(tmp_path, header, message):
+    directory = tmp_path / "runs"
+    directory.mkdir()
+    (directory / "run_0.csv").write_bytes(header + b"0,1\n")
+    with pytest.raises(TraceSetError, match=message):
+        TraceSet.read(directory)
+
+
+def test_deeply_nested_metadata_is_one_line_error(tmp_path):
+    directory = tmp_path / "runs"
+    directory.mkdir()
+    (directory / "run_0.csv").write_text("t,x\n0,1\n")
+    (directory / "traceset.json").write_text("[" * 100_000 + "]" * 100_000)
+    with pytest.raises(TraceSetError, match="nested too deeply"):
+        TraceSet.read(directory)

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from simcred._version import __version__
+from simcred.errors import SimcredError
 
 SCHEMA_VERSION = 1
 
@@ -67,6 +68,30 @@ def file_digest(path: str | Path) -> str:
 def dumps(document: Mapping[str, Any]) -> str:
     """Deterministic JSON text: keys in insertion order, floats round-trip, no NaN."""
     return json.dumps(plain(document), indent=1, allow_nan=False) + "\n"
+
+
+def loads(text: str | bytes, where: str, error: type[SimcredError] = SimcredError) -> Any:
+    """Parse JSON text from a user's file; any defect is a one-line error naming ``where``.
+
+    Covers malformed JSON, non-UTF-8 bytes, nesting too deep for the parser and integers with
+    more digits than Python converts.
+    """
+    try:
+        return json.loads(text)
+    except RecursionError:
+        raise error(f"{where}: JSON nested too deeply") from None
+    except ValueError as exc:  # JSONDecodeError, UnicodeDecodeError, int digit limit
+        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise error(f"{where}: not valid JSON ({reason})") from None
+
+
+def read_json(path: Path, error: type[SimcredError] = SimcredError) -> Any:
+    """Read and parse a JSON file (see :func:`loads`); unreadable files are one-line errors."""
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise error(f"{path}: cannot read ({exc.strerror or exc})") from None
+    return loads(data, str(path), error)
 
 
 class JsonResult:

@@ -30,8 +30,8 @@ class FileHandlers:
     and the package root ``simcred`` imports ``simcred.io``, so they are always registered.
     """
 
-    read: Callable[[str | Path], TraceSet]
-    write: Callable[[TraceSet, str | Path], Path]
+    read: Callable[..., TraceSet]  # (path, **options)
+    write: Callable[..., Path]  # (traces, path, **options)
 
 
 _handlers: dict[str, FileHandlers] = {}
@@ -218,16 +218,16 @@ class TraceSet:
     # -- files --------------------------------------------------------------------------------
 
     @classmethod
-    def read(cls, path: str | Path) -> TraceSet:
-        """Read a directory of CSV files (one per run) or one Parquet file with a ``run`` column.
+    def read(cls, path: str | Path, **options: Any) -> TraceSet:
+        """Read any supported format (CSV directory, Parquet, long format, SUMO FCD, CommonRoad,
+        OSI); ``options`` such as ``run_column=`` go to the reader (:func:`simcred.io.read`,
+        registered with :func:`register_files`: the core does not import io)."""
+        return _files().read(path, **options)
 
-        The formats are :mod:`simcred.io`'s, registered with :func:`register_files`.
-        """
-        return _files().read(path)
-
-    def write(self, path: str | Path) -> Path:
-        """Write as a CSV directory, or as Parquet when ``path`` ends in ``.parquet``/``.pq``."""
-        return _files().write(self, path)
+    def write(self, path: str | Path, **options: Any) -> Path:
+        """Write in the format ``path`` implies (:func:`simcred.io.write`): a CSV directory,
+        Parquet for ``.parquet``/``.pq``, a long CSV for ``.csv``, OSI for ``.osi``/``.mcap``."""
+        return _files().write(self, path, **options)
 
     # -- validation ---------------------------------------------------------------------------
 

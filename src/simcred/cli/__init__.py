@@ -11,10 +11,10 @@ from collections.abc import Sequence
 
 import typer
 
-from simcred.cli import compare, contracts, paper, reprocess, simulate  # noqa: F401  (registers)
+from simcred.cli import compare, contracts, convert, paper, reprocess, simulate  # noqa: F401
 from simcred.cli._app import app, error_line, plain_help
 
-plain_help(app)
+plain_help(app)  # after every command group is registered
 
 __all__ = ["app", "entry", "run"]
 

@@ -1,26 +1,31 @@
 """A trace set as a directory of CSV files, one per run (the format of Neurohr et al. 2023 [1]).
 
 Each file has a header row of signal names including the time column ``t``; the run id is the file
-stem. Files are read in natural order (``run_2`` before ``run_10``). An optional ``traceset.json``
-beside them holds the metadata. Floats are written in their shortest round-trip form, so
-write → read is exact.
+stem. Files are read in natural order (``run_2`` before ``run_10``); the suffix ``.csv`` is matched
+without regard to case, and an entry that is not a regular file (a directory, a FIFO) is an error
+rather than something to wait on. A header may name at most ``MAX_COLUMNS`` columns. An optional
+``traceset.json`` beside them holds the metadata. Floats are written in their shortest round-trip
+form, so write → read is exact.
 """
 
 from __future__ import annotations
 
 import json
 import re
+import stat
 from pathlib import Path
 
 import numpy as np
 import pyarrow as pa
 import pyarrow.csv as pacsv
 
+from simcred._json import read_json
 from simcred.errors import TraceSetError
 from simcred.io._columns import float_column
 from simcred.traces import TIME, TraceSet, _check_same_signals
 
 METADATA_FILE = "traceset.json"
+MAX_COLUMNS = 10_000
 _READ = pacsv.ConvertOptions(null_values=[""], strings_can_be_null=True)
 
 
@@ -28,7 +33,35 @@ def _natural_key(path: Path) -> list[object]:
     return [int(part) if part.isdigit() else part for part in re.split(r"(\d+)", path.stem)]
 
 
+def _run_files(directory: Path) -> list[Path]:
+    """The run files of a directory: ``*.csv`` in any case, regular files only."""
+    files = sorted((p for p in directory.iterdir() if p.suffix.lower() == ".csv"),
+                   key=_natural_key)
+    stems: dict[str, Path] = {}
+    for path in files:
+        if not stat.S_ISREG(path.stat().st_mode):
+            raise TraceSetError(f"{path}: not a regular file")
+        if path.stem in stems:
+            raise TraceSetError(f"{path}: run '{path.stem}' also in {stems[path.stem].name}")
+        stems[path.stem] = path
+    return files
+
+
+def _check_header(path: Path) -> None:
+    """Refuse undecodable or oversized headers before Arrow parses the file."""
+    with path.open("rb") as stream:
+        header = stream.readline(64 * MAX_COLUMNS)
+    try:
+        header.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise TraceSetError(f"{path}: header is not UTF-8 (byte {exc.start})") from None
+    if header.count(b",") + 1 > MAX_COLUMNS:
+        raise TraceSetError(f"{path}: more than {MAX_COLUMNS} columns (the limit of "
+                            "simcred.io.csvdir.MAX_COLUMNS)")
+
+
 def _read_table(path: Path) -> pa.Table:
+    _check_header(path)
     table = _read_csv(path, _READ)
     # Columns that look like integers are read again as floats: as int64, "-0" would lose its sign.
     ints = {f.name: pa.float64() for f in table.schema if pa.types.is_integer(f.type)}
@@ -47,7 +80,7 @@ def _read_csv(path: Path, options: pacsv.ConvertOptions) -> pa.Table:
 
 
 def read(directory: Path) -> TraceSet:
-    files = sorted(directory.glob("*.csv"), key=_natural_key)
+    files = _run_files(directory)
     if not files:
         raise TraceSetError(f"{directory}: the trace set is empty (no *.csv files)")
     signals: list[str] | None = None
@@ -83,10 +116,7 @@ def _read_metadata(directory: Path) -> dict:
     path = directory / METADATA_FILE
     if not path.exists():
         return {}
-    try:
-        meta = json.loads(path.read_text())
-    except (OSError, ValueError) as exc:
-        raise TraceSetError(f"{path}: unreadable metadata ({exc})") from None
+    meta = read_json(path, TraceSetError)
     if not isinstance(meta, dict):
         raise TraceSetError(f"{path}: metadata must be a JSON object")
     return meta

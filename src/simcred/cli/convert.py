@@ -1,0 +1,73 @@
+"""simcred convert: any supported trace-set format in, any writable format out."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from simcred.cli._app import Json, _emit, app, one_line_errors
+
+FORMAT_HELP = "csv-dir, parquet, long, sumo-fcd, commonroad, osi"
+
+
+def _signals(text: str | None) -> list[str] | None:
+    return None if text is None else [part.strip() for part in text.split(",") if part.strip()]
+
+
+@app.command()
+@one_line_errors
+def convert(
+    source: Annotated[Path, typer.Argument(metavar="IN", help="Input: a CSV directory, .parquet, "
+                                           "long .csv/.parquet, SUMO FCD .xml, CommonRoad .xml, "
+                                           "OSI .osi/.mcap.")],
+    target: Annotated[Path, typer.Argument(metavar="OUT", help="Output: a directory (CSV, one "
+                                           "file per run), .parquet, .csv (long), .osi or .mcap.")],
+    output_format: Annotated[str | None, typer.Option(
+        "--format", help=f"Output format ({FORMAT_HELP}; default: from OUT).")] = None,
+    input_format: Annotated[str | None, typer.Option(
+        "--from", help="Input format (default: from IN's suffix or XML root).")] = None,
+    run_column: Annotated[str | None, typer.Option(help="Long format: column naming the run "
+                                                        "(default: the file is one run).")] = None,
+    time_column: Annotated[str | None, typer.Option(help="Long format: column of the time in "
+                                                         "seconds (default: t).")] = None,
+    object_column: Annotated[str | None, typer.Option(
+        help="Long format: column naming the object; objects become <object>.<column> "
+             "signals (integer ids: obj<id>.<column>).")] = None,
+    time_scale: Annotated[float | None, typer.Option(
+        help="Long format: seconds per unit of the time column (0.04 for 25 Hz frame numbers, "
+             "0.001 for ms; default: 1).")] = None,
+    signals: Annotated[str | None, typer.Option(help="Long format: comma-separated value "
+                                                     "columns to keep (default: all numeric).")
+                       ] = None,
+    objects_as: Annotated[str | None, typer.Option(
+        help="signals (dotted names in one run) or runs (each object its own run).")] = None,
+    missing: Annotated[str | None, typer.Option(
+        help="An object without a row at a time step: error, or intersect (keep the time steps "
+             "all objects share).")] = None,
+    object_prefix: Annotated[str | None, typer.Option(help="Prefix of every object name "
+                                                           "(default: obj before integer ids).")
+                             ] = None,
+    layout: Annotated[str | None, typer.Option(
+        help="CommonRoad: obstacles (each dynamic obstacle a run) or scenario (one run, "
+             "obj<id>. signals).")] = None,
+    host: Annotated[str | None, typer.Option(help="OSI output: the object that is the host "
+                                                  "vehicle (default: ego, if present).")] = None,
+    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing OUT (never "
+                                                                "the input).")] = False,
+    as_json: Json = False,
+) -> None:
+    """Convert a trace set between formats (docs/formats.md); bad input exits 2 with one line."""
+    from simcred.io.formats import convert as convert_traces
+
+    given = dict(run_column=run_column, time_column=time_column, object_column=object_column,
+                 time_scale=time_scale,
+                 signals=_signals(signals), objects_as=objects_as, missing=missing,
+                 object_prefix=object_prefix, layout=layout, host=host)
+    options = {k: v for k, v in given.items() if v is not None}
+    result = convert_traces(source, target, source_format=input_format,
+                            target_format=output_format, overwrite=overwrite, **options)
+    _emit(result.to_dict(), as_json,
+          f"wrote {result.target} ({result.target_format}): {result.runs} runs, {result.rows} "
+          f"rows, {len(result.signals)} signals from {result.source} ({result.source_format})")

@@ -1,0 +1,152 @@
+"""CommonRoad XML scenarios (2018b/2020a) as trace sets, read with commonroad-io.
+
+Two layouts:
+
+* ``layout="obstacles"`` (default): every dynamic obstacle with a trajectory is a run ``obj<id>``
+  with signals ``x``, ``y``, ``heading``, ``v`` and, when every state has them, ``acceleration``,
+  ``yaw_rate``, ``slip_angle``.
+* ``layout="scenario"``: the scenario is one run (id = scenario id) with ``obj<id>.<signal>``
+  signals; obstacles that enter or leave follow the long-format missing-row rule (``missing``).
+
+A state's time is ``time_step * dt`` (seconds, float64). Each obstacle's states are its initial
+state followed by its trajectory. Values are commonroad-io's floats, unchanged. Obstacles with
+fewer than two states (no trajectory) cannot form a run and are listed in the metadata under
+``obstacles_without_trajectory``; a quantity that only some states carry (commonroad-io fills
+``acceleration`` etc. of initial states the file does not give) is not a signal and is listed
+under ``partial_quantities``. Uncertain states (shapes, intervals) are one-line errors.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from simcred.errors import OptionError, TraceSetError
+from simcred.io._xml import xml_root
+from simcred.io.longformat import Records, to_traceset
+from simcred.traces import TraceSet
+
+LAYOUTS = ("obstacles", "scenario")
+BASE = ("x", "y", "heading", "v")
+OPTIONAL = ("acceleration", "yaw_rate", "slip_angle")
+_ATTRIBUTE = {"heading": "orientation", "v": "velocity"}
+
+
+def _open(path: Path):
+    from commonroad.common.file_reader import CommonRoadFileReader
+
+    root = xml_root(path)  # refuses DTDs and entities before commonroad-io's parser sees the file
+    if root != "commonRoad":
+        raise TraceSetError(f"{path}: root element <{root}> is not <commonRoad>")
+    try:
+        with warnings.catch_warnings(), _quiet("commonroad"):
+            warnings.simplefilter("ignore")
+            scenario, _ = CommonRoadFileReader(str(path)).open(lanelet_assignment=False)
+    except Exception as exc:  # commonroad-io raises many kinds (assert, KeyError, lxml errors)
+        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise TraceSetError(f"{path}: unreadable CommonRoad scenario ({reason})") from None
+    return scenario
+
+
+@contextlib.contextmanager
+def _quiet(name: str):
+    """Silence a library's log warnings (commonroad-io logs one per deprecated lanelet tag)."""
+    logger = logging.getLogger(name)
+    level = logger.level
+    logger.setLevel(logging.ERROR)
+    try:
+        yield
+    finally:
+        logger.setLevel(level)
+
+
+def obstacle_states(obstacle) -> list:
+    """Initial state followed by the trajectory's states (commonroad-io objects)."""
+    prediction = obstacle.prediction
+    trajectory = getattr(prediction, "trajectory", None)
+    return [obstacle.initial_state, *(trajectory.state_list if trajectory is not None else [])]
+
+
+def _number(value, where: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float | np.floating | np.integer):
+        raise TraceSetError(f"{where}: value {type(value).__name__} is not an exact number "
+                            "(uncertain states are not supported)")
+    return float(value)
+
+
+def _state_row(state, where: str, quantities: tuple[str, ...]) -> list[float]:
+    position = state.position
+    if not isinstance(position, np.ndarray) or position.shape != (2,):
+        raise TraceSetError(f"{where}: position is not an exact point (uncertain states are not "
+                            "supported)")
+    row = [_number(state.time_step, where), float(position[0]), float(position[1])]
+    for name in quantities[2:]:
+        row.append(_number(getattr(state, _ATTRIBUTE.get(name, name)), where))
+    return row
+
+
+def _quantities(obstacles) -> tuple[tuple[str, ...], list[str]]:
+    """Signals every state of every obstacle has, and the optional ones only some have."""
+    have = {name: True for name in OPTIONAL}
+    seen = dict.fromkeys(OPTIONAL, False)
+    for obstacle in obstacles:
+        for state in obstacle_states(obstacle):
+            for name in OPTIONAL:
+                present = state.has_value(name)
+                have[name] &= present
+                seen[name] |= present
+    signals = BASE + tuple(n for n in OPTIONAL if have[n])
+    return signals, [n for n in OPTIONAL if seen[n] and not have[n]]
+
+
+def read(path: str | Path, *, layout: str = "obstacles", missing: str = "error") -> TraceSet:
+    """Read a CommonRoad XML scenario (see the module docstring for layouts and rules).
+
+    Parameters
+    ----------
+    path : path
+        A CommonRoad ``.xml`` scenario file.
+    layout : {"obstacles", "scenario"}
+        Each dynamic obstacle a run, or the whole scenario one run with ``obj<id>.`` signals.
+    missing : {"error", "intersect"}
+        Scenario layout: what an obstacle absent at a time step means (long-format rule).
+    """
+    if layout not in LAYOUTS:
+        raise OptionError(f"layout must be one of {', '.join(LAYOUTS)}, got {layout!r}")
+    path = Path(path)
+    scenario = _open(path)
+    dt = float(scenario.dt)
+    moving = [o for o in scenario.dynamic_obstacles if len(obstacle_states(o)) >= 2]
+    still = [o.obstacle_id for o in scenario.dynamic_obstacles if len(obstacle_states(o)) < 2]
+    if not moving:
+        raise TraceSetError(f"{path}: no dynamic obstacle with a trajectory")
+    quantities, partial = _quantities(moving)
+    rows, labels = [], []
+    for obstacle in moving:
+        for k, state in enumerate(obstacle_states(obstacle)):
+            where = f"{path}: obstacle {obstacle.obstacle_id}, state {k}"
+            rows.append(_state_row(state, where, quantities))
+            labels.append(str(obstacle.obstacle_id))
+    table = np.asarray(rows, dtype=np.float64)
+    present = np.ones(len(table), dtype=bool)
+    records = Records(
+        where=str(path),
+        time=table[:, 0] * dt,
+        runs=None,
+        objects=np.asarray(labels, dtype=object),
+        fields={name: (table[:, j + 1], present) for j, name in enumerate(quantities)},
+        default_run=str(scenario.scenario_id),
+        row_name="state",
+    )
+    metadata = {"format": "commonroad", "scenario_id": str(scenario.scenario_id), "dt": dt,
+                "layout": layout}
+    if still:
+        metadata["obstacles_without_trajectory"] = still
+    if partial:
+        metadata["partial_quantities"] = partial
+    return to_traceset(records, objects_as="runs" if layout == "obstacles" else "signals",
+                       missing=missing, metadata=metadata, source=str(path))

@@ -1,0 +1,489 @@
+"""A trace set as one long-format table: a row per (run, time[, object]) in a CSV or Parquet file.
+
+Logger exports, highD-style track files and SUMO FCD exported to CSV/Parquet are long tables: a
+column naming the run, one naming the time, optionally one naming the object (vehicle id, role),
+and value columns. The user names those columns; everything else numeric becomes a signal.
+
+Rules (also in ``docs/formats.md``)
+-----------------------------------
+* **Runs**: by first appearance of the run label; without a run column the file is one run named
+  after the file stem. Rows need not be sorted: each (run, object) is ordered by time.
+* **Objects** become dotted signal names ``<object>.<column>``; a label that is an integer
+  (``12``) becomes ``obj12`` (``object_prefix`` overrides this: every label gets that prefix).
+  With ``objects_as="runs"`` every (run, object) is a run of its own (id ``<run>.<object>``, or
+  ``<object>`` without a run column) with plain signal names.
+* **Missing values**: a column that is missing (empty) in *every* row of an object is not a signal
+  of that object (objects may carry different columns); missing in *some* rows is an error.
+* **Missing rows**: with ``missing="error"`` (default) every object of a run must have a row at
+  every time step of that run; ``missing="intersect"`` keeps the time steps where all objects of
+  the run have a row (documented data loss, counted in the metadata).
+* **Time** is the time column times ``time_scale`` (seconds per unit: 0.04 for 25 Hz frame
+  numbers, 0.001 for milliseconds). A CSV file's delimiter is ``,``, ``;`` or tab, whichever
+  its header line has most of.
+* Two rows for the same (run, object, time), non-finite values, text in a value column named in
+  ``signals``: one-line errors naming the file, row (1-based, header excluded), column and label.
+  Text columns not named in ``signals`` are skipped and listed in the metadata.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.compute as pc
+import pyarrow.csv as pacsv
+import pyarrow.parquet as pq
+
+from simcred.errors import OptionError, TraceSetError
+from simcred.io._columns import float_column
+from simcred.traces import TIME, TraceSet
+
+OBJECTS_AS = ("signals", "runs")
+MISSING = ("error", "intersect")
+PARQUET_SUFFIXES = (".parquet", ".pq")
+METADATA_KEY = b"simcred"
+_INTEGER = re.compile(r"^[+-]?\d+$")
+
+
+@dataclass(frozen=True, slots=True)
+class Records:
+    """Long-format records, one per (run, time, object), before they become runs.
+
+    ``fields`` maps a value column to ``(values, present)``: float64 values and a boolean mask of
+    the rows that have one. ``runs``/``objects`` are per-row labels (or None: one run / no
+    objects). ``where`` names the source in errors; ``row_name`` is what a record is called there.
+    """
+
+    where: str
+    time: np.ndarray
+    runs: Sequence[str] | pa.Array | None
+    objects: Sequence[str] | pa.Array | None
+    fields: Mapping[str, tuple[np.ndarray, np.ndarray]]
+    default_run: str
+    row_name: str = "row"
+
+
+# -- options ---------------------------------------------------------------------------------------
+
+
+def _check_choice(name: str, value: str, choices: Sequence[str]) -> None:
+    if value not in choices:
+        raise OptionError(f"{name} must be one of {', '.join(choices)}, got {value!r}")
+
+
+def object_name(label: str, prefix: str | None) -> str:
+    """The signal prefix of an object label: ``12`` -> ``obj12``, ``ego`` -> ``ego``.
+
+    >>> object_name("12", None), object_name("ego", None), object_name("12", "veh")
+    ('obj12', 'ego', 'veh12')
+    """
+    if prefix is not None:
+        return f"{prefix}{label}"
+    return f"obj{label}" if _INTEGER.match(label) else label
+
+
+# -- records -> TraceSet ---------------------------------------------------------------------------
+
+
+def _codes(labels) -> tuple[np.ndarray, list[str]]:
+    """Integer codes of ``labels`` numbered by first appearance, and the labels in that order.
+
+    Arrow's dictionary encoding numbers values by first appearance, in C (labels may be an Arrow
+    array or a sequence of str).
+    """
+    array = labels if isinstance(labels, pa.Array) else pa.array(labels, type=pa.string())
+    encoded = pc.dictionary_encode(array)
+    codes = encoded.indices.to_numpy(zero_copy_only=False).astype(np.int64, copy=False)
+    return codes, [str(v) for v in encoded.dictionary.to_pylist()]
+
+
+def _first_appearance(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Codes of integer ``keys`` by first appearance, and the key of each code."""
+    unique, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
+    order = np.argsort(first, kind="stable")
+    rank = np.empty(len(unique), dtype=np.int64)
+    rank[order] = np.arange(len(unique))
+    return rank[inverse.ravel()], unique[order]
+
+
+def to_traceset(records: Records, *, objects_as: str = "signals", missing: str = "error",
+                object_prefix: str | None = None, metadata: Mapping[str, Any] | None = None,
+                source: str | None = None, skip_short_runs: bool = False) -> TraceSet:
+    """Assemble long-format ``records`` into a TraceSet following the module's rules.
+
+    With ``skip_short_runs`` a run with fewer than two time steps (an object seen once) is left
+    out and named in the metadata under ``runs_too_short``, instead of being an error.
+    """
+    _check_choice("objects_as", objects_as, OBJECTS_AS)
+    _check_choice("missing", missing, MISSING)
+    n = len(records.time)
+    if n == 0:
+        raise TraceSetError(f"{records.where}: the trace set is empty (no rows)")
+    _check_finite(records)
+    if records.runs is None:
+        run_code, run_names = np.zeros(n, dtype=np.int64), [records.default_run]
+    else:
+        run_code, run_names = _codes(records.runs)
+    if records.objects is None:
+        if objects_as == "runs":
+            raise OptionError("objects_as='runs' needs an object column")
+        obj_code, obj_names = np.zeros(n, dtype=np.int64), [""]
+    else:
+        obj_code, obj_labels = _codes(records.objects)
+        obj_names = [object_name(o, object_prefix) for o in obj_labels]
+    if objects_as == "runs":  # every (run, object) pair is a run
+        run_code, pairs = _first_appearance(run_code * len(obj_names) + obj_code)
+        run_names = [obj_names[p % len(obj_names)] if records.runs is None
+                     else f"{run_names[p // len(obj_names)]}.{obj_names[p % len(obj_names)]}"
+                     for p in pairs]
+        obj_code, obj_names = np.zeros(n, dtype=np.int64), [""]
+    order = np.lexsort((records.time, obj_code, run_code))
+    _check_duplicates(records, order, run_code, obj_code, run_names, obj_names)
+    run_start = np.flatnonzero(np.diff(run_code[order], prepend=-1))
+    run_stop = np.append(run_start[1:], n)
+    blocks, times, signals, dropped, kept, short = [], [], None, 0, [], []
+    for r, (lo, hi) in enumerate(zip(run_start, run_stop, strict=True)):
+        rows = order[lo:hi]
+        if skip_short_runs and len(np.unique(records.time[rows])) < 2:
+            short.append(run_names[r])
+            continue
+        kept.append(run_names[r])
+        where = f"{records.where}: run '{run_names[r]}'"
+        t, names, block, lost = _run_block(records, rows, obj_code[rows], obj_names, where,
+                                           missing)
+        if signals is None:
+            signals = names
+        elif names != signals:
+            block = _reorder(block, names, signals, where)
+        blocks.append(block)
+        times.append(t)
+        dropped += lost
+    meta = dict(metadata or {})
+    if dropped:
+        meta["rows_dropped_by_intersect"] = dropped
+    if short:
+        meta["runs_too_short"] = short
+    if not kept:
+        raise TraceSetError(f"{records.where}: no run has two time steps or more")
+    return TraceSet(
+        signals=tuple(signals),
+        time=np.concatenate(times),
+        values=np.concatenate(blocks),
+        offsets=np.concatenate([[0], np.cumsum([len(t) for t in times])]),
+        run_ids=tuple(kept),
+        metadata=meta,
+        source=source or records.where,
+    )
+
+
+def _check_finite(records: Records) -> None:
+    for name, (values, present) in ((TIME, (records.time, np.ones(len(records.time), bool))),
+                                    *records.fields.items()):
+        bad = np.flatnonzero(present & ~np.isfinite(values))
+        if bad.size:
+            label = "time column" if name == TIME else f"column '{name}'"
+            raise TraceSetError(f"{records.where}: {label}, {records.row_name} {bad[0] + 1}: "
+                                f"value is {values[bad[0]]} (values must be finite)")
+
+
+def _check_duplicates(records, order, run_code, obj_code, run_names, obj_names) -> None:
+    t = records.time[order]
+    same = (np.diff(run_code[order]) == 0) & (np.diff(obj_code[order]) == 0) & (t[1:] == t[:-1])
+    bad = np.flatnonzero(same)
+    if bad.size:
+        a, b = sorted((int(order[bad[0]]), int(order[bad[0] + 1])))
+        obj = obj_names[obj_code[a]]
+        who = f"run '{run_names[run_code[a]]}'" + (f", object '{obj}'" if obj else "")
+        raise TraceSetError(f"{records.where}: {who} has two {records.row_name}s at "
+                            f"t={float(records.time[a])!r} "
+                            f"({records.row_name}s {a + 1} and {b + 1})")
+
+
+def _run_block(records, rows, codes, obj_names, where, missing):
+    """Time steps, signal names and the (steps, signals) block of one run; rows dropped."""
+    groups = [rows[codes == c] for c in np.unique(codes)]  # objects by first appearance
+    group_times = [records.time[g] for g in groups]
+    if missing == "error":
+        common = np.unique(np.concatenate(group_times))
+        for gt, c in zip(group_times, np.unique(codes), strict=True):
+            if len(gt) != len(common):
+                absent = float(common[~np.isin(common, gt)][0])
+                raise TraceSetError(
+                    f"{where}, object '{obj_names[c]}': no {records.row_name} at t={absent!r} "
+                    "(other objects have one); use missing='intersect' (--missing intersect) "
+                    "or objects_as='runs' (--objects-as runs)")
+    else:
+        common = group_times[0]
+        for gt in group_times[1:]:
+            common = np.intersect1d(common, gt, assume_unique=True)
+    names, columns = [], []
+    for g, gt, c in zip(groups, group_times, np.unique(codes), strict=True):
+        take = g[np.searchsorted(gt, common)]
+        prefix = f"{obj_names[c]}." if obj_names[c] else ""
+        for field, (values, present) in records.fields.items():
+            have = present[g]
+            if not have.any():
+                continue
+            if not have.all():
+                row = int(g[np.flatnonzero(~have)[0]]) + 1
+                raise TraceSetError(f"{where}: column '{field}', {records.row_name} {row}: value "
+                                    "is missing (other rows of this object have one)")
+            names.append(prefix + field)
+            columns.append(values[take])
+    lost = sum(len(g) for g in groups) - len(groups) * len(common)
+    if len(common) < 2:
+        raise TraceSetError(f"{where}: {len(common)} time step(s) where all objects have a "
+                            f"{records.row_name}; at least 2 are needed")
+    if not names:
+        raise TraceSetError(f"{where}: no signal columns")
+    return common, names, np.column_stack(columns), lost
+
+
+def _reorder(block: np.ndarray, names: list[str], signals: list[str], where: str) -> np.ndarray:
+    if sorted(names) != sorted(signals):
+        missing = sorted(set(signals) - set(names))
+        extra = sorted(set(names) - set(signals))
+        raise TraceSetError(f"{where}: signal names differ from the first run (missing "
+                            f"{missing}, extra {extra}); use objects_as='runs' if objects differ")
+    return block[:, [names.index(s) for s in signals]]
+
+
+# -- files -> records ------------------------------------------------------------------------------
+
+
+def _read_table(path: Path, keys: Sequence[str]) -> pa.Table:
+    if path.suffix.lower() in PARQUET_SUFFIXES:
+        try:
+            return pq.read_table(path)
+        except (pa.ArrowException, OSError) as exc:
+            raise TraceSetError(f"{path}: unreadable Parquet ({_first_line(exc)})") from None
+    text = {k: pa.string() for k in keys}
+    delimiter = csv_delimiter(path)
+    table = _read_csv(path, text, delimiter)
+    # integer-looking value columns are read again as floats: as int64, "-0" would lose its sign
+    floats = {f.name: pa.float64() for f in table.schema
+              if pa.types.is_integer(f.type) and f.name not in text}
+    return _read_csv(path, {**text, **floats}, delimiter) if floats else table
+
+
+def csv_delimiter(path: Path) -> str:
+    """The delimiter of a CSV file: whichever of ``,`` ``;`` tab its header line has most of.
+
+    SUMO's ``xml2csv.py`` writes ``;`` by default, spreadsheet exports often ``;`` or tabs.
+    """
+    try:
+        with open(path, "rb") as stream:
+            header = stream.readline()
+    except OSError as exc:
+        raise TraceSetError(f"{path}: unreadable CSV ({_first_line(exc)})") from None
+    counts = {d: header.count(d.encode()) for d in (",", ";", "\t")}
+    best = max(counts, key=counts.get)
+    return best if counts[best] else ","
+
+
+def _read_csv(path: Path, types: Mapping[str, pa.DataType], delimiter: str) -> pa.Table:
+    options = pacsv.ConvertOptions(null_values=[""], strings_can_be_null=True,
+                                   column_types=dict(types))
+    try:
+        return pacsv.read_csv(path, parse_options=pacsv.ParseOptions(delimiter=delimiter),
+                              convert_options=options)
+    except (pa.ArrowInvalid, OSError, UnicodeDecodeError) as exc:
+        raise TraceSetError(f"{path}: unreadable CSV ({_first_line(exc)})") from None
+
+
+def _first_line(exc: BaseException) -> str:
+    return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+
+
+def _labels(table: pa.Table, name: str | None, where: str) -> pa.Array | None:
+    """The key column ``name`` as an Arrow string array (integers become their decimal text)."""
+    if name is None:
+        return None
+    _require(table, name, where)
+    column = table.column(name)
+    if column.null_count:
+        row = int(np.flatnonzero(column.is_null().to_numpy(zero_copy_only=False))[0]) + 1
+        raise TraceSetError(f"{where}: column '{name}', row {row}: value is missing")
+    try:
+        return pc.cast(column.combine_chunks(), pa.string())
+    except pa.ArrowException:
+        raise TraceSetError(f"{where}: column '{name}' (type {column.type}) cannot name runs "
+                            "or objects") from None
+
+
+def _require(table: pa.Table, name: str, where: str) -> None:
+    if name not in table.column_names:
+        raise TraceSetError(f"{where}: no column '{name}' (columns are: "
+                            f"{', '.join(table.column_names)})")
+
+
+def _value_columns(table: pa.Table, keys: Sequence[str], signals: Sequence[str] | None,
+                   where: str) -> tuple[dict, list[str]]:
+    """The value columns as (values, present) pairs, and the text columns skipped."""
+    if signals is not None:
+        for name in signals:
+            _require(table, name, where)
+            if name in keys:
+                raise OptionError(f"signals: '{name}' is a run, time or object column")
+    names = list(signals) if signals is not None else [n for n in table.column_names
+                                                        if n not in keys]
+    fields, skipped = {}, []
+    for name in names:
+        column = table.column(name)
+        numeric = (pa.types.is_floating(column.type) or pa.types.is_integer(column.type)
+                   or pa.types.is_null(column.type))
+        if not numeric:
+            if signals is not None:
+                raise TraceSetError(f"{where}: column '{name}' is not numeric (type "
+                                    f"{column.type})")
+            skipped.append(name)
+            continue
+        present = ~column.is_null().to_numpy(zero_copy_only=False)
+        values = column.fill_null(0).to_numpy(zero_copy_only=False) if column.null_count else \
+            column.to_numpy(zero_copy_only=False)
+        fields[name] = (np.asarray(values, dtype=np.float64), np.asarray(present, dtype=bool))
+    if not fields:
+        raise TraceSetError(f"{where}: no numeric value columns besides the run, time and "
+                            "object columns")
+    return fields, skipped
+
+
+def read(path: str | Path, *, run_column: str | None = None, time_column: str = TIME,
+         object_column: str | None = None, signals: Sequence[str] | None = None,
+         objects_as: str = "signals", missing: str = "error",
+         object_prefix: str | None = None, time_scale: float = 1.0) -> TraceSet:
+    """Read one long-format CSV or Parquet file (see the module docstring for the rules).
+
+    Parameters
+    ----------
+    path : path
+        A ``.csv`` file, or a ``.parquet``/``.pq`` file.
+    run_column, time_column, object_column : str
+        Names of the columns holding the run label, the time in seconds and the object label.
+        Without a run column the file is one run; without an object column every row is one
+        time step of its run and the value columns are the signals.
+    signals : sequence of str, optional
+        Value columns to keep (default: every numeric column that is not a key).
+    objects_as : {"signals", "runs"}
+        Objects as dotted signal names of one run, or each object a run of its own.
+    missing : {"error", "intersect"}
+        What a missing row of an object means (see the rules).
+    object_prefix : str, optional
+        Prefix of every object name (default: ``obj`` before integer labels only).
+    time_scale : float, default: 1
+        Seconds per unit of the time column: 0.04 for frame numbers at 25 Hz (highD), 0.001
+        for milliseconds.
+    """
+    path = Path(path)
+    if not (isinstance(time_scale, int | float) and np.isfinite(time_scale) and time_scale > 0):
+        raise OptionError(f"time_scale must be a finite number > 0 (seconds per unit of the "
+                          f"time column), got {time_scale!r}")
+    keys = [k for k in (run_column, object_column) if k is not None]
+    if len({*keys, time_column}) != len(keys) + 1:
+        raise OptionError("run, time and object columns must be different columns")
+    table = _read_table(path, keys)
+    where = str(path)
+    if table.num_rows == 0:
+        raise TraceSetError(f"{where}: the trace set is empty (no rows)")
+    fields, skipped = _value_columns(table, [*keys, time_column], signals, where)
+    records = Records(
+        where=where,
+        time=float_column(table, time_column, where) * float(time_scale),
+        runs=_labels(table, run_column, where),
+        objects=_labels(table, object_column, where),
+        fields=fields,
+        default_run=path.stem,
+    )
+    metadata = _stored_metadata(table, path)
+    if skipped:
+        metadata["skipped_columns"] = skipped
+    return to_traceset(records, objects_as=objects_as, missing=missing,
+                       object_prefix=object_prefix, metadata=metadata, source=where)
+
+
+def _stored_metadata(table: pa.Table, path: Path) -> dict:
+    raw = (table.schema.metadata or {}).get(METADATA_KEY)
+    if raw is None:
+        return {}
+    try:
+        meta = json.loads(raw)
+    except ValueError:
+        meta = None
+    if not isinstance(meta, dict):
+        raise TraceSetError(f"{path}: schema metadata 'simcred' is not a JSON object")
+    return meta
+
+
+# -- TraceSet -> file ------------------------------------------------------------------------------
+
+
+def split_signal(name: str, *, where: str = "",
+                 hint: str = "write without an object column") -> tuple[str, str]:
+    """``"ego.sensor.x"`` -> ``("ego.sensor", "x")``: the object is all before the last dot."""
+    obj, dot, field = name.rpartition(".")
+    if not dot or not obj or not field:
+        prefix = f"{where}: " if where else ""
+        raise TraceSetError(f"{prefix}signal '{name}' is not '<object>.<field>'; {hint}")
+    return obj, field
+
+
+def to_table(traces: TraceSet, *, run_column: str = "run", time_column: str = TIME,
+             object_column: str | None = None) -> pa.Table:
+    """The long table of ``traces``: rows ordered by run, time and object (signal order)."""
+    runs = np.repeat(np.asarray(traces.run_ids, dtype=object), traces.lengths)
+    if object_column is None:
+        columns = {run_column: pa.array(runs, type=pa.string()), time_column: traces.time}
+        for j, name in enumerate(traces.signals):
+            columns[name] = traces.values[:, j]
+        _check_names([run_column, time_column], traces.signals)
+        return pa.table(columns)
+    parts = [split_signal(s) for s in traces.signals]
+    objects = list(dict.fromkeys(o for o, _ in parts))
+    fields = list(dict.fromkeys(f for _, f in parts))
+    _check_names([run_column, time_column, object_column], fields)
+    n, k = traces.n_rows, len(objects)
+    # row i of object k goes to output row i * k + position of the object
+    out = {run_column: pa.array(np.repeat(runs, k), type=pa.string()),
+           time_column: np.repeat(traces.time, k),
+           object_column: pa.array(np.tile(np.asarray(objects, dtype=object), n),
+                                   type=pa.string())}
+    for field in fields:
+        values = np.zeros(n * k)
+        present = np.zeros(n * k, dtype=bool)
+        for j, (obj, f) in enumerate(parts):
+            if f == field:
+                slot = objects.index(obj)
+                values[slot::k] = traces.values[:, j]
+                present[slot::k] = True
+        out[field] = pa.array(values, mask=~present)
+    return pa.table(out)
+
+
+def _check_names(keys: Sequence[str], fields: Sequence[str]) -> None:
+    if len(set(keys)) != len(keys):
+        raise OptionError("run, time and object columns must be different columns")
+    clash = sorted(set(keys) & set(fields))
+    if clash:
+        raise TraceSetError(f"signal or field '{clash[0]}' has the name of a run, time or object "
+                            "column; choose other column names")
+
+
+def write(traces: TraceSet, path: str | Path, *, run_column: str = "run",
+          time_column: str = TIME, object_column: str | None = None) -> Path:
+    """Write ``traces`` as one long-format CSV or Parquet file (Parquet keeps the metadata)."""
+    path = Path(path)
+    table = to_table(traces, run_column=run_column, time_column=time_column,
+                     object_column=object_column)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if path.suffix.lower() in PARQUET_SUFFIXES:
+        meta = json.dumps(dict(traces.metadata), sort_keys=True).encode()
+        pq.write_table(table.replace_schema_metadata({METADATA_KEY: meta}), path)
+    else:
+        pacsv.write_csv(table, path, write_options=pacsv.WriteOptions(quoting_header="none"))
+    return path

@@ -1,0 +1,93 @@
+"""Atomic outputs: inputs are never overwritten, outputs exist complete or not at all."""
+
+from __future__ import annotations
+
+import pytest
+
+from simcred.errors import OptionError
+from simcred.outputs import Checkpoint, check_out, output_dir, partial_path, write_atomic
+
+
+@pytest.fixture()
+def runs(tmp_path):
+    directory = tmp_path / "runs"
+    directory.mkdir()
+    (directory / "run_0.csv").write_text("t,x\n0,1\n")
+    return directory
+
+
+@pytest.mark.parametrize("relative", ["runs", "runs/run_0.csv", "runs/sub/out", "."])
+def test_out_may_not_be_contain_or_lie_inside_an_input(tmp_path, runs, relative):
+    with pytest.raises(OptionError, match="would overwrite the input"):
+        check_out(tmp_path / relative, [runs])
+    assert (runs / "run_0.csv").read_text() == "t,x\n0,1\n"
+
+
+def test_existing_nonempty_output_needs_overwrite(tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "old.json").write_text("{}")
+    with pytest.raises(OptionError, match="--overwrite"), output_dir(out):
+        pass
+    with output_dir(out, overwrite=True) as partial:
+        (partial / "new.json").write_text("[]")
+    assert sorted(p.name for p in out.iterdir()) == ["new.json"]  # replaced, never merged
+
+
+def test_existing_file_is_not_a_directory(tmp_path):
+    (tmp_path / "f").write_text("x")
+    with pytest.raises(OptionError, match="not a directory"):
+        check_out(tmp_path / "f", overwrite=True)
+    with pytest.raises(OptionError, match="not a directory"):
+        check_out(tmp_path / "f" / "out")
+
+
+def test_output_appears_only_when_complete(tmp_path):
+    out = tmp_path / "a" / "b" / "out"
+    with output_dir(out) as partial:
+        (partial / "x.json").write_text("1")
+        assert not out.exists() and partial == partial_path(out)
+    assert (out / "x.json").read_text() == "1" and not partial_path(out).exists()
+
+
+@pytest.mark.parametrize("error", [RuntimeError, KeyboardInterrupt])
+def test_failure_leaves_nothing_unless_resumable(tmp_path, error):
+    out = tmp_path / "out"
+    with pytest.raises(error), output_dir(out) as partial:
+        (partial / "half.json").write_text("{")
+        raise error()
+    assert not out.exists() and not partial_path(out).exists()
+    with pytest.raises(error), output_dir(out, keep_partial=True) as partial:
+        Checkpoint(partial).save("chunk_0", b"done")
+        raise error()
+    assert not out.exists() and (partial_path(out) / "checkpoints" / "chunk_0").exists()
+
+
+def test_resume_continues_the_partial_run(tmp_path):
+    out = tmp_path / "out"
+    with pytest.raises(KeyboardInterrupt), output_dir(out, keep_partial=True) as partial:
+        Checkpoint(partial).save("chunk_0", b"zero")
+        raise KeyboardInterrupt
+    with pytest.raises(OptionError, match="--resume"), output_dir(out, keep_partial=True):
+        pass
+    with output_dir(out, resume=True, keep_partial=True) as partial:
+        checkpoint = Checkpoint(partial)
+        assert "chunk_0" in checkpoint and "chunk_1" not in checkpoint
+        assert checkpoint.load("chunk_0") == b"zero" and checkpoint.keys() == ["chunk_0"]
+        (partial / "result.json").write_text("{}")
+    assert sorted(p.name for p in out.iterdir()) == ["result.json"]  # checkpoints dropped
+
+
+def test_write_atomic_leaves_no_temporary_on_failure(tmp_path):
+    path = write_atomic(tmp_path / "d" / "f.json", "abc")
+    assert path.read_text() == "abc"
+
+    with pytest.raises(TypeError):
+        write_atomic(tmp_path / "d" / "g.json", 3)  # type: ignore[arg-type]
+    assert sorted(p.name for p in (tmp_path / "d").iterdir()) == ["f.json"]
+
+
+@pytest.mark.parametrize("key", ["", "../x", "a/b", ".hidden"])
+def test_checkpoint_keys_are_plain_names(tmp_path, key):
+    with pytest.raises(ValueError, match="plain file name"):
+        Checkpoint(tmp_path).save(key, b"")
