@@ -10,3 +10,4 @@ mkdir -p "$DIR"
 $SIMCRED --quiet simulate cutin --out "$DIR/m"
 $SIMCRED --quiet reprocess "$DIR/m" --out "$DIR/cutin"
 $SIMCRED --quiet reprocess "$A9" --out "$DIR/a9" --threshold 0.1
+$SIMCRED --quiet vary "$DIR/cutin/descriptions/fit_GT.json" -n 24 --seed 1 --out "$DIR/vary"

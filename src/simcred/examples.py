@@ -4,10 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from simcred.kinematics import LANE_WIDTH
 from simcred.limits import check_count, check_finite
 from simcred.traces import TraceSet
-
-LANE_WIDTH = 3.5  # m
 
 
 def lane_change_runs(

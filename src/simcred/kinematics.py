@@ -85,6 +85,22 @@ class Track:
     def __len__(self) -> int:
         return len(self.t)
 
+    def __getitem__(self, index: slice | np.ndarray) -> Track:
+        """The samples ``index`` selects (a slice or an index/boolean array), as a track.
+
+        >>> len(Track(*[np.arange(10.0)] * 5)[::3])
+        4
+        """
+        if isinstance(index, int | np.integer):
+            raise TypeError("index a Track with a slice or an array, not an integer")
+        return Track(*(None if getattr(self, f) is None else getattr(self, f)[index]
+                       for f in ("t", *MOTION_SIGNALS, *RATE_SIGNALS)))
+
+    def with_rates(self) -> Track:
+        """The track with a = dv/dt and ω = dθ/dt from :func:`numpy.gradient` of v and θ."""
+        return Track(self.t, self.x, self.y, self.v, self.heading, np.gradient(self.v, self.t),
+                     np.gradient(self.heading, self.t))
+
     def __repr__(self) -> str:
         span = f"[{self.t[0]:g}, {self.t[-1]:g}] s" if len(self) else "empty"
         rates = "" if self.acceleration is None else ", with rates"

@@ -32,8 +32,8 @@ class FileHandlers:
     and the package root ``simcred`` imports ``simcred.io``, so they are always registered.
     """
 
-    read: Callable[..., TraceSet]
-    write: Callable[..., Path]
+    read: Callable[..., TraceSet]  # (path, **options)
+    write: Callable[..., Path]  # (traces, path, **options)
 
 
 _handlers: dict[str, FileHandlers] = {}
@@ -236,10 +236,8 @@ class TraceSet:
     @classmethod
     def read(cls, path: str | Path, **options: Any) -> TraceSet:
         """Read any supported format (CSV directory, Parquet, long format, SUMO FCD, CommonRoad,
-        OSI); ``options`` such as ``run_column=`` go to the reader (:func:`simcred.io.read`).
-
-        The formats are :mod:`simcred.io`'s, registered with :func:`register_files`.
-        """
+        OSI); ``options`` such as ``run_column=`` go to the reader (:func:`simcred.io.read`,
+        registered with :func:`register_files`: the core does not import io)."""
         return _files().read(path, **options)
 
     def write(self, path: str | Path, **options: Any) -> Path:

@@ -135,3 +135,14 @@ def test_tables_keep_brackets(capsys):
     out_console.print(plain_table("reactions [s]", ("trace", "time [s]"), [("rGT[sb]", "3.78")]))
     shown = capsys.readouterr().out
     assert "rGT[sb]" in shown and "time [s]" in shown and "reactions [s]" in shown
+
+
+def test_reprocess_json_is_the_summary_file(tmp_path, capsys):
+    from simcred.sim.experiments import cutin
+
+    cutin.simulate(0).write(tmp_path / "m")
+    assert run(["reprocess", str(tmp_path / "m"), "--out", str(tmp_path / "r"),
+                "--no-scenario-based", "--json"]) == 0
+    printed = capsys.readouterr().out
+    assert printed == (tmp_path / "r" / "reprocess.json").read_text()
+    assert '"kind": "reprocess"' in printed and '"inputs"' in printed

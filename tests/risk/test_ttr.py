@@ -171,7 +171,7 @@ def test_separating_axis_test_agrees_with_shapely():
     def sat(p):
         return (p[0], p[1], np.cos(p[2]), np.sin(p[2]), p[3] / 2, p[4] / 2)
 
-    got = ttr_module._overlap(sat(a), sat(b))
+    got = ttr_module.rectangles_overlap(sat(a), sat(b))
     assert 0.2 < expected.mean() < 0.8
     np.testing.assert_array_equal(got, expected)
 
@@ -379,3 +379,17 @@ def test_bad_states_raise_one_line_errors():
         with pytest.raises(SimcredError, match=match) as info:
             make()
         assert "\n" not in str(info.value)
+
+
+def test_states_of_tracks_match_the_columns():
+    from simcred.kinematics import Track
+
+    t = np.linspace(0.0, 1.0, 5)
+    ego = Track(t, 20 * t, 0 * t, 20 + 0 * t, 0 * t, 0 * t, 0 * t)
+    to = Track(t, 40 + 15 * t, 0 * t, 15 + 0 * t, 0 * t)  # no rates: 0
+    columns = {**ego.to_columns("ego"), **to.to_columns("to")}
+    by_columns = risk_series(columns)
+    by_tracks = risk(VehicleStates.of_tracks(ego), VehicleStates.of_tracks([to]))
+    np.testing.assert_array_equal(by_tracks.risk, by_columns.risk)
+    np.testing.assert_array_equal(by_tracks.ttr, by_columns.ttr)
+    assert VehicleStates.of_tracks([to, to]).x.shape == (5, 2)

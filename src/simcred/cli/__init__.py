@@ -25,7 +25,7 @@ from simcred.cli import (  # noqa: F401  (importing registers the commands)
 from simcred.cli._app import EXIT_BAD_INPUT, State, app, error_line, plain_help
 from simcred.errors import SimcredError
 
-plain_help(app)
+plain_help(app)  # after every command group is registered
 
 __all__ = ["app", "entry", "run"]
 

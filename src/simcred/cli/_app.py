@@ -109,7 +109,7 @@ def progress(description: str) -> Progress | None:
     """A rich progress bar on stderr, only on a terminal and without --quiet."""
     if State.quiet or not sys.stderr.isatty():
         return None
-    return lambda items, total: track(items, total=total, description=description,
+    return lambda items, total: track(items, total=total, description=escape(description),
                                       console=err_console, transient=True)
 
 

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
 from simcred.cli._app import (
+    Json,
     ResimVehicle,
     Scheduler,
     State,
@@ -37,6 +39,7 @@ def reprocess(
                                                   "adding sections.")] = 0.02,
     scenario_based: Annotated[bool, typer.Option(
         help="Also resimulate with the scenario-based sensor model (needs GT).")] = True,
+    as_json: Json = False,
 ) -> None:
     """Reprocess a drive: fit, resimulate, refit, assess; errors per step (Wagner, Groh et al.)."""
     from simcred.report.seed002 import write_reprocessed
@@ -50,11 +53,13 @@ def reprocess(
                              scenario_based=scenario_based)
     result = run_pipeline(read_measurement(measurement, object_id), config,
                           _steps("reprocessing"))
-    write_reprocessed(result, out)
-    if not State.quiet:
+    files = write_reprocessed(result, out)
+    if as_json:
+        sys.stdout.write(files["summary"].read_text())
+    elif not State.quiet:
         _print_reactions(result)
         say(f"wrote errors.json, reaction.json, descriptions, scenario.xosc and "
-                          f"figures to {out}")
+            f"figures to {out}")
 
 
 @app.command()
@@ -70,6 +75,7 @@ def vary(
     vehicle: ResimVehicle = "ks",
     workers: Workers = None,
     scheduler: Scheduler = None,
+    as_json: Json = False,
 ) -> None:
     """Local variations of the TO's cut-in (Wagner, Groh et al. sec. V): vary, resimulate, risk."""
     from simcred.engine import engine
@@ -85,11 +91,13 @@ def vary(
     with engine(workers, scheduler) as runner:
         campaign = run_campaign(original, VaryConfig(n=n, seed=seed, vehicle=vehicle),
                                 runner=runner, progress_for=progress)
-    write_variations(campaign, out)
-    if not State.quiet:
+    files = write_variations(campaign, out)
+    if as_json:
+        sys.stdout.write(files["summary"].read_text())
+    elif not State.quiet:
         _print_campaign(campaign.summary())
         say(f"wrote variations.json, variation_set.json, runs.parquet and "
-                          f"figures/fig8_variations.png to {out}")
+            f"figures/fig8_variations.png to {out}")
 
 
 def _print_campaign(summary: dict) -> None:

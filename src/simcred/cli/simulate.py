@@ -38,7 +38,7 @@ def _simulate(experiment, params: dict, runs: int, seed: int, out: Path, chunk_s
     path = traces.write(out)
     if not State.quiet:
         say(f"wrote {path}: {traces.n_runs} runs, {traces.n_rows} rows, "
-                          f"signals {', '.join(traces.signals)}")
+            f"signals {', '.join(traces.signals)}")
 
 
 @simulate_app.command("simplecar")

@@ -23,6 +23,7 @@ def write_traceset(traces: TraceSet, path: str | Path, **options) -> Path:
     return write(traces, path, **options)
 
 
+# TraceSet.read / TraceSet.write reach files through these (the core does not import io).
 register_files(FileHandlers(read=read_traceset, write=write_traceset))
 
 __all__ = ["FORMATS", "PARQUET_SUFFIXES", "detect", "read", "read_traceset", "write",

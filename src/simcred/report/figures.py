@@ -22,7 +22,7 @@ STATUS_LABELS = ["no transitions", "H0 kept", "H0 rejected (differs)", "untestab
 METADATA = {"Software": "simcred", "Creation Time": None}  # no timestamp: reproducible PNGs
 
 
-def _save(fig: plt.Figure, path: Path) -> Path:
+def save_figure(fig: plt.Figure, path: Path) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=130, bbox_inches="tight", metadata=METADATA)
     plt.close(fig)
@@ -47,7 +47,7 @@ def distance_heatmap(result: DistanceMatrix, path: str | Path, title: str | None
     ax.set_title(title or f"distinguishable transitions [%]  ({options.kernel}, {options.test}, "
                           f"α={options.alpha})")
     fig.colorbar(image, ax=ax, label="distance [%] (rejected states / |S|)")
-    return _save(fig, Path(path))
+    return save_figure(fig, Path(path))
 
 
 def _cell_edges(edges: np.ndarray, bounds: tuple[float, float]) -> np.ndarray:
@@ -117,4 +117,4 @@ def state_map(result: Comparison, path: str | Path, features: tuple[str, str] | 
     a, b = (Path(i.source).name for i in result.inputs)
     fig.suptitle(f"{title or f'{a} vs {b}'}: {result.options.kernel} kernel, "
                  f"{result.options.test} test, α = {result.options.alpha}", fontsize=11)
-    return _save(fig, Path(path))
+    return save_figure(fig, Path(path))

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from simcred.report.figures import _save, plt
+from simcred.report.figures import plt, save_figure
 
 KERNEL_COLORS = {"gaussian": "#1f77b4", "laplace": "#d62728", "linear": "#2ca02c"}
 
@@ -40,7 +40,7 @@ def fig5_inputs(path: str | Path, base_inputs, sample_paths, taus=(0.81, 1.0, 1.
     path_ax.set_aspect("equal", adjustable="datalim")
     path_ax.legend(fontsize=8)
     path_ax.grid(alpha=0.3)
-    return _save(fig, Path(path))
+    return save_figure(fig, Path(path))
 
 
 def fig_distance_curves(result, features: str, path: str | Path, title: str) -> Path:
@@ -60,4 +60,4 @@ def fig_distance_curves(result, features: str, path: str | Path, title: str) -> 
     c = result.config
     fig.suptitle(f"{title} — {c.runs} runs per λ, sample period {c.dt} s, {c.bins} bins",
                  fontsize=11)
-    return _save(fig, Path(path))
+    return save_figure(fig, Path(path))

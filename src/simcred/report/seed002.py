@@ -9,10 +9,10 @@ from pathlib import Path
 
 import numpy as np
 
-from simcred.report.figures import _save, plt
+from simcred.report.figures import plt, save_figure
 from simcred.reprocess import output
 from simcred.reprocess.errors import QUANTITIES, STEPS
-from simcred.reprocess.pipeline import Reprocessed, log_risk
+from simcred.reprocess.pipeline import LOG_RISK_FLOOR, Reprocessed, log_risk
 from simcred.reprocess.representation import GT, SD, Rep, Sensor
 from simcred.reprocess.vary import Campaign, write_campaign
 
@@ -62,7 +62,7 @@ def fig3_fit(result: Reprocessed, path: str | Path, source: str = "GT") -> Path:
     heading.set(xlabel="t [s]", ylabel="θ [rad]", title="heading")
     for ax in (xy, speed, heading):
         ax.grid(alpha=0.3)
-    return _save(fig, Path(path))
+    return save_figure(fig, Path(path))
 
 
 def fig4_errors(result: Reprocessed, path: str | Path, sensor: str = "ideal") -> Path:
@@ -93,7 +93,7 @@ def fig4_errors(result: Reprocessed, path: str | Path, sensor: str = "ideal") ->
     axes[-1].set_xticks(range(len(steps)), [f"Δ{s}" for s in steps])
     title = "errors of the reprocessing pipeline (boxes: quartiles, whiskers: full extent)"
     axes[0].set_title(f"{title} — {sensor} sensor in the resimulation; EGO blue, TO green")
-    return _save(fig, Path(path))
+    return save_figure(fig, Path(path))
 
 
 def _box(stats) -> dict[str, float]:
@@ -115,7 +115,7 @@ def fig5_sd_velocity(result: Reprocessed, path: str | Path) -> Path:
            title="TO speed: the fit of SD positions converges towards GT")
     ax.legend(fontsize=9)
     ax.grid(alpha=0.3)
-    return _save(fig, Path(path))
+    return save_figure(fig, Path(path))
 
 
 def fig6_traces(result: Reprocessed, path: str | Path, before: float = 0.5,
@@ -143,7 +143,7 @@ def fig6_traces(result: Reprocessed, path: str | Path, before: float = 0.5,
                  "who evades")
     ax.legend(fontsize=8, ncols=2)
     ax.grid(alpha=0.3)
-    return _save(fig, Path(path))
+    return save_figure(fig, Path(path))
 
 
 def fig7_velocity_risk(result: Reprocessed, path: str | Path) -> Path:
@@ -165,7 +165,7 @@ def fig7_velocity_risk(result: Reprocessed, path: str | Path) -> Path:
     for ax in (speed, risk):
         ax.legend(fontsize=8)
         ax.grid(alpha=0.3)
-    return _save(fig, Path(path))
+    return save_figure(fig, Path(path))
 
 
 FIGURES = {"fig3_fit.png": fig3_fit, "fig4_errors.png": fig4_errors,
@@ -217,19 +217,19 @@ def fig8_variations(campaign, path: str | Path) -> Path:
               title=f"{runs.n_runs} kept variations of {campaign.variations.generated}: paths")
     paths.legend(fontsize=8, ncols=3)
     speeds.set(xlabel="t [s]", ylabel="v [m/s]", title="speeds (TO purple, EGO blue)")
-    values = np.log10(np.maximum(campaign.max_risks, 1e-9))
+    values = np.log10(np.maximum(campaign.max_risks, LOG_RISK_FLOOR))
     risks.hist(values, bins=30, color=VARIATION_TO, alpha=0.7, label="variations")
     p5, p95 = np.percentile(values, [5, 95])
     for q, label in ((p5, "5th / 95th percentile"), (p95, None)):
         risks.axvline(q, color="black", ls="--", lw=1, label=label)
-    risks.axvline(np.log10(max(campaign.reference.max_risk, 1e-9)), color=REFERENCE_COLOR, lw=3,
-                  label="rGT")
+    risks.axvline(np.log10(max(campaign.reference.max_risk, LOG_RISK_FLOOR)),
+                  color=REFERENCE_COLOR, lw=3, label="rGT")
     risks.set(xlabel="log10 maximum risk", ylabel="variations",
               title="distribution of the maximum TTR risk")
     risks.legend(fontsize=8)
     for ax in (paths, speeds, risks):
         ax.grid(alpha=0.3)
-    return _save(fig, Path(path))
+    return save_figure(fig, Path(path))
 
 
 def write_reprocessed(result: Reprocessed, directory: str | Path) -> dict[str, Path]:

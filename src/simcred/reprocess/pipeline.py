@@ -34,7 +34,7 @@ from simcred.reprocess.errors import ErrorStats, decompose
 from simcred.reprocess.reaction import Reaction, ReactionCriteria, reaction, reaction_analysis
 from simcred.reprocess.representation import GT, SD, Rep, Source
 from simcred.reprocess.representation import Sensor as SensorKind
-from simcred.risk import VehicleStates, risk_series, time_headway, time_to_collision
+from simcred.risk import VehicleStates, risk, time_headway, time_to_collision
 from simcred.scenario.description import ScenarioDescription
 from simcred.scenario.fit import ScenarioFit, fit_scenario
 from simcred.sim.driver import DriverConfig
@@ -48,7 +48,6 @@ SB = "[sb]"  # the suffix of a scenario-based representation's name (Rep prints 
 LOG_RISK_FLOOR = 1e-9  # risk below this counts as this on the log scale
 
 Progress = Callable[[str], None]
-_KINEMATICS = ("x", "y", "v", "heading", "acceleration", "yaw_rate")
 
 
 @dataclass(frozen=True, slots=True)
@@ -208,13 +207,10 @@ def _reaction(description: ScenarioDescription, c: ReprocessConfig) -> Reaction:
 def _risk(description: ScenarioDescription, c: ReprocessConfig) -> dict[str, np.ndarray]:
     """Risk, TTC and THW per scene every ``risk_dt`` on the description ([1] §II-D)."""
     t = description.times(c.risk_dt)
-    states = {name: description.objects[name].states(t) for name in (c.ego, *c.objects)}
-    columns = {f"{name}.{field}": getattr(s, field) for name, s in states.items()
-               for field in ("x", "y", "v", "heading", "acceleration", "yaw_rate")}
-    result = risk_series(columns, ego=c.ego, objects=c.objects)
-    ego = VehicleStates(**{f: getattr(states[c.ego], f) for f in _KINEMATICS})
-    others = VehicleStates(**{f: np.stack([getattr(states[o], f) for o in c.objects], axis=1)
-                              for f in _KINEMATICS})
+    ego = VehicleStates.of_tracks(description.objects[c.ego].states(t), name=c.ego)
+    others = VehicleStates.of_tracks([description.objects[o].states(t) for o in c.objects],
+                                     name="objects")
+    result = risk(ego, others)
     return {"t": t, "risk": result.risk, "ttr_min": result.ttr_min,
             "ttc": time_to_collision(ego, others), "thw": time_headway(ego, others)}
 

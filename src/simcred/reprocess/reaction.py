@@ -20,6 +20,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from simcred._json import JsonResult
+from simcred.kinematics import LANE_WIDTH
 
 
 @dataclass(frozen=True, slots=True)
@@ -28,7 +29,7 @@ class ReactionCriteria:
 
     decel: float = 2.5  # m/s²
     lateral_speed: float = 0.3  # m/s
-    lane_width: float = 3.5  # m
+    lane_width: float = LANE_WIDTH  # m
 
 
 @dataclass(frozen=True, slots=True)

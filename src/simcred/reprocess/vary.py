@@ -31,9 +31,10 @@ from simcred._json import JsonResult
 from simcred.compare import compare
 from simcred.compare.result import Comparison
 from simcred.engine import Engine, shared
-from simcred.kinematics import MOTION_SIGNALS
+from simcred.kinematics import LANE_WIDTH, MOTION_SIGNALS, Track
 from simcred.reprocess.reaction import Reaction, ReactionCriteria, reaction
-from simcred.risk import risk_series
+from simcred.risk import VehicleStates
+from simcred.risk import risk as assess_risk
 from simcred.scenario.description import ScenarioDescription
 from simcred.scenario.variation import (
     PlausibilityLimits,
@@ -54,7 +55,7 @@ class VaryConfig:
     """Options of the campaign (defaults: [1] Fig. 8's 300 variations)."""
 
     n: int = 300
-    seed: int = 1
+    seed: int = 0  # as every seed-002 command; paper 002 passes its seed + 1
     vehicle: str = "ks"
     dt: float = 0.01
     risk_dt: float = 0.1
@@ -62,7 +63,7 @@ class VaryConfig:
     to: str = "to"
     chunk_size: int = 50
     max_deviation: float = 1.0  # m: corridor around the original TO path (≈ 3 σ of the offsets)
-    lane_width: float = 3.5
+    lane_width: float = LANE_WIDTH
     compare_bins: int = 8
     options: VariationOptions = field(default_factory=lambda: VariationOptions(sample_dt=0.1))
     limits: PlausibilityLimits = field(default_factory=PlausibilityLimits)
@@ -186,18 +187,13 @@ def _resimulate_chunk(job: tuple[int, list[ScenarioDescription]]
 
 def _assess(run: dict[str, np.ndarray], index: int, original: tuple[np.ndarray, np.ndarray],
             c: VaryConfig) -> Outcome:
-    t = run[TIME]
-    step = max(1, int(round(c.risk_dt / (t[1] - t[0]))))
-    rates = {f"{name}.{rate}": np.gradient(run[f"{name}.{signal}"], t)
-             for name in (c.ego, c.to)
-             for rate, signal in (("acceleration", "v"), ("yaw_rate", "heading"))}
-    scenes = {k: v[::step] for k, v in (run | rates).items()}
-    risk = risk_series(scenes, ego=c.ego, objects=(c.to,)).risk
-    v = run[f"{c.ego}.v"]
-    ego_reaction = reaction(t, run[f"{c.ego}.y"], v, run[f"{c.ego}.heading"],
-                            np.gradient(v, t), c.criteria)
-    lateral = np.abs(run[f"{c.to}.y"] - run[f"{c.ego}.y"][0])
-    deviation = np.hypot(run[f"{c.to}.x"] - original[0], run[f"{c.to}.y"] - original[1])
+    ego, to = (Track.from_columns(run, name, time=TIME).with_rates() for name in (c.ego, c.to))
+    step = max(1, int(round(c.risk_dt / (ego.t[1] - ego.t[0]))))
+    risk = assess_risk(VehicleStates.of_tracks(ego[::step], name=c.ego),
+                       VehicleStates.of_tracks([to[::step]], name="objects")).risk
+    ego_reaction = reaction(ego.t, ego.y, ego.v, ego.heading, ego.acceleration, c.criteria)
+    lateral = np.abs(to.y - ego.y[0])
+    deviation = np.hypot(to.x - original[0], to.y - original[1])
     return Outcome(index, float(risk.max()), ego_reaction,
                    bool((lateral < c.lane_width / 2).any() and lateral[0] >= c.lane_width / 2),
                    float(deviation.max()))

@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.special import ndtr
 
-from simcred.risk.scene import Lanes, _require
+from simcred.risk.scene import Lanes, require
 
 _SMOOTHSTEP_PEAK_ACCEL = 10.0 / math.sqrt(3.0)
 # work arrays of one chunk of scenes hold at most about this many samples
@@ -48,12 +48,12 @@ class Prediction:
     lane_change: int = 0
 
     def __post_init__(self) -> None:
-        _require(0.0 <= self.probability <= 1.0,
+        require(0.0 <= self.probability <= 1.0,
                  f"prediction {self.name!r}: probability must lie in [0, 1], got "
                  f"{self.probability!r}")
-        _require(self.acceleration is None or math.isfinite(self.acceleration),
+        require(self.acceleration is None or math.isfinite(self.acceleration),
                  f"prediction {self.name!r}: acceleration must be finite or None")
-        _require(self.lane_change in (-1, 0, 1),
+        require(self.lane_change in (-1, 0, 1),
                  f"prediction {self.name!r}: lane_change must be -1, 0 or 1, got "
                  f"{self.lane_change!r}")
 
@@ -107,22 +107,22 @@ class PredictionSet:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "predictions", tuple(self.predictions))
-        _require(len(self.predictions) > 0, "predictions must not be empty")
+        require(len(self.predictions) > 0, "predictions must not be empty")
         for p in self.predictions:
-            _require(isinstance(p, Prediction), f"predictions must be Prediction, got {p!r}")
-        _require(len(set(self.names)) == len(self.names), "prediction names must be unique")
+            require(isinstance(p, Prediction), f"predictions must be Prediction, got {p!r}")
+        require(len(set(self.names)) == len(self.names), "prediction names must be unique")
         total = math.fsum(self.probabilities)
-        _require(abs(total - 1.0) <= 1e-9, f"prediction probabilities must sum to 1, got {total!r}")
+        require(abs(total - 1.0) <= 1e-9, f"prediction probabilities must sum to 1, got {total!r}")
         for name in ("horizon", "dt", "lane_change_duration", "min_lateral_duration",
                      "path_speed_floor"):
             value = getattr(self, name)
-            _require(math.isfinite(value) and value > 0, f"{name} must be > 0, got {value!r}")
-        _require(math.isfinite(self.lane_anticipation) and self.lane_anticipation >= 0,
+            require(math.isfinite(value) and value > 0, f"{name} must be > 0, got {value!r}")
+        require(math.isfinite(self.lane_anticipation) and self.lane_anticipation >= 0,
                  f"lane_anticipation must be >= 0, got {self.lane_anticipation!r}")
         steps = self.horizon / self.dt
-        _require(abs(steps - round(steps)) <= 1e-9 * max(1.0, steps),
+        require(abs(steps - round(steps)) <= 1e-9 * max(1.0, steps),
                  f"horizon / dt must be an integer, got {self.horizon!r} / {self.dt!r}")
-        _require(1 <= round(steps) <= 100_000,
+        require(1 <= round(steps) <= 100_000,
                  f"horizon / dt must lie in [1, 100000], got {round(steps)}")
 
     @property
@@ -169,17 +169,17 @@ class EvasionSet:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "maneuvers", tuple(self.maneuvers))
-        _require(len(self.maneuvers) > 0 and len(set(self.maneuvers)) == len(self.maneuvers)
+        require(len(self.maneuvers) > 0 and len(set(self.maneuvers)) == len(self.maneuvers)
                  and set(self.maneuvers) <= set(MANEUVERS),
                  f"maneuvers must be distinct names out of {', '.join(MANEUVERS)}, got "
                  f"{self.maneuvers!r}")
-        _require(math.isfinite(self.brake_acceleration) and self.brake_acceleration < 0,
+        require(math.isfinite(self.brake_acceleration) and self.brake_acceleration < 0,
                  f"brake_acceleration must be < 0, got {self.brake_acceleration!r}")
-        _require(math.isfinite(self.lateral_acceleration) and self.lateral_acceleration > 0,
+        require(math.isfinite(self.lateral_acceleration) and self.lateral_acceleration > 0,
                  f"lateral_acceleration must be > 0, got {self.lateral_acceleration!r}")
-        _require(math.isfinite(self.min_steer_speed) and self.min_steer_speed >= 0,
+        require(math.isfinite(self.min_steer_speed) and self.min_steer_speed >= 0,
                  f"min_steer_speed must be >= 0, got {self.min_steer_speed!r}")
-        _require(isinstance(self.bisection_steps, int) and 0 <= self.bisection_steps <= 30,
+        require(isinstance(self.bisection_steps, int) and 0 <= self.bisection_steps <= 30,
                  f"bisection_steps must be an integer in [0, 30], got {self.bisection_steps!r}")
 
     def steer_duration(self, offset: float) -> float:
@@ -203,9 +203,9 @@ class ReactionTime:
     sigma: float = 0.5
 
     def __post_init__(self) -> None:
-        _require(math.isfinite(self.median) and self.median > 0,
+        require(math.isfinite(self.median) and self.median > 0,
                  f"reaction median must be > 0, got {self.median!r}")
-        _require(math.isfinite(self.sigma) and self.sigma > 0,
+        require(math.isfinite(self.sigma) and self.sigma > 0,
                  f"reaction sigma must be > 0, got {self.sigma!r}")
 
     def accident_probability(self, ttr: ArrayLike) -> np.ndarray:
@@ -224,7 +224,7 @@ class ReactionTime:
 # -- trajectories ------------------------------------------------------------------------------
 
 
-def _travel(v0: np.ndarray, a: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def travel_distance(v0: np.ndarray, a: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Distance and speed after time ``t`` at constant acceleration ``a``, speed floored at 0."""
     with np.errstate(divide="ignore", invalid="ignore"):
         t_stop = np.where(a < 0, v0 / -a, np.inf)
@@ -233,7 +233,7 @@ def _travel(v0: np.ndarray, a: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, n
 
 
 @dataclass(frozen=True, slots=True)
-class _Path:
+class PredictedPath:
     """Lateral path y(ξ) over longitudinal travel ξ: a quintic from the current lateral state to
     a lane centre, reached with zero slope and curvature after length ``length``, then straight.
     Stored in the normalised variable u = ξ / length: y = y0 + Σ_k b_k u^k, k = 1..5."""
@@ -251,8 +251,8 @@ class _Path:
         return y, dydu / self.length
 
 
-def _path(y0: np.ndarray, heading: np.ndarray, curvature: np.ndarray, target: np.ndarray,
-          length: np.ndarray) -> _Path:
+def predicted_path(y0: np.ndarray, heading: np.ndarray, curvature: np.ndarray, target: np.ndarray,
+          length: np.ndarray) -> PredictedPath:
     """Quintic with y(0) = y0, y'(0) = tan(heading), y''(0) = curvature / cos³(heading) and
     y = target, y' = y'' = 0 at ξ = length (the standard quintic boundary-value solution)."""
     h = target - y0
@@ -261,11 +261,11 @@ def _path(y0: np.ndarray, heading: np.ndarray, curvature: np.ndarray, target: np
     b3 = (20.0 * h - 12.0 * m - 3.0 * k) / 2.0
     b4 = (-30.0 * h + 16.0 * m + 3.0 * k) / 2.0
     b5 = (12.0 * h - 6.0 * m - k) / 2.0
-    return _Path(y0, (m, k / 2.0, b3, b4, b5), length)
+    return PredictedPath(y0, (m, k / 2.0, b3, b4, b5), length)
 
 
-def _lateral_plan(s: dict[str, np.ndarray], lane_change: np.ndarray, cfg: PredictionSet,
-                  lanes: Lanes) -> _Path:
+def lateral_plan(s: dict[str, np.ndarray], lane_change: np.ndarray, cfg: PredictionSet,
+                  lanes: Lanes) -> PredictedPath:
     """Path of vehicles ``s`` to their reference lane shifted by ``lane_change`` lanes."""
     v_lon = s["v"] * np.cos(s["heading"])
     anticipated = s["y"] + s["v"] * np.sin(s["heading"]) * cfg.lane_anticipation
@@ -274,16 +274,16 @@ def _lateral_plan(s: dict[str, np.ndarray], lane_change: np.ndarray, cfg: Predic
                           cfg.min_lateral_duration)
     curvature = s["yaw_rate"] / np.maximum(s["v"], cfg.path_speed_floor)
     length = duration * np.maximum(v_lon, cfg.path_speed_floor)
-    return _path(s["y"], s["heading"], curvature, target, length)
+    return predicted_path(s["y"], s["heading"], curvature, target, length)
 
 
-def _direction(slope: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def heading_vector(slope: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """cos and sin of the heading of a path with slope dy/dx."""
     cos = 1.0 / np.sqrt(1.0 + slope * slope)
     return cos, slope * cos
 
 
-def _unit(dx: np.ndarray, dy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def unit_vector(dx: np.ndarray, dy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """cos and sin of the direction (dx, dy); (1, 0) for a zero vector."""
     norm = np.hypot(dx, dy)
     zero = norm == 0
@@ -291,7 +291,7 @@ def _unit(dx: np.ndarray, dy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.where(zero, 1.0, dx / norm), dy / norm
 
 
-def _overlap(a: tuple[np.ndarray, ...], b: tuple[np.ndarray, ...]) -> np.ndarray:
+def rectangles_overlap(a: tuple[np.ndarray, ...], b: tuple[np.ndarray, ...]) -> np.ndarray:
     """Separating-axis test of oriented rectangles ``(x, y, cos, sin, half_length, half_width)``.
 
     True where the rectangles overlap or touch; arrays broadcast. Exact for rectangles: two

@@ -6,18 +6,20 @@ See :mod:`simcred.risk.ttr` for the method and its references.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from simcred.errors import OptionError, SimcredError
+from simcred.kinematics import LANE_WIDTH, Track
 
-_STATE_FIELDS = ("x", "y", "v", "heading", "acceleration", "yaw_rate", "length", "width")
+STATE_FIELDS = ("x", "y", "v", "heading", "acceleration", "yaw_rate", "length", "width")
 # peak |d²p/dτ²| of the quintic smoothstep p(τ) = 10τ³ - 15τ⁴ + 6τ⁵, at τ = (3 ∓ √3)/6
 
 
-def _require(condition: bool, message: str) -> None:
+def require(condition: bool, message: str) -> None:
     """Raise a one-line :class:`OptionError` unless ``condition``."""
     if not condition:
         raise OptionError(message)
@@ -64,9 +66,23 @@ class VehicleStates:
     width: ArrayLike = 1.8
     name: str = "vehicle"
 
+    @classmethod
+    def of_tracks(cls, tracks: Track | Sequence[Track], *, name: str = "vehicle"
+                  ) -> VehicleStates:
+        """States from tracks on one time grid: a :class:`~simcred.kinematics.Track` gives shape
+        ``(n,)`` (an EGO), a sequence of them ``(n, len(tracks))`` (one column per TO). Missing
+        rates count as 0; length and width are the defaults."""
+        if isinstance(tracks, Track):
+            return cls(**_fields(tracks), name=name)
+        fields = [_fields(track) for track in tracks]
+        if not fields:
+            raise SimcredError(f"{name}: no tracks")
+        return cls(**{f: np.stack([x[f] for x in fields], axis=1) for f in fields[0]},
+                   name=name)
+
     def __post_init__(self) -> None:
         arrays = []
-        for f in _STATE_FIELDS:
+        for f in STATE_FIELDS:
             try:
                 arrays.append(np.asarray(getattr(self, f), dtype=float))
             except (TypeError, ValueError):
@@ -74,13 +90,13 @@ class VehicleStates:
         try:
             arrays = np.broadcast_arrays(*arrays)
         except ValueError:
-            shapes = ", ".join(f"{f} {a.shape}" for f, a in zip(_STATE_FIELDS, arrays, strict=True))
+            shapes = ", ".join(f"{f} {a.shape}" for f, a in zip(STATE_FIELDS, arrays, strict=True))
             raise SimcredError(f"{self.name}: fields do not broadcast to one shape: {shapes}"
                                ) from None
         if arrays[0].ndim > 2:
             raise SimcredError(f"{self.name}: states must be 0-, 1- or 2-D (scenes[, objects]), "
                                f"got shape {arrays[0].shape}")
-        for f, a in zip(_STATE_FIELDS, arrays, strict=True):
+        for f, a in zip(STATE_FIELDS, arrays, strict=True):
             _check_values(f"{self.name}.{f}", a)
             a = np.array(a)  # own copy: broadcast views share memory with the caller
             a.setflags(write=False)
@@ -93,7 +109,13 @@ class VehicleStates:
 
     def as_dict(self) -> dict[str, np.ndarray]:
         """The fields by name (without ``name``)."""
-        return {f: getattr(self, f) for f in _STATE_FIELDS}
+        return {f: getattr(self, f) for f in STATE_FIELDS}
+
+
+def _fields(track: Track) -> dict[str, np.ndarray]:
+    rates = {f: np.zeros_like(track.t) if getattr(track, f) is None else getattr(track, f)
+             for f in ("acceleration", "yaw_rate")}
+    return {"x": track.x, "y": track.y, "v": track.v, "heading": track.heading, **rates}
 
 
 def _check_values(label: str, a: np.ndarray) -> None:
@@ -124,12 +146,12 @@ class Lanes:
         ``centre + k * width`` for every integer k. Road edges are not modelled.
     """
 
-    width: float = 3.5
+    width: float = LANE_WIDTH
     centre: float = 0.0
 
     def __post_init__(self) -> None:
-        _require(math.isfinite(self.width) and self.width > 0, "lanes.width must be > 0")
-        _require(math.isfinite(self.centre), "lanes.centre must be finite")
+        require(math.isfinite(self.width) and self.width > 0, "lanes.width must be > 0")
+        require(math.isfinite(self.centre), "lanes.centre must be finite")
 
     def centre_of(self, y: ArrayLike) -> np.ndarray:
         """Centre of the lane that contains lateral position ``y``."""

@@ -32,16 +32,16 @@ from simcred._json import JsonResult
 from simcred.errors import OptionError, SimcredError
 from simcred.risk.prediction import (
     EvasionSet,
+    PredictedPath,
     PredictionSet,
     ReactionTime,
-    _direction,
-    _lateral_plan,
-    _overlap,
-    _Path,
-    _travel,
-    _unit,
+    heading_vector,
+    lateral_plan,
+    rectangles_overlap,
+    travel_distance,
+    unit_vector,
 )
-from simcred.risk.scene import _STATE_FIELDS, Lanes, VehicleStates
+from simcred.risk.scene import STATE_FIELDS, Lanes, VehicleStates
 
 """The EGO's evasive maneuvers, in the order of :attr:`RiskResult.maneuver` codes."""
 
@@ -142,7 +142,7 @@ class _Rows:
     ego_speed: np.ndarray
     ego_v0: np.ndarray             # (rows, 1): longitudinal speed and acceleration at the scene
     ego_a0: np.ndarray
-    ego_path: _Path                # lateral path, parameters (rows, 1)
+    ego_path: PredictedPath                # lateral path, parameters (rows, 1)
     ego_half: tuple[np.ndarray, np.ndarray]
 
 
@@ -160,17 +160,17 @@ def _avoids(r: _Rows, idx: np.ndarray, start: np.ndarray, j0: int, times: np.nda
     v0, a0 = r.ego_v0[idx], r.ego_a0[idx]
     half_l, half_w = r.ego_half[0][idx], r.ego_half[1][idx]
     hit = np.zeros((idx.size, len(evasion.maneuvers)), dtype=bool)
-    xi_s, v_s = _travel(v0, a0, s)
+    xi_s, v_s = travel_distance(v0, a0, s)
     after = t > s
     for m, name in enumerate(evasion.maneuvers):
         if name == "brake":
             # instantaneous full braking from `start` on, lateral path unchanged
-            xi = np.where(after, xi_s + _travel(v_s, evasion.brake_acceleration,
+            xi = np.where(after, xi_s + travel_distance(v_s, evasion.brake_acceleration,
                                                 np.maximum(t - s, 0.0))[0], ego_x)
-            path = _Path(r.ego_path.y0[idx], tuple(b[idx] for b in r.ego_path.b),
+            path = PredictedPath(r.ego_path.y0[idx], tuple(b[idx] for b in r.ego_path.b),
                          r.ego_path.length[idx])
             y, slope = path.at(xi)
-            cos, sin = _direction(slope)
+            cos, sin = heading_vector(slope)
         else:
             # smoothstep lateral offset of one lane width over `duration`, travel as planned
             sign = 1.0 if name == "left" else -1.0
@@ -179,12 +179,12 @@ def _avoids(r: _Rows, idx: np.ndarray, start: np.ndarray, j0: int, times: np.nda
             y = ego_y + sign * lanes.width * u * u * u * (10.0 + u * (-15.0 + 6.0 * u))
             dydt = sign * lanes.width / duration * 30.0 * u * u * (1.0 - u) ** 2
             speed = r.ego_speed[idx, j0:]
-            cos, sin = _unit(speed, r.ego_slope[idx, j0:] * speed + dydt)
+            cos, sin = unit_vector(speed, r.ego_slope[idx, j0:] * speed + dydt)
             xi = ego_x
-            v_end = _travel(v0, a0, s + duration)[1]
+            v_end = travel_distance(v0, a0, s + duration)[1]
             usable = np.minimum(v_s, v_end)[:, 0] >= evasion.min_steer_speed
             hit[~usable, m] = True
-        hit[:, m] |= _overlap((xi, y, cos, sin, half_l, half_w), to).any(axis=1)
+        hit[:, m] |= rectangles_overlap((xi, y, cos, sin, half_l, half_w), to).any(axis=1)
     return ~hit
 
 
@@ -245,8 +245,8 @@ def _plan(e: dict[str, np.ndarray], predictions: PredictionSet, lanes: Lanes
     """The EGO's plan (scenes, T): its current acceleration along its reference lane ([1])."""
     e = {k: v[:, None] for k, v in e.items()}                           # (S, 1)
     v0 = e["v"] * np.cos(e["heading"])
-    xi, speed = _travel(v0, e["acceleration"], predictions.times)       # (S, T)
-    path = _lateral_plan(e, np.zeros(1), predictions, lanes)
+    xi, speed = travel_distance(v0, e["acceleration"], predictions.times)       # (S, T)
+    path = lateral_plan(e, np.zeros(1), predictions, lanes)
     y, slope = path.at(xi)
     return dict(xi=xi, speed=speed, y=y, slope=slope, path=path, v0=v0, a0=e["acceleration"],
                 half=(0.5 * e["length"], 0.5 * e["width"]))
@@ -260,12 +260,13 @@ def _predict(o: dict[str, np.ndarray], x0: np.ndarray, predictions: PredictionSe
     shift = np.array([p.lane_change for p in predictions.predictions], dtype=float)
     o = {k: v[:, :, None] for k, v in o.items()}                       # (S, O, 1)
     accel = np.where(np.isnan(levels), o["acceleration"], levels)      # (S, O, P)
-    xi = _travel((o["v"] * np.cos(o["heading"]))[..., None], accel[..., None],
+    xi = travel_distance((o["v"] * np.cos(o["heading"]))[..., None], accel[..., None],
                  predictions.times)[0]                                  # (S, O, P, T)
-    path = _lateral_plan(o, shift, predictions, lanes)
-    path = _Path(path.y0[..., None], tuple(b[..., None] for b in path.b), path.length[..., None])
+    path = lateral_plan(o, shift, predictions, lanes)
+    path = PredictedPath(path.y0[..., None], tuple(b[..., None] for b in path.b),
+                         path.length[..., None])
     y, slope = path.at(xi)
-    return (o["x"][..., None] - x0[:, :, None, None] + xi, y, *_direction(slope))
+    return (o["x"][..., None] - x0[:, :, None, None] + xi, y, *heading_vector(slope))
 
 
 def _take(a: np.ndarray, shape: tuple[int, ...], sel: np.ndarray) -> np.ndarray:
@@ -281,8 +282,9 @@ def _chunk(ego: dict[str, np.ndarray], obj: dict[str, np.ndarray], predictions: 
     to = _predict(obj, ego["x"][:, None], predictions, lanes)
     to_half = (0.5 * obj["length"][..., None, None], 0.5 * obj["width"][..., None, None])
     ego_rect = tuple(a[:, None, None, :] for a in (plan["xi"], plan["y"],
-                                                   *_direction(plan["slope"])))
-    hit = _overlap(ego_rect + tuple(h[..., None, None] for h in plan["half"]), to + to_half)
+                                                   *heading_vector(plan["slope"])))
+    hit = rectangles_overlap(ego_rect + tuple(h[..., None, None] for h in plan["half"]),
+                             to + to_half)
     collides = hit.any(axis=-1)                                          # (S, O, P)
     first = np.where(collides, np.argmax(hit, axis=-1), times.size)
     collision_time = np.where(collides, times[np.minimum(first, times.size - 1)], np.inf)
@@ -297,7 +299,8 @@ def _chunk(ego: dict[str, np.ndarray], obj: dict[str, np.ndarray], predictions: 
             to_half=tuple(_take(h, (*collides.shape, 1), sel) for h in to_half),
             ego_x=plan["xi"][scene], ego_y=plan["y"][scene], ego_slope=plan["slope"][scene],
             ego_speed=plan["speed"][scene], ego_v0=plan["v0"][scene], ego_a0=plan["a0"][scene],
-            ego_path=_Path(path.y0[scene], tuple(b[scene] for b in path.b), path.length[scene]),
+            ego_path=PredictedPath(path.y0[scene], tuple(b[scene] for b in path.b),
+                                   path.length[scene]),
             ego_half=tuple(h[scene] for h in plan["half"]),
         )
         found, found_code = _search(rows, first.ravel()[sel], times, evasion, lanes)
@@ -459,14 +462,14 @@ def risk_series(samples: Mapping[str, ArrayLike], *, ego: str = "ego",
     lengths = {s.x.shape[0] for s in states}
     if len(lengths) > 1:
         raise SimcredError(f"columns of {ego}, {', '.join(objects)} differ in length")
-    stacked = {f: np.stack([getattr(s, f) for s in states[1:]], axis=1) for f in _STATE_FIELDS}
+    stacked = {f: np.stack([getattr(s, f) for s in states[1:]], axis=1) for f in STATE_FIELDS}
     return risk(states[0], VehicleStates(**stacked, name="objects"), predictions=predictions,
                 evasion=evasion, lanes=lanes, reaction=reaction)
 
 
 def _states_from_columns(samples: Mapping[str, ArrayLike], prefix: str) -> VehicleStates:
     values: dict[str, Any] = {}
-    for f in _STATE_FIELDS:
+    for f in STATE_FIELDS:
         names = [f"{prefix}.{f}"] + ([f"{prefix}.a"] if f == "acceleration" else [])
         present = [n for n in names if n in samples]
         if len(present) > 1:

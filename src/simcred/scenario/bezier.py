@@ -56,7 +56,7 @@ class BezierPath:
     control_points: np.ndarray
 
     def __post_init__(self) -> None:
-        times = _fix_times_iv(self.times)
+        times = fix_times_iv(self.times)
         c = np.array(self.control_points, dtype=np.float64)
         if c.shape != (len(times) - 1, 4, 2):
             raise SimcredError(f"control_points must have shape ({len(times) - 1}, 4, 2) for "
@@ -118,10 +118,10 @@ class BezierPath:
         dominant, hence uniquely solvable; it is solved by ``scipy.linalg.solve_banded`` for both
         coordinates at once. The result is the clamped cubic spline through the fix points.
         """
-        tau = _fix_times_iv(times)
-        p = _array_iv(points, (len(tau), 2), "points")
-        v0 = _array_iv(start_velocity, (2,), "start_velocity")
-        v1 = _array_iv(end_velocity, (2,), "end_velocity")
+        tau = fix_times_iv(times)
+        p = array_iv(points, (len(tau), 2), "points")
+        v0 = array_iv(start_velocity, (2,), "start_velocity")
+        v1 = array_iv(end_velocity, (2,), "end_velocity")
         m = _clamped_slopes(tau, p, v0, v1)  # [1] sec. V: C² joints plus four end conditions
         h = np.diff(tau)[:, None]
         control = np.stack([p[:-1], p[:-1] + h * m[:-1] / 3, p[1:] - h * m[1:] / 3, p[1:]],
@@ -198,7 +198,7 @@ def influence(times: ArrayLike, index: int, *, samples: int = 64) -> np.ndarray:
     On a long uniform grid the slopes of D decay as m_{k+1} = −(2 − √3) m_k away from the
     displaced point, so the ratio of neighbouring entries tends to 2 − √3 ≈ 0.268 per section.
     """
-    tau = _fix_times_iv(times)
+    tau = fix_times_iv(times)
     n = len(tau) - 1
     if isinstance(index, bool) or not isinstance(index, int | np.integer) or not 0 < index < n:
         raise OptionError(f"index must be an inner fix point 1 … {n - 1}, got {index!r}")
@@ -214,7 +214,7 @@ def influence(times: ArrayLike, index: int, *, samples: int = 64) -> np.ndarray:
     return out
 
 
-def _fix_times_iv(times: ArrayLike) -> np.ndarray:
+def fix_times_iv(times: ArrayLike) -> np.ndarray:
     try:
         tau = np.array(times, dtype=np.float64)
     except (TypeError, ValueError):
@@ -232,7 +232,7 @@ def _fix_times_iv(times: ArrayLike) -> np.ndarray:
     return tau
 
 
-def _array_iv(values: ArrayLike, shape: tuple[int, ...], name: str) -> np.ndarray:
+def array_iv(values: ArrayLike, shape: tuple[int, ...], name: str) -> np.ndarray:
     try:
         a = np.array(values, dtype=np.float64)
     except (TypeError, ValueError):

@@ -31,7 +31,7 @@ from numpy.typing import ArrayLike
 
 from simcred._json import SCHEMA_VERSION, JsonResult, envelope
 from simcred.errors import SimcredError
-from simcred.kinematics import Track
+from simcred.kinematics import TIME_TOLERANCE, Track
 from simcred.scenario.spline import DEGREE, Quadrature, Spline, in_span
 from simcred.traces import TIME, TraceSet
 
@@ -275,14 +275,14 @@ class ScenarioDescription(JsonResult):
 
 
 def sample_times(t0: float, t1: float, dt: float) -> np.ndarray:
-    """t0 + k·dt for k = 0, 1, … while ≤ t1 (within 1e-9 s), then t1 if not yet reached."""
+    """t0 + k·dt for k = 0, 1, … while ≤ t1 (within TIME_TOLERANCE), then t1 if not yet reached."""
     if not (math.isfinite(dt) and dt > 0):
         raise SimcredError(f"sampling step must be a finite number > 0, got {dt!r}")
-    n = math.floor((t1 - t0) / dt + 1e-9) + 1
+    n = math.floor((t1 - t0) / dt + TIME_TOLERANCE) + 1
     t = t0 + dt * np.arange(n)
-    t = t[t <= t1 + 1e-9]
+    t = t[t <= t1 + TIME_TOLERANCE]
     t[-1] = min(t[-1], t1)
-    if t1 - t[-1] > 1e-9:
+    if t1 - t[-1] > TIME_TOLERANCE:
         t = np.append(t, t1)
     return t
 

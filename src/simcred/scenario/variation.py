@@ -42,7 +42,8 @@ from scipy.special import ndtr, ndtri
 
 from simcred.engine import Engine, Progress, shared
 from simcred.errors import OptionError, SimcredError
-from simcred.scenario.bezier import BezierPath, _array_iv
+from simcred.kinematics import LANE_WIDTH
+from simcred.scenario.bezier import BezierPath, array_iv
 from simcred.scenario.description import (
     ObjectTrack,
     ScenarioDescription,
@@ -61,12 +62,12 @@ from simcred.scenario.variation_set import (
     VariationOptions,
     VariationRecord,
     VariationSet,
-    _is_real,
-    _provenance,
+    is_real,
+    variation_provenance,
 )
 from simcred.seeds import stream
 
-BOUNDARY_Y = 1.75
+BOUNDARY_Y = LANE_WIDTH / 2
 """Default lateral position (m) of the EGO's lane boundary: half a 3.5 m lane left of y = 0."""
 
 
@@ -131,7 +132,7 @@ def _crossing(track: ObjectTrack, description: ScenarioDescription, options: Var
     if boundary is None:
         road = description.metadata.get("road")
         given = road.get("boundary_y") if isinstance(road, Mapping) else None
-        boundary = float(given) if _is_real(given) and math.isfinite(given) else BOUNDARY_Y
+        boundary = float(given) if is_real(given) and math.isfinite(given) else BOUNDARY_Y
     t = sample_times(track.t0, track.t1, PLAUSIBILITY_DT)
     y = track.positions(t)[1]
     s = y - boundary
@@ -161,7 +162,7 @@ def _threshold(description: ScenarioDescription, options: VariationOptions) -> f
         return float(options.threshold)
     fit = description.metadata.get("fit")
     given = fit.get("threshold") if isinstance(fit, Mapping) else None
-    if _is_real(given) and math.isfinite(given) and given > 0:
+    if is_real(given) and math.isfinite(given) and given > 0:
         return float(given)
     return THRESHOLD
 
@@ -251,7 +252,7 @@ def _vary(plan: _Plan, index: int, seed: int, displacements: ArrayLike | None) -
     if displacements is None:
         offsets = draw_displacements(seed, index, k, plan.options)
     else:
-        offsets = _array_iv(displacements, (k, 2), "displacements")
+        offsets = array_iv(displacements, (k, 2), "displacements")
     moved = np.zeros_like(plan.fix_points)
     moved[list(plan.varied)] = offsets
     path = BezierPath.through(plan.fix_times, plan.fix_points + moved, plan.start_velocity,
@@ -275,7 +276,8 @@ def _vary(plan: _Plan, index: int, seed: int, displacements: ArrayLike | None) -
     reasons = tuple(check_plausibility(fit.track, plan.limits, rmse=fit.rmse))
     record = VariationRecord(index, offsets, fit.rmse, fit.sections,
                              Status.REJECTED if reasons else Status.KEPT, reasons)
-    metadata = {**plan.description.metadata, "variation": _provenance(record, seed, plan.to)}
+    metadata = {**plan.description.metadata,
+                "variation": variation_provenance(record, seed, plan.to)}
     varied = ScenarioDescription({**plan.description.objects, plan.to: fit.track},
                                  dt=plan.description.dt, metadata=metadata)
     return Variation(record, varied, path)

@@ -252,7 +252,7 @@ def load_variations(source: Mapping[str, Any] | str | Path) -> dict[int, Scenari
         if "track" not in record or not isinstance(record.get("index"), int):
             raise SimcredError(f"{where}: records[{i}]: a kept record needs 'index' and 'track'")
         try:
-            provenance = _provenance(VariationRecord(
+            provenance = variation_provenance(VariationRecord(
                 record["index"], np.array(record["displacements"], dtype=np.float64),
                 float(record["rmse"]), int(record["sections"]), Status.KEPT, ()),
                 source["seed"], to)
@@ -322,36 +322,36 @@ class VariationOptions:
     warm_sections: bool = True
 
     def __post_init__(self) -> None:
-        _positive("section", self.section)
+        check_positive("section", self.section)
         if isinstance(self.window, bool) or not isinstance(self.window, int | np.integer) \
                 or self.window < 1:
             raise OptionError(f"window must be an integer >= 1, got {self.window!r}")
         for name in ("sigma_lon", "sigma_lat"):
             value = getattr(self, name)
-            if not (_is_real(value) and math.isfinite(value) and value >= 0):
+            if not (is_real(value) and math.isfinite(value) and value >= 0):
                 raise OptionError(f"{name} must be a finite number >= 0, got {value!r}")
         for name in ("truncation", "sample_dt", "threshold"):
             if getattr(self, name) is not None:
-                _positive(name, getattr(self, name))
+                check_positive(name, getattr(self, name))
         for name in ("boundary_y", "crossing_time"):
             value = getattr(self, name)
-            if value is not None and not (_is_real(value) and math.isfinite(value)):
+            if value is not None and not (is_real(value) and math.isfinite(value)):
                 raise OptionError(f"{name} must be a finite number, got {value!r}")
         for name in ("keep_residual", "warm_sections"):
             if not isinstance(getattr(self, name), bool):
                 raise OptionError(f"{name} must be True or False, got {getattr(self, name)!r}")
 
 
-def _is_real(value: Any) -> bool:
+def is_real(value: Any) -> bool:
     return isinstance(value, int | float | np.integer | np.floating) and not isinstance(value, bool)
 
 
-def _positive(name: str, value: Any) -> None:
-    if not (_is_real(value) and math.isfinite(value) and value > 0):
+def check_positive(name: str, value: Any) -> None:
+    if not (is_real(value) and math.isfinite(value) and value > 0):
         raise OptionError(f"{name} must be a finite number > 0, got {value!r}")
 
 
-def _provenance(record: VariationRecord, seed: int, to: str) -> dict[str, Any]:
+def variation_provenance(record: VariationRecord, seed: int, to: str) -> dict[str, Any]:
     """The ``"variation"`` metadata entry of a varied description."""
     return {"index": record.index, "seed": seed, "object": to,
             "displacements": record.displacements.tolist(), "rmse": record.rmse,

@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from simcred.kinematics import LANE_WIDTH
 from simcred.sim.sensors import HEADING, V, X, Y
 
 CRUISE, BRAKE, EVADE = 0, 1, 2
@@ -44,8 +45,8 @@ class DriverConfig:
     """Parameters of the AD function (SI units)."""
 
     set_speed: float = 100 / 3.6
-    lane_centres: tuple[float, ...] = (0.0, 3.5)
-    lane_width: float = 3.5
+    lane_centres: tuple[float, ...] = (0.0, LANE_WIDTH)
+    lane_width: float = LANE_WIDTH
     vehicle_length: float = 4.5
     # ACC
     time_gap: float = 1.5  # s

@@ -19,7 +19,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from simcred.errors import SimcredError
-from simcred.kinematics import MOTION_SIGNALS
+from simcred.kinematics import MOTION_SIGNALS, TIME_TOLERANCE, Track
 from simcred.scenario.description import ScenarioDescription
 from simcred.seeds import stream
 from simcred.sim.campaign import run_id
@@ -34,7 +34,7 @@ MODE_SIGNAL = "ad.mode"
 
 def time_grid(description: ScenarioDescription, dt: float) -> np.ndarray:
     """``t0 + k dt`` for every k that stays inside the description's span."""
-    steps = int(np.floor((description.t1 - description.t0) / dt + 1e-9)) + 1
+    steps = int(np.floor((description.t1 - description.t0) / dt + TIME_TOLERANCE)) + 1
     return description.t0 + np.arange(steps) * dt
 
 
@@ -89,7 +89,7 @@ def _object_names(batch: Sequence[ScenarioDescription], ego: str) -> list[str]:
 def _object_states(description: ScenarioDescription, names: Sequence[str], t: np.ndarray
                    ) -> np.ndarray:
     """``(steps, objects, 4)``: x, y, v, heading of every traffic object on ``t``."""
-    if t[-1] > description.t1 + 1e-9 or t[0] < description.t0 - 1e-9:
+    if t[-1] > description.t1 + TIME_TOLERANCE or t[0] < description.t0 - TIME_TOLERANCE:
         raise SimcredError(f"description spans [{description.t0}, {description.t1}] s, the "
                            f"batch needs [{t[0]}, {t[-1]}] s")
     sampled = description.sample(t)
@@ -98,19 +98,16 @@ def _object_states(description: ScenarioDescription, names: Sequence[str], t: np
 
 
 def _ego_start(description: ScenarioDescription, ego: str) -> np.ndarray:
-    states = description.objects[ego].states(np.array([description.t0]))
-    return np.array([states.x[0], states.y[0], states.v[0], states.heading[0]])
+    return description.objects[ego].states(np.array([description.t0])).states()[0]
 
 
 def _traceset(record: LoopRecord, t: np.ndarray, names: Sequence[str], ego: str,
               run_ids: Sequence[str]) -> TraceSet:
     runs = []
     for r in range(record.ego.shape[0]):
-        run = {TIME: t}
-        run.update({f"{ego}.{s}": record.ego[r, :, j] for j, s in enumerate(MOTION_SIGNALS)})
+        run = {TIME: t, **Track.from_states(t, record.ego[r, :, :4]).to_columns(ego)}
         for k, name in enumerate(names):
-            run.update({f"{name}.{s}": record.objects[r, :, k, j]
-                        for j, s in enumerate(MOTION_SIGNALS)})
+            run.update(Track.from_states(t, record.objects[r, :, k]).to_columns(name))
         run[MODE_SIGNAL] = record.mode[r].astype(float)
         runs.append(run)
     return TraceSet.from_runs(runs, run_ids=run_ids, source="resimulation")

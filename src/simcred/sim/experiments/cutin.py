@@ -33,7 +33,7 @@ import numpy as np
 from simcred._json import plain
 from simcred.errors import OptionError
 from simcred.io.measurement import Measurement
-from simcred.kinematics import MOTION_SIGNALS
+from simcred.kinematics import LANE_WIDTH, MOTION_SIGNALS
 from simcred.seeds import stream
 from simcred.sim.closed_loop import LoopRecord, run_closed_loop
 from simcred.sim.driver import ADFunction, DriverConfig
@@ -47,7 +47,7 @@ class CutInScript:
     """The TO's scripted manoeuvre (s, m, m/s, m/s²)."""
 
     start_distance: float = 30.0  # centre ahead of the EGO's centre at t = 0
-    start_lane: float = 3.5
+    start_lane: float = LANE_WIDTH
     end_lane: float = 0.0
     speed: float = 25.0
     lane_change_start: float = 2.0

@@ -59,6 +59,7 @@ import numpy as np
 import shapely
 
 from simcred.errors import OptionError
+from simcred.kinematics import LANE_WIDTH
 from simcred.seeds import stream
 from simcred.sim.campaign import run_id
 from simcred.sim.vehicles import SimpleCar, rk4_step
@@ -111,7 +112,7 @@ class Layout:
     """Road geometry. The EGO's lane is ``y ∈ [-lane_width, 0]``; the conflict zone is the part of
     its lane the cyclist (a disc of ``cyclist_radius``) sweeps."""
 
-    lane_width: float = 3.5
+    lane_width: float = LANE_WIDTH
     cyclist: CyclistPath = field(default_factory=CyclistPath)
     cyclist_radius: float = 0.5
     ego_length: float = 4.5
