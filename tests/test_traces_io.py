@@ -528,3 +528,13 @@ def test_deeply_nested_metadata_is_one_line_error(tmp_path):
     (directory / "traceset.json").write_text("[" * 100_000 + "]" * 100_000)
     with pytest.raises(TraceSetError, match="nested too deeply"):
         TraceSet.read(directory)
+
+
+def test_parquet_run_ids_that_differ_only_by_a_nul_stay_two_runs(tmp_path):
+    path = tmp_path / "nul.parquet"
+    pq.write_table(pa.table({"run": ["r0", "r0", "r0\x00", "r0\x00"], "t": [0.0, 0.1, 0.0, 0.1],
+                             "x": [1.0, 2.0, 3.0, 4.0]}), path)
+    traces = TraceSet.read(path)
+    assert traces.run_ids == ("r0", "r0\x00") and traces.lengths.tolist() == [2, 2]
+    with pytest.raises(TraceSetError, match="cannot be a file name"):
+        traces.write(tmp_path / "as_csv")

@@ -110,7 +110,7 @@ class EngineError(SimcredError):
 
 
 #: Seconds to wait for a scheduler at ``--scheduler`` before giving up with one line.
-CONNECT_TIMEOUT_S = 5
+CONNECT_TIMEOUT_S = 3
 #: Dask's ``distributed.scheduler.allowed-failures``: a task whose worker died is run again on
 #: another worker this often (so one dying worker costs time, not results) before giving up.
 ALLOWED_FAILURES = 3

@@ -9,6 +9,7 @@ from __future__ import annotations
 import sys
 from collections.abc import Callable, Iterable, Sequence
 from functools import wraps
+from pathlib import Path
 from typing import Annotated
 
 import typer
@@ -143,3 +144,15 @@ def _emit(document: dict, as_json: bool, summary: str) -> None:
 
 
 ResimVehicle = Annotated[str, typer.Option(help="EGO vehicle model of the resimulation: ks or st.")]
+
+
+def check_output(out: Path, *inputs: Path, kind: str = "directory") -> Path:
+    """Refuse an ``--out`` that is, contains or lies inside an input, or has the wrong kind.
+
+    Existing outputs of the right kind are still replaced (``--overwrite`` semantics for every
+    command: docs/reliability.md).
+    """
+    from simcred.outputs import check_out
+
+    check_out(out, inputs, overwrite=True, kind=kind)
+    return out

@@ -16,6 +16,7 @@ from simcred.cli._app import (
     State,
     _emit,
     app,
+    check_output,
     one_line_errors,
     out_console,
 )
@@ -262,6 +263,7 @@ def monitor_runs(
     contracts = {m: lib.contract(m) for m in models}
     report = monitor(TraceSet.read(runs), contracts)
     if out is not None:
+        check_output(out, library, runs, kind="file")
         out.write_text(report.to_json())
     if as_json:
         sys.stdout.write(report.to_json())

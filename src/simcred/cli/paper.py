@@ -13,13 +13,14 @@ from simcred.cli._app import (
     Workers,
     _steps,
     app,
+    check_output,
     one_line_errors,
     out_console,
     plain_table,
     progress,
     say,
 )
-from simcred.errors import OptionError
+from simcred.limits import check_count
 
 paper_app = typer.Typer(help="Regenerate the papers' experiments and check their claims.")
 app.add_typer(paper_app, name="paper")
@@ -39,9 +40,10 @@ def paper_000(
     from simcred.engine import engine
     from simcred.paper import seed000
 
-    if runs is not None and runs < 2:
-        raise OptionError(f"runs must be at least 2, got {runs}")
+    if runs is not None:
+        check_count(runs, "runs", "--runs", minimum=2)
     with engine(workers, scheduler) as runner:
+        check_output(out)
         claims = seed000.run_all(out, runs=runs, seed=seed, runner=runner,
                                  progress_for=progress)
     if not State.quiet:
@@ -64,10 +66,10 @@ def paper_002(
     from simcred.engine import engine
     from simcred.paper import seed002
 
-    if variations < 20:
-        raise OptionError(f"variations must be at least 20 (for the 5th/95th percentiles), "
-                          f"got {variations}")
+    check_count(variations, "variations", "--variations (for the 5th/95th percentiles)",
+                minimum=20)
     with engine(workers, scheduler) as runner:
+        check_output(out)
         claims = seed002.run_all(out, seed=seed, variations=variations, runner=runner,
                                  progress=_steps("paper 002"), progress_for=progress).claims
     if not State.quiet:
@@ -92,11 +94,11 @@ def paper_all(
     from simcred.engine import engine
     from simcred.paper.all import AllOptions, run_all
 
-    if runs is not None and runs < 2:
-        raise OptionError(f"runs must be at least 2, got {runs}")
-    if variations < 20:
-        raise OptionError(f"variations must be at least 20, got {variations}")
+    if runs is not None:
+        check_count(runs, "runs", "--runs", minimum=2)
+    check_count(variations, "variations", "--variations", minimum=20)
     with engine(workers, scheduler) as runner:
+        check_output(out)
         claims = run_all(out, AllOptions(runs=runs, variations=variations, seed=seed),
                          runner=runner, progress=_steps("paper 002"), progress_for=progress)
     if not State.quiet:
@@ -118,6 +120,8 @@ def report(
     """Write a self-contained HTML report of the papers' claims, figures and provenance."""
     from simcred.report.html import write_report
 
+    if out is not None:
+        check_output(out, directory, kind="file")
     path = write_report(directory, out=out)
     if not State.quiet:
         say(str(path))

@@ -16,13 +16,14 @@ from simcred.cli._app import (
     Workers,
     _steps,
     app,
+    check_output,
     one_line_errors,
     out_console,
     plain_table,
     progress,
     say,
 )
-from simcred.errors import OptionError
+from simcred.limits import check_count, check_finite
 
 
 @app.command()
@@ -49,6 +50,8 @@ def reprocess(
     from simcred.sim.vehicles import vehicle_model
 
     vehicle_model(vehicle)  # validates the name before any work
+    check_finite(threshold, "--threshold", minimum=0, open_minimum=True)
+    check_output(out, measurement)
     config = ReprocessConfig(vehicle=vehicle, seed=seed, threshold=threshold,
                              scenario_based=scenario_based)
     result = run_pipeline(read_measurement(measurement, object_id), config,
@@ -84,9 +87,9 @@ def vary(
     from simcred.scenario.description import ScenarioDescription
     from simcred.sim.vehicles import vehicle_model
 
-    if n < 1:
-        raise OptionError(f"n must be at least 1, got {n}")
     vehicle_model(vehicle)
+    check_count(n, "variations", "-n")
+    check_output(out, description)
     original = ScenarioDescription.read(description)
     with engine(workers, scheduler) as runner:
         campaign = run_campaign(original, VaryConfig(n=n, seed=seed, vehicle=vehicle),

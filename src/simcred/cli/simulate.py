@@ -12,11 +12,13 @@ from simcred.cli._app import (
     State,
     Workers,
     app,
+    check_output,
     one_line_errors,
     progress,
     say,
 )
 from simcred.errors import OptionError
+from simcred.limits import check_count, check_finite
 
 simulate_app = typer.Typer(help="Simulate seeded campaigns of runs into trace sets.")
 app.add_typer(simulate_app, name="simulate")
@@ -32,6 +34,8 @@ def _simulate(experiment, params: dict, runs: int, seed: int, out: Path, chunk_s
               workers: int | None, scheduler: str | None) -> None:
     from simcred.sim.campaign import Campaign
 
+    check_output(out, kind="directory" if out.suffix.lower() not in (".parquet", ".pq", ".csv",
+                                                                     ".osi", ".mcap") else "file")
     campaign = Campaign(experiment, runs, seed, params, chunk_size)
     traces = campaign.run(workers=workers, scheduler=scheduler,
                           progress=progress("simulating chunks"))
@@ -58,8 +62,11 @@ def simulate_simplecar(
     """SimpleCar runs of the λ sweep (Neurohr et al. sec. VI-A, eq. 8)."""
     from simcred.sim.experiments import simplecar_sweep
 
-    if not (dt > 0 and duration > 0):
-        raise OptionError(f"dt and duration must be positive, got dt={dt}, duration={duration}")
+    check_finite(lam, "--lambda", minimum=0.01, open_minimum=True, maximum=100)
+    check_finite(dt, "--dt", minimum=0, open_minimum=True)
+    check_finite(duration, "--duration", minimum=0, open_minimum=True)
+    steps = check_count(round(duration / dt) + 1, "steps", "--duration / --dt + 1")
+    check_count(check_count(runs, "runs", "--runs") * steps, "rows", "--runs × steps")
     _simulate(simplecar_sweep.simulate, {"lam": lam, "dt": dt, "duration": duration}, runs,
               seed, out, chunk_size, workers, scheduler)
 

@@ -123,14 +123,16 @@ def _read_metadata(directory: Path) -> dict:
 
 
 def write(traces: TraceSet, directory: Path) -> Path:
+    for run_id in traces.run_ids:  # before anything in the directory changes
+        if (not run_id or run_id.startswith(".") or any(c in run_id for c in "/\\\x00")
+                or not run_id.isprintable()):
+            raise TraceSetError(f"{traces.source}: run id {run_id!r} cannot be a file name")
     directory.mkdir(parents=True, exist_ok=True)
     for old in directory.glob("*.csv"):
         old.unlink()
     options = pacsv.WriteOptions(quoting_header="none")
     names = [TIME, *traces.signals]
     for i, run_id in enumerate(traces.run_ids):
-        if not run_id or "/" in run_id or "\\" in run_id or run_id.startswith("."):
-            raise TraceSetError(f"{traces.source}: run id {run_id!r} cannot be a file name")
         lo, hi = traces.offsets[i], traces.offsets[i + 1]
         columns = [traces.time[lo:hi], *(traces.values[lo:hi].T)]
         table = pa.table(dict(zip(names, columns, strict=True)))

@@ -17,13 +17,12 @@ References
 
 from __future__ import annotations
 
-import json
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from simcred._json import dumps, envelope
+from simcred._json import dumps, envelope, read_json
 from simcred.errors import TraceSetError
 from simcred.io import parquet
 from simcred.traces import TraceSet
@@ -63,10 +62,7 @@ class Measurement:
         directory = Path(directory)
         if not (directory / INDEX).is_file():
             raise TraceSetError(f"{directory}: not a measurement (no {INDEX})")
-        try:
-            metadata = json.loads((directory / INDEX).read_text())
-        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise TraceSetError(f"{directory / INDEX}: not JSON ({exc})") from None
+        metadata = read_json(directory / INDEX, TraceSetError)
         if not (directory / "sd.parquet").is_file():
             raise TraceSetError(f"{directory}: a measurement needs sd.parquet")
         gt_path = directory / "gt.parquet"

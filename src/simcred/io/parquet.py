@@ -14,6 +14,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
+from simcred._json import loads
 from simcred.errors import TraceSetError
 from simcred.io._columns import float_column
 from simcred.traces import TIME, TraceSet
@@ -35,6 +36,11 @@ def read(path: Path) -> TraceSet:
     runs = table.column(RUN)
     if runs.null_count:
         raise TraceSetError(f"{path}: column '{RUN}' has missing values")
+    label_type = runs.type.value_type if pa.types.is_dictionary(runs.type) else runs.type
+    if not (pa.types.is_string(label_type) or pa.types.is_large_string(label_type)
+            or pa.types.is_integer(label_type)):
+        raise TraceSetError(f"{path}: column '{RUN}' must hold text or integer run ids, not "
+                            f"{runs.type}")
     ids, run_of_row = _run_codes(runs, path)
     rows = np.argsort(run_of_row, kind="stable")
     signals = [n for n in table.column_names if n not in (RUN, TIME)]
@@ -79,11 +85,7 @@ def _metadata(table: pa.Table, path: Path) -> dict:
     raw = (table.schema.metadata or {}).get(METADATA_KEY)
     if raw is None:
         return {}
-    try:
-        return json.loads(raw)
-    except ValueError:
-        key = METADATA_KEY.decode()
-        raise TraceSetError(f"{path}: schema metadata '{key}' is not JSON") from None
+    return loads(raw, f"{path}: schema metadata '{METADATA_KEY.decode()}'", TraceSetError)
 
 
 def write(traces: TraceSet, path: Path) -> Path:

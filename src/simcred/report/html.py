@@ -175,6 +175,8 @@ def _read_json(path: Path) -> tuple[Any, str | None]:
         return None, f"{path.name} is unreadable ({exc.__class__.__name__})"
     except json.JSONDecodeError as exc:
         return None, f"{path.name} is not valid JSON (line {exc.lineno}, column {exc.colno})"
+    except (RecursionError, ValueError):
+        return None, f"{path.name} is not valid JSON (nested too deeply or a number too long)"
 
 
 def _top_claims(directory: Path) -> dict:

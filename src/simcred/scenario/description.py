@@ -19,7 +19,6 @@ References
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -29,7 +28,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from simcred._json import SCHEMA_VERSION, JsonResult, envelope
+from simcred._json import SCHEMA_VERSION, JsonResult, envelope, loads
 from simcred.errors import SimcredError
 from simcred.kinematics import TIME_TOLERANCE, Track
 from simcred.scenario.spline import DEGREE, Quadrature, Spline, in_span
@@ -266,11 +265,7 @@ class ScenarioDescription(JsonResult):
             raise SimcredError(f"{path}: cannot read: {exc.strerror or exc}") from None
         except UnicodeDecodeError:
             raise SimcredError(f"{path}: not UTF-8 text") from None
-        try:
-            document = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise SimcredError(f"{path}: not valid JSON: {exc.msg} (line {exc.lineno}, column "
-                               f"{exc.colno})") from None
+        document = loads(text, str(path))
         return cls.from_json(document, source=str(path))
 
 

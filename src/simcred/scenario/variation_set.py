@@ -10,7 +10,6 @@ References
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass
@@ -20,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from simcred._json import JsonResult, envelope
+from simcred._json import JsonResult, envelope, read_json
 from simcred.errors import OptionError, SimcredError
 from simcred.scenario.bezier import BezierPath
 from simcred.scenario.description import (
@@ -231,12 +230,7 @@ def load_variations(source: Mapping[str, Any] | str | Path) -> dict[int, Scenari
     where = "<memory>"
     if isinstance(source, str | Path):
         where = str(source)
-        try:
-            source = json.loads(Path(source).read_text(encoding="utf-8"))
-        except OSError as exc:
-            raise SimcredError(f"{where}: cannot read: {exc.strerror or exc}") from None
-        except (UnicodeDecodeError, json.JSONDecodeError):
-            raise SimcredError(f"{where}: not a JSON variations file") from None
+        source = read_json(Path(source))
     if not isinstance(source, Mapping) or source.get("kind") != KIND:
         raise SimcredError(f"{where}: not a variations document (kind must be {KIND!r})")
     for key, kind in (("description", Mapping), ("records", list), ("to", str), ("seed", int)):

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from simcred.engine import Engine, Progress, engine
-from simcred.errors import OptionError
+from simcred.limits import check_count
 from simcred.traces import TraceSet, concat
 
 #: An experiment simulates the runs with the given indices; run i may use only
@@ -35,10 +35,8 @@ class Campaign:
     chunk_size: int = 250
 
     def __post_init__(self) -> None:
-        if self.runs < 1:
-            raise OptionError(f"runs must be at least 1, got {self.runs}")
-        if self.chunk_size < 1:
-            raise OptionError(f"chunk size must be at least 1, got {self.chunk_size}")
+        check_count(self.runs, "runs", "runs")
+        check_count(self.chunk_size, "runs", "chunk size")
 
     @property
     def chunks(self) -> list[range]:
