@@ -199,7 +199,8 @@ def bench_memory(runs: int, steps: int, permutations: int) -> list[dict]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--quick", action="store_true", help="smaller sizes, for a smoke run")
-    parser.add_argument("--only", choices=["run-level"], help="only the run-level benchmarks")
+    parser.add_argument("--only", choices=["run-level", "memory"],
+                        help="only (d) the run-level timing or (e) the peak-memory runs")
     parser.add_argument("--child", nargs=5, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
@@ -214,24 +215,26 @@ def main() -> None:
             "matrix": bench_matrix(1000 // scale, 200, 999),
             "flat_in_n": bench_flat_in_n(999),
         })
-    results["run_level"] = bench_run_level(10_000 // scale, 200, 999)
-    results["memory"] = bench_memory(20_000 // scale, 300, 999)
+    if args.only != "memory":
+        results["run_level"] = bench_run_level(10_000 // scale, 200, 999)
+    if args.only != "run-level":
+        results["memory"] = bench_memory(20_000 // scale, 300, 999)
     table = Table(title="simcred compare benchmarks")
     for column in ("case", "seconds", "ratio", "note"):
         table.add_column(column)
     if "oracle" in results:
         _paper_rows(table, results)
-    for row in results["run_level"]:
+    for row in results.get("run_level", []):
         table.add_row(row["case"], f"{row['seconds']:.2f} (CPU {row['cpu_seconds']:.2f})",
                       f"{row['ratio_to_per_transition']:.2f}× per-transition permutation",
                       f"peak RSS {row['peak_rss_mb']:.0f} MB (data alone "
                       f"{row['data_peak_mb']:.0f} MB) {row.get('target', '')}")
-    for row in results["memory"]:
+    for row in results.get("memory", []):
         table.add_row(row["case"], f"{row['seconds']:.1f}",
                       f"{row['ratio_to_data']:.2f}× data alone",
                       f"peak RSS {row['peak_rss_mb']:.0f} MB; {row['target']}")
     Console(width=170).print(table)
-    name = "compare-run-level" if args.only else "compare"
+    name = f"compare-{args.only}" if args.only else "compare"
     out = ROOT / "benchmarks" / "results" / (f"{name}-quick.json" if args.quick else f"{name}.json")
     out.write_text(json.dumps(results, indent=1) + "\n")
     print(f"wrote {out}")

@@ -58,7 +58,7 @@ def test_run_level_test_sees_harder_braking_the_bound_misses():
     assert rejection(design, "bound: distance>0", 30) == 0.0  # measured 0.00
 
 
-def main(trials: int = 200) -> None:
+def main(trials: int = 100) -> None:
     print(f"power at α = {ALPHA}, {trials} comparisons per cell, {PERMUTATIONS} permutations")
     print("| design | " + " | ".join(METHODS) + " |")
     print("|---|" + "---|" * len(METHODS))

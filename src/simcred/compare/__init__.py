@@ -1,7 +1,19 @@
-"""Comparison of two sets of runs (Neurohr et al. 2023): Markov chains + MMD tests."""
+"""Comparison of two sets of runs (Neurohr et al. 2023): Markov chains + MMD tests.
+
+The default test is run-level (whole runs permuted between the sets, a chain-level verdict and
+multiplicity-controlled per-state verdicts); the paper's bound and per-transition permutation
+tests remain available (``test="bound"`` / ``"permutation"``).
+"""
 
 from simcred.compare.pairwise import DistanceMatrix, matrix
 from simcred.compare.process import compare
-from simcred.compare.result import Comparison
+from simcred.compare.result import (
+    Baseline,
+    ChainVerdict,
+    Comparison,
+    DistanceInterval,
+    FeatureRelevance,
+)
 
-__all__ = ["compare", "matrix", "Comparison", "DistanceMatrix"]
+__all__ = ["compare", "matrix", "Comparison", "DistanceMatrix", "ChainVerdict", "Baseline",
+           "DistanceInterval", "FeatureRelevance"]

@@ -51,8 +51,8 @@ from simcred.compare.mmd import Estimator, kernel_statistics
 BATCH_BUDGET = 2**22
 #: Elements of one dense chunk of the count matrix (float32: 128 MB).
 CHUNK_BUDGET = 2**25
-#: Below a density of 1/SPARSE_RATIO the sparse product beats dense BLAS.
-SPARSE_RATIO = 256
+#: Columns of R shown by fewer than 1/SPARSE_RATIO of the runs go through the sparse product.
+SPARSE_RATIO = 64
 #: Absolute/relative tolerance when counting permuted statistics ≥ the observed one.
 TIE_TOL = 1e-9
 #: ``dᵀKd`` below this is rounding noise of an exact 0 (|error| ≲ 4·eps) and is set to 0 before
@@ -108,11 +108,9 @@ class RunCounts:
                                np.repeat(np.arange(n_runs, dtype=np.int64), lengths)])
         columns, column_of, run_of, count = _pair_counts(keys, runs, n_runs)
         del keys, runs
-        order = np.lexsort((run_of, column_of))  # already sorted unless the fallback ran
-        matrix = sp.csr_matrix((count[order].astype(np.float64), run_of[order],
-                                np.r_[0, np.cumsum(np.bincount(column_of,
-                                                               minlength=len(columns)))]),
-                               shape=(len(columns), n_runs))
+        indptr = np.r_[0, np.cumsum(np.bincount(column_of, minlength=len(columns)))]
+        matrix = sp.csr_matrix((count.astype(np.float64), run_of, indptr),
+                               shape=(len(columns), n_runs))  # entries sorted by (column, run)
         origin = columns // size - 1
         bounds = np.r_[0, np.flatnonzero(np.diff(origin)) + 1, len(columns)]
         return cls(matrix, origin[bounds[:-1]], bounds, columns % size)
@@ -133,7 +131,8 @@ class RunCounts:
 
 
 def _pair_counts(keys: np.ndarray, runs: np.ndarray, n_runs: int):
-    """Distinct keys (sorted), and per distinct (key, run): key index, run, count.
+    """Distinct keys (sorted), and per distinct (key, run), sorted by (key, run): key index, run,
+    count.
 
     One sort of ``key · runs + run`` when that fits into int64, else two.
     """
@@ -313,9 +312,10 @@ def _permuted_statistics(counts: RunCounts, in_a: np.ndarray, states: StateModel
 class SideCounts:
     """``R @ Z``: the A-side counts of assignments ``Z`` (runs × batch, 0/1), chunk by chunk.
 
-    Dense BLAS (float32 while every count stays below 2**24, so it is exact) on column chunks of
-    at most ``CHUNK_BUDGET`` elements, aligned to state blocks; the sparse product when ``R`` is
-    very sparse (density below 1/``SPARSE_RATIO``), where it is faster.
+    Columns of R that at least 1/``SPARSE_RATIO`` of the runs show go through dense BLAS
+    (float32 while every count stays below 2**24, so it is exact), in chunks of at most
+    ``CHUNK_BUDGET`` dense elements aligned to state blocks; rarer columns through the sparse
+    product, which is faster for them.
     """
 
     def __init__(self, counts: RunCounts) -> None:
@@ -323,30 +323,42 @@ class SideCounts:
         n_cols, n_runs = self.matrix.shape
         exact32 = n_cols == 0 or self.matrix.sum(axis=1).max() < 2**24
         self.dtype = np.float32 if exact32 else np.float64
-        self.dense = self.matrix.nnz * SPARSE_RATIO >= n_cols * n_runs
-        self.chunks = _block_chunks(counts.bounds, max(1, CHUNK_BUDGET // max(n_runs, 1)))
+        self.dense_columns = self.matrix.getnnz(axis=1) * SPARSE_RATIO >= n_runs
+        per_block = np.add.reduceat(self.dense_columns.astype(np.int64), counts.bounds[:-1]) \
+            if n_cols else np.zeros(0, dtype=np.int64)
+        self.chunks = _block_chunks(counts.bounds, per_block,
+                                    max(1, CHUNK_BUDGET // max(n_runs, 1)))
 
-    def rows(self, lo: int, hi: int):
-        """Columns lo:hi of R, dense or sparse, ready to multiply."""
-        if not self.dense:
-            return self.matrix[lo:hi]
-        return self.matrix[lo:hi].astype(self.dtype).toarray()
+    def rows(self, lo: int, hi: int) -> tuple:
+        """Columns lo:hi of R split into a dense array and a sparse matrix, with their places."""
+        dense = np.flatnonzero(self.dense_columns[lo:hi])
+        sparse = np.flatnonzero(~self.dense_columns[lo:hi])
+        block = self.matrix[lo:hi]
+        return (dense, block[dense].astype(self.dtype).toarray() if len(dense) else None,
+                sparse, block[sparse].astype(self.dtype) if len(sparse) else None)
 
-    def product(self, rows, assignment: np.ndarray) -> np.ndarray:
-        """(len(rows), batch) float64 counts for bool assignments (batch, runs)."""
-        dtype = self.dtype if self.dense else np.float64
-        z = np.ascontiguousarray(assignment.T, dtype=dtype)
-        return np.asarray(rows @ z, dtype=np.float64)
+    def product(self, rows: tuple, assignment: np.ndarray) -> np.ndarray:
+        """(columns, batch) float64 counts for bool assignments (batch, runs)."""
+        dense, dense_rows, sparse, sparse_rows = rows
+        z = np.ascontiguousarray(assignment.T, dtype=self.dtype)
+        out = np.empty((len(dense) + len(sparse), len(assignment)))
+        if dense_rows is not None:
+            out[dense] = dense_rows @ z
+        if sparse_rows is not None:
+            out[sparse] = sparse_rows @ z
+        return out
 
 
-def _block_chunks(bounds: np.ndarray, rows: int) -> list[tuple[int, int, int, int]]:
-    """(first block, last block + 1, first column, last column + 1) of chunks of ≤ ``rows``
-    columns (a single larger block is a chunk of its own)."""
-    chunks, first = [], 0
-    for b in range(1, len(bounds)):
-        if bounds[b] - bounds[first] > rows and b - 1 > first:
-            chunks.append((first, b - 1, int(bounds[first]), int(bounds[b - 1])))
-            first = b - 1
+def _block_chunks(bounds: np.ndarray, weights: np.ndarray, budget: int
+                  ) -> list[tuple[int, int, int, int]]:
+    """(first block, last block + 1, first column, last column + 1) of consecutive blocks whose
+    ``weights`` sum to at most ``budget`` (a single heavier block is a chunk of its own)."""
+    chunks, first, total = [], 0, 0
+    for b in range(len(bounds) - 1):
+        if total + weights[b] > budget and b > first:
+            chunks.append((first, b, int(bounds[first]), int(bounds[b])))
+            first, total = b, 0
+        total += weights[b]
     chunks.append((first, len(bounds) - 1, int(bounds[first]), int(bounds[-1])))
     return chunks
 
