@@ -17,6 +17,7 @@ from simcred.study.car_following import (
     REAL_ACC,
     StudyOptions,
     band_index,
+    repeat_baselines,
     run_study,
     thin,
     write_study,
@@ -170,3 +171,25 @@ def test_help_shows_units(command, capsys):
     assert run([*command, "--help"]) == 0
     text = capsys.readouterr().out
     assert "[m/s]" in text and "[m]" in text
+
+
+def test_repeat_baselines_are_the_study_cells(small):
+    cells = repeat_baselines([SMALL["seed"]], StudyOptions(**SMALL))
+    for c in cells:
+        study = small.cell(c.row, c.band)
+        assert c.status == study.status
+        if c.verdict is not None:
+            assert c.verdict == study.verdict and c.distance == study.distance
+
+
+@pytest.mark.slow
+def test_random_human_split_rejected_about_alpha_or_less():
+    """False rejections of the run-level test on real data (H0 true by construction: random halves
+    of the same human episodes), 20 seeds × 2 bands at alpha = 0.01, 199 permutations. Expected
+    0.4 rejections; 3 or more has probability < 0.01 for a test at its level."""
+    options = StudyOptions(permutations=199, baseline=0)
+    cells = [c for c in repeat_baselines(range(2000, 2020), options)
+             if c.row == BASELINE and c.verdict is not None]
+    assert len(cells) == 40
+    assert sum(c.verdict.rejected for c in cells) <= 2
+    assert sum(c.distance > 0 for c in cells) <= 2  # FWER: P(distance > 0) <= alpha

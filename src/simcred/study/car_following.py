@@ -32,7 +32,7 @@ from __future__ import annotations
 import hashlib
 import platform
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -429,6 +429,27 @@ def _car_split_cell(ref: TraceSet | None, options: StudyOptions, k: int) -> Cell
                  take(ref, np.flatnonzero(~mask)), options)
 
 
+def repeat_baselines(seeds: Sequence[int], options: StudyOptions | None = None, *,
+                     source: str | Path | None = None) -> list[Cell]:
+    """The two human-vs-human baseline cells of every band for each study seed, without SUMO.
+
+    The cells are those :func:`run_study` gives with the same options and seed (same splits, same
+    test seeds); repeated over many seeds they measure how often the study's test rejects
+    "human vs human" — its false-rejection rate on these data for the random split.
+    """
+    options = options or StudyOptions()
+    human = _subset(read_openacc(source, options.rules, follower=HUMAN), options.max_episodes)
+    bands = band_index(human, options.bands)
+    thinned = thin(human, options.every)
+    refs = [_pick(thinned, bands == k) for k in range(len(options.bands))]
+    cells = []
+    for seed in seeds:
+        seeded = replace(options, seed=seed)
+        for k, ref in enumerate(refs):
+            cells += [_baseline_cell(ref, seeded, k), _car_split_cell(ref, seeded, k)]
+    return cells
+
+
 def write_study(result: StudyResult, out: str | Path) -> list[Path]:
     """``study.json`` (findings + provenance), ``matrix.csv``, ``bands/<band>.csv`` and
     ``comparisons/<row>__<band>.json`` under ``out``."""
@@ -512,4 +533,4 @@ def _csv(text: str) -> str:
 
 
 __all__ = ["StudyOptions", "StudyResult", "Cell", "run_study", "write_study", "band_index",
-           "thin", "BASELINE", "REAL_ACC"]
+           "thin", "repeat_baselines", "BASELINE", "REAL_ACC"]
