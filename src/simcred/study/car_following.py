@@ -222,7 +222,10 @@ class StudyResult:
             elif c.row == BASELINE_CARS:
                 word = "the two groups of cars (drivers) differ among themselves" \
                     if c.verdict.rejected else "the two groups of cars not distinguishable"
-            out.append(f"{where}: {word} (chain p = {_fmt(c.verdict.pvalue)}, distance "
+            floor = c.comparison.chain is not None and \
+                c.verdict.pvalue <= 1 / (c.comparison.chain.permutations + 1)
+            out.append(f"{where}: {word} (chain p = {_fmt(c.verdict.pvalue)}"
+                       f"{' (smallest possible)' if floor else ''}, distance "
                        f"{_fmt(c.distance)}{_baseline_range(c)}, {_runs(c)})")
         return out
 
@@ -247,7 +250,7 @@ def _baseline_range(c: Cell) -> str:
     base = None if c.comparison is None else c.comparison.baseline
     if base is None:
         return ""
-    return f"; reference split in halves: {_fmt(base.low)}-{_fmt(base.high)}"
+    return f" where halves of the reference give {_fmt(base.low)}-{_fmt(base.high)}"
 
 
 def _runs(c: Cell) -> str:
