@@ -83,7 +83,7 @@ def test_thin_keeps_every_kth_sample():
                                     {"sample_step": 0.25}, {"permutations": 49},
                                     {"alpha": 1.5}, {"bins": 1}, {"max_episodes": 1},
                                     {"bands": ((0, float("inf")),)}, {"baseline": -1},
-                                    {"test": "per-transition"}])
+                                    {"test": "per-transition"}, {"one_sided": "ignore"}])
 def test_bad_options(kwargs):
     with pytest.raises(OptionError):
         StudyOptions(**kwargs).every  # noqa: B018  (sample step is checked against the rules)

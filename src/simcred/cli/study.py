@@ -71,6 +71,9 @@ def car_following(
     baseline: Annotated[int, typer.Option(help="Same-model baseline per cell (run-level test): "
                                                "random half-splits of the reference episodes; "
                                                "0 = none.")] = 10,
+    one_sided: Annotated[str, typer.Option(help="Run-level test: a state visited by one set "
+                                                "only counts as evidence of a difference, or "
+                                                "as neutral.")] = "evidence",
     seed: Annotated[int, typer.Option(help="Study seed (SUMO seeds, splits and tests derive "
                                            "from it).")] = 0,
     max_episodes: Annotated[int | None, typer.Option(help="Use at most this many human and "
@@ -93,7 +96,8 @@ def car_following(
 
     options = StudyOptions(models=_names(models), bands=_bands(bands), features=_names(features),
                            bins=bins, sample_step=sample_step, test=test, alpha=alpha,
-                           permutations=permutations, baseline=baseline, seed=seed,
+                           permutations=permutations, baseline=baseline,
+                           one_sided=one_sided, seed=seed,
                            min_runs=min_runs,
                            max_episodes=max_episodes)
     inputs = [source if source is not None else data.path("openacc")]

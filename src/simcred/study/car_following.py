@@ -57,6 +57,7 @@ BASELINES = (BASELINE, BASELINE_CARS)
 REAL_ACC = "real ACC"
 DEFAULT_BANDS = ((0.0, 10.0), (10.0, 20.0), (20.0, 30.0))
 DEFAULT_MODELS = ("Krauss", "IDM", "EIDM", "ACC")
+ONE_SIDED = ("evidence", "neutral")  # run-level test: states one set never visits
 # seed streams (keys of derive_seed)
 _SUMO, _SPLIT, _COMPARE, _SPLIT_CARS = 1, 2, 3, 4
 
@@ -74,6 +75,7 @@ class StudyOptions:
     alpha: float = 0.01
     permutations: int = 999
     baseline: int = 10
+    one_sided: str = "evidence"
     seed: int = 0
     min_runs: int = 10
     max_episodes: int | None = None
@@ -88,6 +90,9 @@ class StudyOptions:
                      open_maximum=True)
         check_count(self.permutations, "permutations", "permutations")
         check_count(self.baseline, "permutations", "baseline", minimum=0)
+        if self.one_sided not in ONE_SIDED:
+            raise OptionError(f"one-sided must be one of {', '.join(ONE_SIDED)}; "
+                              f"got {self.one_sided!r}")
         check_count(self.bins, "bins", "bins", minimum=2)
         check_finite(self.sample_step, "sample step", minimum=0, open_minimum=True)
         for lo, hi in self.bands:
@@ -320,11 +325,12 @@ def _provenance(source: Path | None, options: StudyOptions, human: TraceSet, acc
 
 def _compare(a: TraceSet, b: TraceSet, options: StudyOptions, row: int, band: int
              ) -> tuple[Comparison, CellVerdict]:
-    baseline = options.baseline if options.test == "runs" and a.n_runs >= 4 else 0
+    runs = options.test == "runs"
     result = compare(a, b, features=options.features, bins=options.bins, test=options.test,
                      alpha=options.alpha, permutations=options.permutations,
-                     seed=derive_seed(options.seed, _COMPARE, row, band), baseline=baseline,
-                     continue_on_start_difference=True)
+                     seed=derive_seed(options.seed, _COMPARE, row, band),
+                     baseline=options.baseline if runs and a.n_runs >= 4 else 0,
+                     one_sided=options.one_sided, continue_on_start_difference=True)
     return result, chain_verdict(result, options.test, options.alpha)
 
 
