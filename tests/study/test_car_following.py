@@ -17,6 +17,7 @@ from simcred.study.car_following import (
     REAL_ACC,
     StudyOptions,
     band_index,
+    repeat_baselines,
     run_study,
     thin,
     write_study,
@@ -81,7 +82,8 @@ def test_thin_keeps_every_kth_sample():
                                     {"bands": ((0, 10), (5, 15))}, {"models": ()},
                                     {"sample_step": 0.25}, {"permutations": 49},
                                     {"alpha": 1.5}, {"bins": 1}, {"max_episodes": 1},
-                                    {"bands": ((0, float("inf")),)}])
+                                    {"bands": ((0, float("inf")),)}, {"baseline": -1},
+                                    {"test": "per-transition"}, {"one_sided": "ignore"}])
 def test_bad_options(kwargs):
     with pytest.raises(OptionError):
         StudyOptions(**kwargs).every  # noqa: B018  (sample step is checked against the rules)
@@ -97,7 +99,7 @@ def test_small_study(small):
             assert c.verdict.pvalue is not None and 0 <= c.distance <= 1
             assert c.verdict.rejected == (c.verdict.pvalue <= 0.01)
     doc = small.to_dict()
-    assert "per-transition" in doc["method"]
+    assert "run-level" in doc["method"] and doc["options"]["test"] == "runs"
     assert doc["inputs"]["versions"]["sumo"] and len(doc["inputs"]["files"]) == 38
     assert doc["inputs"]["seeds"]["study"] == 3
     assert len(doc["findings"]) == len(small.cells)
@@ -107,20 +109,36 @@ def test_same_seed_same_findings(small):
     assert run_study(StudyOptions(**SMALL)).to_json() == small.to_json()
 
 
-def test_runs_test_is_one_option():
-    """test='runs' goes to simcred.compare as is: until the run-level test exists there, it is a
-    one-line option error, not a silent fallback."""
-    from simcred.compare.mmd import Test
+def test_default_verdict_is_the_run_level_chain(small):
+    """Each tested cell's verdict is the comparison's chain-level one, its distance counts the
+    family-wise (max-T) rejections, and the same-model baseline splits the cell's reference."""
+    tested = [c for c in small.cells if c.verdict is not None]
+    assert tested
+    for c in tested:
+        chain, options = c.comparison.chain, c.comparison.options
+        assert options.test == "runs" and options.multiplicity == "fwer"
+        assert c.verdict.pvalue == chain.pvalue and c.verdict.rejected == chain.rejected
+        for s in c.comparison.states:  # max-T: adjusted >= raw; rejected only if adjusted <= α
+            assert s.result.adjusted_pvalue >= s.result.pvalue
+            assert not s.result.rejected or s.result.adjusted_pvalue <= 0.01
+        assert c.distance == len(c.comparison.rejected_states) / c.comparison.n_states
+        base = c.comparison.baseline
+        assert len(base.distances) == 10 and 0 <= base.low <= base.high <= 1
+        assert c.to_dict()["baseline"]["high"] == base.high
+        assert c.comparison.inputs[0].runs == c.a.runs  # A (split) is the human reference
+    assert any("where halves of the reference give" in f for f in small.findings())
 
-    if "runs" not in {t.value for t in Test}:
-        with pytest.raises(OptionError, match="not offered by simcred.compare"):
-            StudyOptions(**{**SMALL, "test": "runs"})
-        return
-    result = run_study(StudyOptions(**{**SMALL, "test": "runs"}))
-    assert "run-level" in result.to_dict()["method"]
+
+def test_interim_test_is_one_option():
+    """test='permutation' keeps the interim per-transition verdict: Fisher's combination of the
+    per-state p-values, no multiplicity control, no baseline."""
+    result = run_study(StudyOptions(**{**SMALL, "test": "permutation"}))
+    assert "per-transition" in result.to_dict()["method"]
     for c in result.cells:
         if c.verdict is not None:
-            assert c.verdict.pvalue == c.comparison.chain.pvalue
+            pvalues = [s.result.pvalue for s in c.comparison.states]
+            assert c.verdict.pvalue == fisher(pvalues)
+            assert c.comparison.chain is None and c.comparison.baseline is None
 
 
 def test_write_and_cli(small, tmp_path, capsys):
@@ -140,6 +158,9 @@ def test_write_and_cli(small, tmp_path, capsys):
     assert "--overwrite" in capsys.readouterr().err
     assert run(["study", "car-following", "--out", str(tmp_path / "d"), "--bands", "0..10"]) == 2
     assert "LOW-HIGH" in capsys.readouterr().err
+    assert run(["study", "car-following", "--out", str(tmp_path / "d"), "--test", "bound"]) == 2
+    err = capsys.readouterr().err
+    assert "test must be one of runs, permutation" in err and len(err.strip().splitlines()) == 1
 
 
 @pytest.mark.parametrize("command", [["study", "car-following"], ["simulate", "sumo-following"],
@@ -150,3 +171,25 @@ def test_help_shows_units(command, capsys):
     assert run([*command, "--help"]) == 0
     text = capsys.readouterr().out
     assert "[m/s]" in text and "[m]" in text
+
+
+def test_repeat_baselines_are_the_study_cells(small):
+    cells = repeat_baselines([SMALL["seed"]], StudyOptions(**SMALL))
+    for c in cells:
+        study = small.cell(c.row, c.band)
+        assert c.status == study.status
+        if c.verdict is not None:
+            assert c.verdict == study.verdict and c.distance == study.distance
+
+
+@pytest.mark.slow
+def test_random_human_split_rejected_about_alpha_or_less():
+    """False rejections of the run-level test on real data (H0 true by construction: random halves
+    of the same human episodes), 20 seeds × 2 bands at alpha = 0.01, 199 permutations. Expected
+    0.4 rejections; 3 or more has probability < 0.01 for a test at its level."""
+    options = StudyOptions(permutations=199, baseline=0)
+    cells = [c for c in repeat_baselines(range(2000, 2020), options)
+             if c.row == BASELINE and c.verdict is not None]
+    assert len(cells) == 40
+    assert sum(c.verdict.rejected for c in cells) <= 2
+    assert sum(c.distance > 0 for c in cells) <= 2  # FWER: P(distance > 0) <= alpha

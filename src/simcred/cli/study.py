@@ -60,11 +60,20 @@ def car_following(
     bins: Annotated[int, typer.Option(help="Equal-frequency bins per feature.")] = 5,
     sample_step: Annotated[float, typer.Option(help="Sample period of the compared chains \\[s] "
                                                     "(a multiple of 0.1 s).")] = 0.5,
-    test: Annotated[str, typer.Option(help="permutation (per-transition, interim) or runs "
-                                           "(run-level, once simcred.compare offers it).")
-                    ] = "permutation",
-    alpha: Annotated[float, typer.Option(help="Level of the chain-level test.")] = 0.01,
+    test: Annotated[str, typer.Option(help="runs: run-level test (episodes reassigned; "
+                                           "calibrated, the default); permutation: the interim "
+                                           "per-transition test with Fisher's combination "
+                                           "(anti-conservative on real runs).")
+                    ] = "runs",
+    alpha: Annotated[float, typer.Option(help="Level of the chain-level test and of the "
+                                              "family-wise per-state verdicts.")] = 0.01,
     permutations: Annotated[int, typer.Option(help="Permutations per test.")] = 999,
+    baseline: Annotated[int, typer.Option(help="Same-model baseline per cell (run-level test): "
+                                               "random half-splits of the reference episodes; "
+                                               "0 = none.")] = 10,
+    one_sided: Annotated[str, typer.Option(help="Run-level test: a state visited by one set "
+                                                "only counts as evidence of a difference, or "
+                                                "as neutral.")] = "evidence",
     seed: Annotated[int, typer.Option(help="Study seed (SUMO seeds, splits and tests derive "
                                            "from it).")] = 0,
     max_episodes: Annotated[int | None, typer.Option(help="Use at most this many human and "
@@ -87,7 +96,9 @@ def car_following(
 
     options = StudyOptions(models=_names(models), bands=_bands(bands), features=_names(features),
                            bins=bins, sample_step=sample_step, test=test, alpha=alpha,
-                           permutations=permutations, seed=seed, min_runs=min_runs,
+                           permutations=permutations, baseline=baseline,
+                           one_sided=one_sided, seed=seed,
+                           min_runs=min_runs,
                            max_episodes=max_episodes)
     inputs = [source if source is not None else data.path("openacc")]
     with output_dir(out, inputs, overwrite=overwrite) as partial:
@@ -115,8 +126,11 @@ def _print(result, out: Path) -> None:
                 cells.append("[dim]insufficient data[/dim]")
             else:
                 color = "red" if c.verdict.rejected else "green"
+                base = c.comparison.baseline
+                halves = "" if base is None else \
+                    f" (halves {100 * base.low:.1f}-{100 * base.high:.1f}%)"
                 cells.append(f"[{color}]p={c.verdict.pvalue:.2g} d={100 * c.distance:.1f}%"
-                             f"[/{color}]")
+                             f"{halves}[/{color}]")
         table.add_row(row, *cells)
     out_console.print(table)
     out_console.print(f"wrote {out}/study.json, matrix.csv, matrix.png, headway.png, bands/, "

@@ -26,7 +26,7 @@ def verdict_matrix(result: StudyResult, path: str | Path) -> Path:
     """Rows × speed bands, coloured by verdict, annotated with chain p-value and distance."""
     rows, bands = result.rows, result.options.bands
     code = np.zeros((len(rows), len(bands)), dtype=int)
-    fig, ax = plt.subplots(figsize=(2.6 * len(bands) + 3.2, 0.62 * len(rows) + 1.8))
+    fig, ax = plt.subplots(figsize=(2.8 * len(bands) + 3.2, 0.75 * len(rows) + 1.8))
     for i, row in enumerate(rows):
         for j, band in enumerate(bands):
             c = result.cell(row, band)
@@ -35,6 +35,9 @@ def verdict_matrix(result: StudyResult, path: str | Path) -> Path:
             else:
                 code[i, j] = 2 if c.verdict.rejected else 1
                 text = f"p = {c.verdict.pvalue:.2g}, d = {100 * c.distance:.1f} %\n{_runs(c)}"
+                base = c.comparison.baseline
+                if base is not None:
+                    text += f"\nref. halves: d = {100 * base.low:.1f}–{100 * base.high:.1f} %"
             ax.text(j, i, text, ha="center", va="center", fontsize=7.5)
     ax.imshow(code, cmap=ListedColormap(VERDICT_COLORS), vmin=-0.5, vmax=2.5, aspect="auto")
     ax.set_xticks(range(len(bands)), [f"leader {band_label(b)}" for b in bands])
@@ -48,7 +51,8 @@ def verdict_matrix(result: StudyResult, path: str | Path) -> Path:
               loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=3, fontsize=8)
     o = result.options
     ax.set_title(f"vs real human following (OpenACC): chain p-value, distance d = rejected "
-                 f"states / |S|\n{result.to_dict()['method']}; α = {o.alpha}", fontsize=8.5)
+                 f"states / |S|\n{result.to_dict()['method']}; α = {o.alpha}", fontsize=8,
+                 wrap=True)
     return _save(fig, Path(path))
 
 

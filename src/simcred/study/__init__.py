@@ -1,6 +1,12 @@
 """Studies on real data: whole validity questions answered end to end (data → simulation →
 comparison → findings). Sits above compare and sim, below report and cli."""
 
-from simcred.study.car_following import StudyOptions, StudyResult, run_study, write_study
+from simcred.study.car_following import (
+    StudyOptions,
+    StudyResult,
+    repeat_baselines,
+    run_study,
+    write_study,
+)
 
-__all__ = ["StudyOptions", "StudyResult", "run_study", "write_study"]
+__all__ = ["StudyOptions", "StudyResult", "repeat_baselines", "run_study", "write_study"]

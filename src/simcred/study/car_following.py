@@ -17,8 +17,12 @@ human follower, and how sure is that? Procedure (all choices fixed before lookin
    episodes thinned to one sample every 0.5 s; start test reported, transitions always tested.
    Rows: two same-population baselines (the band's human episodes split at random into two
    halves; and split by follower car, half of the cars vs the other half), each SUMO model vs the
-   human episodes, and real ACC vs the human episodes. The verdict's test
-   is one option (:mod:`simcred.study.verdict`).
+   human episodes, and real ACC vs the human episodes. The verdict's test is one option
+   (:mod:`simcred.study.verdict`): by default the run-level test (``test="runs"``: whole
+   episodes reassigned; chain-level p-value; per-state verdicts under max-T family-wise control,
+   so the distance is calibrated), with a same-model baseline per cell (the cell's reference
+   episodes split into random halves ``baseline`` times); ``test="permutation"`` is the interim
+   per-transition test.
 5. A band with fewer than ``min_runs`` episodes on a side is reported as "insufficient data", not
    as valid.
 """
@@ -28,7 +32,7 @@ from __future__ import annotations
 import hashlib
 import platform
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -53,6 +57,7 @@ BASELINES = (BASELINE, BASELINE_CARS)
 REAL_ACC = "real ACC"
 DEFAULT_BANDS = ((0.0, 10.0), (10.0, 20.0), (20.0, 30.0))
 DEFAULT_MODELS = ("Krauss", "IDM", "EIDM", "ACC")
+ONE_SIDED = ("evidence", "neutral")  # run-level test: states one set never visits
 # seed streams (keys of derive_seed)
 _SUMO, _SPLIT, _COMPARE, _SPLIT_CARS = 1, 2, 3, 4
 
@@ -66,9 +71,11 @@ class StudyOptions:
     features: tuple[str, ...] = ("gap", "dv", "a")
     bins: int = 5
     sample_step: float = 0.5
-    test: str = "permutation"
+    test: str = "runs"
     alpha: float = 0.01
     permutations: int = 999
+    baseline: int = 10
+    one_sided: str = "evidence"
     seed: int = 0
     min_runs: int = 10
     max_episodes: int | None = None
@@ -82,6 +89,10 @@ class StudyOptions:
         check_finite(self.alpha, "alpha", minimum=0, maximum=1, open_minimum=True,
                      open_maximum=True)
         check_count(self.permutations, "permutations", "permutations")
+        check_count(self.baseline, "permutations", "baseline", minimum=0)
+        if self.one_sided not in ONE_SIDED:
+            raise OptionError(f"one-sided must be one of {', '.join(ONE_SIDED)}; "
+                              f"got {self.one_sided!r}")
         check_count(self.bins, "bins", "bins", minimum=2)
         check_finite(self.sample_step, "sample step", minimum=0, open_minimum=True)
         for lo, hi in self.bands:
@@ -96,7 +107,7 @@ class StudyOptions:
         edges = sorted(self.bands)
         if any(a[1] > b[0] for a, b in zip(edges, edges[1:], strict=False)):
             raise OptionError(f"speed bands overlap: {self.bands}")
-        if self.test == "permutation" and (self.permutations + 1) * self.alpha < 1:
+        if (self.permutations + 1) * self.alpha < 1:
             raise OptionError(f"{self.permutations} permutations cannot reject at alpha="
                               f"{self.alpha}: give at least {int(np.ceil(1 / self.alpha)) - 1}")
         if self.min_runs < 2:
@@ -178,6 +189,9 @@ class Cell:
             "n_tested": None if c is None else len(c.states),
             "n_rejected_states": None if c is None else len(c.rejected_states),
             "n_untestable": None if c is None else len(c.untestable),
+            "baseline": None if c is None or c.baseline is None else {
+                "distances": list(c.baseline.distances), "low": c.baseline.low,
+                "high": c.baseline.high, "chain_pvalues": list(c.baseline.chain_pvalues)},
         }
 
 
@@ -213,8 +227,11 @@ class StudyResult:
             elif c.row == BASELINE_CARS:
                 word = "the two groups of cars (drivers) differ among themselves" \
                     if c.verdict.rejected else "the two groups of cars not distinguishable"
-            out.append(f"{where}: {word} (chain p = {_fmt(c.verdict.pvalue)}, distance "
-                       f"{_fmt(c.distance)}, {_runs(c)})")
+            floor = c.comparison.chain is not None and \
+                c.verdict.pvalue <= 1 / (c.comparison.chain.permutations + 1)
+            out.append(f"{where}: {word} (chain p = {_fmt(c.verdict.pvalue)}"
+                       f"{' (smallest possible)' if floor else ''}, distance "
+                       f"{_fmt(c.distance)}{_baseline_range(c)}, {_runs(c)})")
         return out
 
     def to_dict(self) -> dict[str, Any]:
@@ -231,6 +248,14 @@ class StudyResult:
 
 def _fmt(value: float | None) -> str:
     return "n/a" if value is None else f"{value:.3g}"
+
+
+def _baseline_range(c: Cell) -> str:
+    """The distance's same-model baseline as text (range over reference half-splits), or ""."""
+    base = None if c.comparison is None else c.comparison.baseline
+    if base is None:
+        return ""
+    return f" where halves of the reference give {_fmt(base.low)}-{_fmt(base.high)}"
 
 
 def _runs(c: Cell) -> str:
@@ -300,10 +325,12 @@ def _provenance(source: Path | None, options: StudyOptions, human: TraceSet, acc
 
 def _compare(a: TraceSet, b: TraceSet, options: StudyOptions, row: int, band: int
              ) -> tuple[Comparison, CellVerdict]:
+    runs = options.test == "runs"
     result = compare(a, b, features=options.features, bins=options.bins, test=options.test,
                      alpha=options.alpha, permutations=options.permutations,
                      seed=derive_seed(options.seed, _COMPARE, row, band),
-                     continue_on_start_difference=True)
+                     baseline=options.baseline if runs and a.n_runs >= 4 else 0,
+                     one_sided=options.one_sided, continue_on_start_difference=True)
     return result, chain_verdict(result, options.test, options.alpha)
 
 
@@ -411,6 +438,27 @@ def _car_split_cell(ref: TraceSet | None, options: StudyOptions, k: int) -> Cell
                  take(ref, np.flatnonzero(~mask)), options)
 
 
+def repeat_baselines(seeds: Sequence[int], options: StudyOptions | None = None, *,
+                     source: str | Path | None = None) -> list[Cell]:
+    """The two human-vs-human baseline cells of every band for each study seed, without SUMO.
+
+    The cells are those :func:`run_study` gives with the same options and seed (same splits, same
+    test seeds); repeated over many seeds they measure how often the study's test rejects
+    "human vs human" — its false-rejection rate on these data for the random split.
+    """
+    options = options or StudyOptions()
+    human = _subset(read_openacc(source, options.rules, follower=HUMAN), options.max_episodes)
+    bands = band_index(human, options.bands)
+    thinned = thin(human, options.every)
+    refs = [_pick(thinned, bands == k) for k in range(len(options.bands))]
+    cells = []
+    for seed in seeds:
+        seeded = replace(options, seed=seed)
+        for k, ref in enumerate(refs):
+            cells += [_baseline_cell(ref, seeded, k), _car_split_cell(ref, seeded, k)]
+    return cells
+
+
 def write_study(result: StudyResult, out: str | Path) -> list[Path]:
     """``study.json`` (findings + provenance), ``matrix.csv``, ``bands/<band>.csv`` and
     ``comparisons/<row>__<band>.json`` under ``out``."""
@@ -460,16 +508,19 @@ def band_csv(result: StudyResult, band: tuple[float, float]) -> str:
     """One band: per row the verdict, distance, start test and descriptive statistics (units in
     the header)."""
     header = ["row", "status", "chain_pvalue", "rejected", "distance", "start_pvalue",
-              "n_states", "n_tested", "n_rejected_states", "runs_reference", "runs_candidate",
+              "n_states", "n_tested", "n_rejected_states", "baseline_distance_low",
+              "baseline_distance_high", "runs_reference", "runs_candidate",
               "gap_median_m", "gap_median_reference_m", "headway_median_s",
               "headway_median_reference_s", "a_std_mps2", "a_std_reference_mps2"]
     lines = [",".join(header)]
     for row in result.rows:
         d = result.cell(row, band).to_dict()
         v, a, b = d["verdict"] or {}, d["reference"] or {}, d["candidate"] or {}
+        base = d["baseline"] or {}
         values = [_csv(row), d["status"], v.get("pvalue"), v.get("rejected"), d["distance"],
                   d["start_pvalue"], d["n_states"], d["n_tested"], d["n_rejected_states"],
-                  a.get("runs"), b.get("runs"), b.get("gap_median"), a.get("gap_median"),
+                  base.get("low"), base.get("high"), a.get("runs"), b.get("runs"),
+                  b.get("gap_median"), a.get("gap_median"),
                   b.get("headway_median"), a.get("headway_median"), b.get("a_std"),
                   a.get("a_std")]
         lines.append(",".join(_value(x) for x in values))
@@ -491,4 +542,4 @@ def _csv(text: str) -> str:
 
 
 __all__ = ["StudyOptions", "StudyResult", "Cell", "run_study", "write_study", "band_index",
-           "thin", "BASELINE", "REAL_ACC"]
+           "thin", "repeat_baselines", "BASELINE", "REAL_ACC"]

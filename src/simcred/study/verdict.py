@@ -2,21 +2,27 @@
 
 Two tests, switched by one option (``test``):
 
-* ``"permutation"`` (interim, per-transition): :func:`simcred.compare.compare` with the
-  permutation test gives one p-value per start state tested (successor samples exchangeable
-  *within* the state). The chain-level p-value is Fisher's combination over the ``k`` tested
-  states, ``P(χ²_{2k} ≥ −2 Σ_s ln p_s)``. Under the per-transition null (successors independent
-  given the start state) the states' samples are disjoint and their permutation streams
-  independent, so the p-values are independent; permutation p-values are valid (super-uniform),
-  which keeps Fisher's test at or below its level. Bonferroni (``k · min p``) was the first choice
-  and was dropped before any verdict was read: with B permutations no state p-value is below
-  1/(B + 1), so with ~100 states it cannot reject at 0.01 even where half the states differ.
-  Caveat: on real runs successive transitions of one run are dependent and runs carry per-run
-  traits (a driver's preferred gap), which makes per-transition tests anti-conservative
-  (docs/calibration.md). Results carry this method name and caveat.
-* ``"runs"`` (run-level, calibrated): whole runs are reassigned between the sets; the comparison
-  result carries the chain-level p-value itself (``result.chain``). Used as soon as
-  :func:`simcred.compare.compare` offers ``test="runs"``.
+* ``"runs"`` (run-level, calibrated; the default): :func:`simcred.compare.compare` with
+  ``test="runs"`` reassigns whole runs (episodes) between the sets, so the null distribution holds
+  whatever the dependence within a run (successive transitions, a driver's preferred gap). The
+  comparison carries the chain-level verdict itself (``result.chain``: Pesarin's sum of
+  standardised state statistics, start distribution included); the cell takes its p-value and
+  decision from there. Per-state verdicts are max-T family-wise controlled (``multiplicity=
+  "fwer"``), so the distance (rejected states / |S|) is calibrated: under H0 it is > 0 with
+  probability at most alpha.
+* ``"permutation"`` (interim, per-transition; kept to compare with earlier results):
+  :func:`simcred.compare.compare` with the permutation test gives one p-value per start state
+  tested (successor samples exchangeable *within* the state). The chain-level p-value is Fisher's
+  combination over the ``k`` tested states, ``P(χ²_{2k} ≥ −2 Σ_s ln p_s)``. Under the
+  per-transition null (successors independent given the start state) the states' samples are
+  disjoint and their permutation streams independent, so the p-values are independent; permutation
+  p-values are valid (super-uniform), which keeps Fisher's test at or below its level. Bonferroni
+  (``k · min p``) was the first choice and was dropped before any verdict was read: with B
+  permutations no state p-value is below 1/(B + 1), so with ~100 states it cannot reject at 0.01
+  even where half the states differ. Caveat: on real runs successive transitions of one run are
+  dependent and runs carry per-run traits (a driver's preferred gap), which makes per-transition
+  tests anti-conservative (docs/calibration.md). Results carry this method name and caveat; its
+  distance is the paper's (states with p <= alpha, no multiplicity control).
 """
 
 from __future__ import annotations
@@ -30,11 +36,12 @@ from scipy.stats import chi2
 from simcred.compare.result import Comparison
 from simcred.errors import OptionError
 
-TESTS = ("permutation", "runs")
+TESTS = ("runs", "permutation")
 METHODS = {
     "permutation": "per-transition permutation test per state, Fisher's combination over "
                    "tested states (interim; anti-conservative under within-run dependence)",
-    "runs": "run-level permutation test (runs reassigned between sets), chain-level p-value",
+    "runs": "run-level permutation test (episodes reassigned between sets), chain-level "
+            "p-value; per-state verdicts max-T FWER-controlled (calibrated distance)",
 }
 
 
@@ -83,10 +90,12 @@ def chain_verdict(result: Comparison, test: str, alpha: float) -> CellVerdict:
     pvalues = [s.result.pvalue for s in result.states if s.result.pvalue is not None]
     smallest = min(pvalues) if pvalues else None
     if check_test(test) == "runs":
-        chain = result.chain  # provided by the run-level comparison
-        pvalue = float(chain.pvalue)
+        if result.chain is None:
+            raise OptionError("the run-level verdict needs a comparison made with test='runs'")
+        pvalue, rejected = float(result.chain.pvalue), bool(result.chain.rejected)
     else:
         pvalue = fisher(pvalues)
-    return CellVerdict(pvalue=pvalue, rejected=pvalue is not None and pvalue <= alpha,
+        rejected = pvalue is not None and pvalue <= alpha
+    return CellVerdict(pvalue=pvalue, rejected=rejected,
                         alpha=alpha, method=METHODS[test], n_tested=len(result.states),
                         min_state_pvalue=smallest)
