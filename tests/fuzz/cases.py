@@ -21,7 +21,7 @@ Builder = Callable[[Path, dict], list[str]]
 # --- trace-set corruptions: each writes a broken trace set and returns its path -------------------
 
 def _csv_dir(root: Path, files: dict[str, bytes]) -> Path:
-    directory = root / "bad_runs"
+    directory = root / "corrupt_runs"
     directory.mkdir()
     for name, data in files.items():
         (directory / name).write_bytes(data)
@@ -31,7 +31,7 @@ def _csv_dir(root: Path, files: dict[str, bytes]) -> Path:
 GOOD_RUN = b"t,x,y\n0,0,0\n0.1,1,0.5\n0.2,2,0.7\n0.3,3,0.9\n"
 
 
-def _parquet(root: Path, table: pa.Table, name: str = "bad_set.parquet") -> Path:
+def _parquet(root: Path, table: pa.Table, name: str = "corrupt_set.parquet") -> Path:
     path = root / name
     pq.write_table(table, path)
     return path
@@ -44,7 +44,7 @@ def _runs_table(run_type: pa.DataType | None, runs: list) -> pa.Table:
 
 
 TRACE_SETS: dict[str, Callable[[Path], Path]] = {
-    "missing path": lambda r: r / "bad_missing",
+    "missing path": lambda r: r / "corrupt_missing",
     "empty directory": lambda r: _csv_dir(r, {}),
     "empty csv file": lambda r: _csv_dir(r, {"run_0.csv": b""}),
     "header only": lambda r: _csv_dir(r, {"run_0.csv": b"t,x\n"}),
@@ -72,7 +72,7 @@ TRACE_SETS: dict[str, Callable[[Path], Path]] = {
     "binary garbage csv": lambda r: _csv_dir(r, {"run_0.csv": bytes(range(256)) * 4}),
     "metadata nested deep": lambda r: _with_metadata(r, "[" * 100_000 + "]" * 100_000),
     "metadata not json": lambda r: _with_metadata(r, "{not json"),
-    "not a parquet file": lambda r: _text(r / "bad_x.parquet", "t,x\n0,1\n"),
+    "not a parquet file": lambda r: _text(r / "corrupt_x.parquet", "t,x\n0,1\n"),
     "parquet without run column": lambda r: _parquet(
         r, pa.table({"t": [0.0, 0.1], "x": [1.0, 2.0]})),
     "parquet run of list type": lambda r: _parquet(
@@ -233,7 +233,7 @@ def _file_cases() -> list[tuple[str, Builder]]:
         return "\n".join([lines[0], lines[1], ",".join(row), *lines[3:]]) + "\n"
 
     cases: list[tuple[str, Builder]] = []
-    for name in ("gt.parquet", "sd.parquet", "measurement.json"):
+    for name in ("sd.parquet", "measurement.json"):  # without gt.parquet: SD-only, valid
         cases.append((f"reprocess measurement without {name}", lambda r, v, n=name: [
             "reprocess", str(measurement_without(r, v, n)), "--out", str(r / "rp")]))
     for label, edit in [("lat 95", lat95), ("empty", lambda t: ""),

@@ -99,6 +99,6 @@ def test_bad_input_gets_one_line_and_exit_2(case, valid, tmp_path):
     assert code == 2, f"exit {code}; stderr: {err[-300:]!r}"
     assert len(lines) == 1, f"{len(lines)} lines on stderr: {err[-500:]!r}"
     assert lines[0].startswith("error:") and len(lines[0]) > len("error: ") + 10
-    if any("bad_" in arg for arg in argv):  # the error names the broken input, not another
-        assert "bad_" in lines[0], lines[0]
+    if any("corrupt_" in arg for arg in argv):  # the error names the broken input, not another
+        assert "corrupt_" in lines[0], lines[0]
     assert elapsed < LIMIT_S

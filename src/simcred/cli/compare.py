@@ -16,6 +16,7 @@ from simcred.cli._app import (
     State,
     Workers,
     app,
+    check_output,
     one_line_errors,
     out_console,
     progress,
@@ -26,10 +27,15 @@ from simcred.compare.kernels import Kernel
 from simcred.compare.mmd import Estimator, Test
 from simcred.compare.runs import ChainStatistic, Multiplicity, OneSided
 from simcred.errors import OptionError
+from simcred.limits import check_count, check_finite
 
 
 def _split(text: str | None) -> list[str] | None:
     return None if text is None else [part.strip() for part in text.split(",")]
+
+
+#: Below this, 1/alpha and log(1/alpha) lose the precision the bound and the p-values need.
+MIN_ALPHA = 1e-15
 
 
 def _bins(text: str) -> int | list[int]:
@@ -38,6 +44,8 @@ def _bins(text: str) -> int | list[int]:
     except ValueError:
         raise OptionError(f"--bins must be an integer or a comma-separated list, got {text!r}"
                           ) from None
+    for value in values:
+        check_count(value, "bins", "--bins", minimum=2)
     return values[0] if len(values) == 1 else values
 
 
@@ -84,6 +92,8 @@ StopEarly = Annotated[bool, typer.Option(
 def _options(features, bins, kernel, estimator, test, alpha, permutations, seed,
              continue_on_start_difference, stop_early, multiplicity=None, chain=ChainStatistic.SUM,
              one_sided=OneSided.EVIDENCE, history=1, time_bins=None, resample=None) -> dict:
+    check_finite(alpha, "--alpha", minimum=MIN_ALPHA, maximum=1, open_maximum=True)
+    check_count(permutations, "permutations", "--permutations")
     return dict(features=_split(features), bins=_bins(bins), kernel=kernel.value,
                 estimator=estimator.value, test=test.value, alpha=alpha,
                 permutations=permutations, seed=seed,
@@ -130,6 +140,8 @@ def compare(
 ) -> None:
     """Compare two trace sets: a chain verdict and the fraction of distinguishable transitions
     (Neurohr et al.)."""
+    if out is not None:
+        check_output(out, a, b)
     extra = dict(baseline=baseline, bootstrap=bootstrap, relevance=relevance) \
         if test is Test.RUNS else {}
     result = compare_sets(a, b, progress=progress("testing states"), **extra,
@@ -231,6 +243,8 @@ def matrix(
     as_json: Json = False,
 ) -> None:
     """Distance matrix of N trace sets (as Table 3 of Neurohr et al.)."""
+    if out is not None:
+        check_output(out, *sets)
     result = matrix_of_sets(sets, names=_split(names), workers=workers, scheduler=scheduler,
                             progress=progress("comparing pairs"),
                             **_options(features, bins, kernel, estimator, test, alpha,
@@ -273,6 +287,7 @@ def example(
     """Write the built-in example trace sets (seeded lane changes: baseline and variant)."""
     from simcred.examples import lane_change_sets
 
+    check_output(out)
     suffix = ".parquet" if parquet else ""
     for traces, name in zip(lane_change_sets(runs, steps, seed=seed,
                                              duration_scale=duration_scale),
