@@ -74,6 +74,7 @@ def test_help_shows_every_help_text_unchanged(path, command, capsys):
         text = getattr(param, "help", None)
         if text:
             assert _flat(text) in shown, f"{param.name}: {text!r} not in help"
+    assert "\\[" not in shown  # help is plain text: a rich escape would show as a backslash
 
 
 @pytest.mark.parametrize(("path", "command"), COMMANDS, ids=IDS)

@@ -42,16 +42,16 @@ def data_openacc(
     follower: Annotated[str | None, typer.Option(help="human or acc (default: both).")] = None,
     source: Annotated[Path | None, typer.Option(help="Folder of OpenACC CSV or Parquet files "
                                                      "(default: the shipped copy).")] = None,
-    duration: Annotated[float, typer.Option(help="Episode length \\[s].")] = 10.0,
+    duration: Annotated[float, typer.Option(help="Episode length [s].")] = 10.0,
     min_leader_speed: Annotated[float, typer.Option(help="Leader's mean speed must exceed "
-                                                         "this \\[m/s].")] = 2.0,
-    min_gap: Annotated[float, typer.Option(help="Smallest plausible gap \\[m].")] = 0.5,
-    max_gap: Annotated[float, typer.Option(help="Largest plausible gap \\[m].")] = 120.0,
+                                                         "this [m/s].")] = 2.0,
+    min_gap: Annotated[float, typer.Option(help="Smallest plausible gap [m].")] = 0.5,
+    max_gap: Annotated[float, typer.Option(help="Largest plausible gap [m].")] = 120.0,
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing OUT (never "
                                                                 "the input).")] = False,
 ) -> None:
-    """Cut OpenACC leader–follower episodes (gap \\[m], dv \\[m/s], v \\[m/s], a \\[m/s²],
-    v_leader \\[m/s]) into a trace set; prints what each episode rule removed."""
+    """Cut OpenACC leader–follower episodes (gap [m], dv [m/s], v [m/s], a [m/s²],
+    v_leader [m/s]) into a trace set; prints what each episode rule removed."""
     from simcred import data
     from simcred.io.openacc import EpisodeRules, read_openacc
     from simcred.outputs import check_out, output_dir

@@ -127,8 +127,8 @@ def _sumo_models(text: str) -> list[str]:
 @one_line_errors
 def simulate_sumo_following(
     traces: Annotated[Path, typer.Argument(help="Car-following episodes: a trace set (CSV "
-                                                "directory or Parquet) with signals gap \\[m], "
-                                                "v \\[m/s] (follower) and v_leader \\[m/s].")],
+                                                "directory or Parquet) with signals gap [m], "
+                                                "v [m/s] (follower) and v_leader [m/s].")],
     out: Annotated[Path, typer.Option(help="Directory for <model>.parquet per model and "
                                            "sumo-following.json (provenance).")],
     models: SumoModels = "Krauss,IDM,EIDM",
@@ -142,9 +142,9 @@ def simulate_sumo_following(
 ) -> None:
     """Replay the recorded leaders in SUMO; each model drives the follower (lane changes off).
 
-    The leader's recorded speed \\[m/s] is imposed every step; the follower starts from the
-    recorded gap \\[m] and speed \\[m/s]. Outputs: gap \\[m], dv \\[m/s] (leader −
-    follower), v \\[m/s], a \\[m/s²], v_leader \\[m/s] on the input's time stamps \\[s].
+    The leader's recorded speed [m/s] is imposed every step; the follower starts from the
+    recorded gap [m] and speed [m/s]. Outputs: gap [m], dv [m/s] (leader −
+    follower), v [m/s], a [m/s²], v_leader [m/s] on the input's time stamps [s].
     """
     from simcred.outputs import output_dir
     from simcred.sim.sumo import replay, write_replays

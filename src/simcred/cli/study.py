@@ -52,13 +52,13 @@ def car_following(
     models: Annotated[str, typer.Option(help="SUMO car-following models replaying the human "
                                              "episodes' leaders.")] = "Krauss,IDM,EIDM,ACC",
     bands: Annotated[str, typer.Option(help="Operating regions: bands of the leader's mean "
-                                            "speed \\[m/s], LOW-HIGH,...")] = "0-10,10-20,20-30",
-    features: Annotated[str, typer.Option(help="State features: gap \\[m], dv \\[m/s] "
-                                               "(leader − follower), v \\[m/s], a \\[m/s²], "
-                                               "v_leader \\[m/s].")
+                                            "speed [m/s], LOW-HIGH,...")] = "0-10,10-20,20-30",
+    features: Annotated[str, typer.Option(help="State features: gap [m], dv [m/s] "
+                                               "(leader − follower), v [m/s], a [m/s²], "
+                                               "v_leader [m/s].")
                         ] = "gap,dv,a",
     bins: Annotated[int, typer.Option(help="Equal-frequency bins per feature.")] = 5,
-    sample_step: Annotated[float, typer.Option(help="Sample period of the compared chains \\[s] "
+    sample_step: Annotated[float, typer.Option(help="Sample period of the compared chains [s] "
                                                     "(a multiple of 0.1 s).")] = 0.5,
     test: Annotated[str, typer.Option(help="runs: run-level test (episodes reassigned; "
                                            "calibrated, the default); permutation: the interim "
