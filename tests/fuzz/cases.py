@@ -176,8 +176,68 @@ def _cases() -> list[tuple[str, Builder]]:
         "reprocess", str(v["measurement"]), "--out", str(r / "rp"), "--vehicle", "bad"]))
     add(("vary --vehicle bad", lambda r, v: [
         "vary", str(v["description"]), "--out", str(r / "v"), "--vehicle", "bad"]))
-    cases += _output_cases() + _file_cases()
+    cases += _output_cases() + _file_cases() + _newer_command_cases()
     return cases
+
+
+def _newer_command_cases() -> list[tuple[str, Builder]]:
+    """study, validate, convert, data and contracts: options and files."""
+    cases: list[tuple[str, Builder]] = []
+    study = ["study", "car-following"]
+    for option, value in [("--bands", "10-5"), ("--bands", "a-b"), ("--bands", ""),
+                          ("--features", "nope"), ("--bins", "1"), ("--bins", "1000000000000"),
+                          ("--sample-step", "0"), ("--sample-step", "nan"), ("--test", "magic"),
+                          ("--alpha", "2"), ("--permutations", "0"), ("--baseline", "-1"),
+                          ("--one-sided", "x"), ("--models", "NoSuchModel"),
+                          ("--max-episodes", "0"), ("--min-runs", "0")]:
+        cases.append((f"study {option} {value!r}", lambda r, v, o=option, x=value: [
+            *study, "--out", str(r / "st"), o, x]))
+    cases.append(("study --source corrupt", lambda r, v: [
+        *study, "--out", str(r / "st"), "--source", str(_text(r / "corrupt_acc.csv", "x\n"))]))
+    for label, text in [("not yaml", "a: [1"), ("empty", ""), ("list", "- 1\n- 2\n"),
+                        ("unknown key", "name: x\nnonsense: 1\n"),
+                        ("duplicate key", "name: x\nname: y\n"),
+                        ("deep", "a: " + "[" * 10_000 + "]" * 10_000 + "\n"),
+                        ("not utf8", None)]:
+        cases.append((f"validate {label}", lambda r, v, t=text: [
+            "validate", str(_validation(r, t)), "--out", str(r / "val")]))
+    for label, args in [("missing input", ["corrupt_missing.parquet"]),
+                        ("unknown format", [None, "--format", "nope"]),
+                        ("unknown option", [None, "--run-column", "x"]),
+                        ("same file", [None, "SAME"])]:
+        cases.append((f"convert {label}", lambda r, v, a=args: _convert(r, v, a)))
+    cases.append(("data path unknown", lambda r, v: ["data", "path", "corrupt_nothing"]))
+    for command in (["contracts", "check"], ["contracts", "configure", "--test-case", "C_tc"]):
+        cases.append((f"{' '.join(command)} missing library", lambda r, v, c=command: [
+            *c[:2], str(r / "corrupt_lib.yaml"), *c[2:]]))
+        cases.append((f"{' '.join(command)} non-utf8 library", lambda r, v, c=command: [
+            *c[:2], str(_bytes(r / "corrupt_lib.yaml", b"variables: \xff\n")), *c[2:]]))
+    return cases
+
+
+def _bytes(path: Path, data: bytes) -> Path:
+    path.write_bytes(data)
+    return path
+
+
+def _validation(root: Path, text: str | None) -> Path:
+    path = root / "corrupt_validation.yaml"
+    if text is None:
+        path.write_bytes(b"name: \xff\xfe\n")
+    else:
+        path.write_text(text)
+    return path
+
+
+def _convert(root: Path, valid: dict, args: list) -> list[str]:
+    source = str(valid["b"])
+    out = str(root / "converted.parquet")
+    resolved = [source if a is None else (source if a == "SAME" else a) for a in args]
+    if args[0] is None and len(args) > 1 and args[1] == "SAME":
+        return ["convert", source, source]
+    if args[0] is None:
+        return ["convert", source, out, *resolved[1:]]
+    return ["convert", str(root / resolved[0]), out]
 
 
 def _output_cases() -> list[tuple[str, Builder]]:
