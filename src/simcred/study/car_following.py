@@ -49,7 +49,7 @@ from simcred.limits import check_count, check_finite
 from simcred.seeds import derive_seed
 from simcred.sim.sumo import replay, sumo_version
 from simcred.study.verdict import METHODS, CellVerdict, chain_verdict, check_test
-from simcred.traces import RUN_INFO, TraceSet, take
+from simcred.traces import RUN_INFO, TIME, TraceSet, take
 
 BASELINE = "human vs human (random split)"
 BASELINE_CARS = "human vs human (split by car)"
@@ -102,6 +102,11 @@ class StudyOptions:
             check_count(self.max_episodes, "episodes", "max episodes", minimum=2)
         if not self.models:
             raise OptionError("give at least one SUMO model")
+        signals = [name for name in UNITS if name != TIME]
+        unknown = [f for f in self.features if f not in signals]
+        if unknown or not self.features:
+            raise OptionError(f"unknown feature(s) {', '.join(unknown) or '(none given)'}: the "
+                              f"episodes' signals are {', '.join(signals)}")
         if not self.bands or any(not lo < hi for lo, hi in self.bands):
             raise OptionError(f"speed bands must be (low, high) with low < high, got {self.bands}")
         edges = sorted(self.bands)
