@@ -71,6 +71,21 @@ def _project(grid: dict[str, np.ndarray], axes: tuple[int, int]) -> dict[str, np
     return out
 
 
+def unit_labels(result: Comparison) -> dict[str, str]:
+    """Axis label per state feature, with the unit the trace sets declare: ``gap [m]``.
+
+    A feature derived from a base signal (history ``x@t-1``, a time window) takes its unit.
+    """
+    units = {f: u for f, u in zip(result.options.features, result.units, strict=False) if u}
+    labels = {}
+    for name in result.space.features:
+        base = max((f for f in units if name == f or name.startswith((f + "@", f + "["))),
+                   key=len, default=None)
+        if base is not None:
+            labels[name] = f"{name} [{units[base]}]"
+    return labels
+
+
 def state_map(result: Comparison, path: str | Path, features: tuple[str, str] | None = None,
               *, labels: Mapping[str, str] | None = None, title: str | None = None) -> Path:
     """Where A and B differ: the state grid over two features, in feature units.
@@ -82,6 +97,7 @@ def state_map(result: Comparison, path: str | Path, features: tuple[str, str] | 
     ``{"gap": "gap [m]"}``); ``title`` replaces the default title (the two input names).
     """
     names = result.space.features
+    labels = {**unit_labels(result), **(labels or {})}
     chosen = features or (names[:2] if len(names) > 1 else (names[0], names[0]))
     axes = tuple(names.index(f) for f in chosen)
     grid = result.state_grid()
