@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from simcred.sim.campaign import run_rng
+from simcred.seeds import stream as run_rng
 from simcred.sim.closed_loop import run_closed_loop
 from simcred.sim.driver import ADFunction
 from simcred.sim.experiments.cutin import (
