@@ -13,7 +13,7 @@ from matplotlib.colors import ListedColormap  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 
 from simcred.io.openacc import UNITS  # noqa: E402
-from simcred.report.figures import _save, state_map  # noqa: E402
+from simcred.report.figures import save_figure, state_map  # noqa: E402
 from simcred.study.car_following import StudyResult, band_label, cell_slug  # noqa: E402
 
 # insufficient data, not distinguishable, differs
@@ -53,7 +53,7 @@ def verdict_matrix(result: StudyResult, path: str | Path) -> Path:
     ax.set_title(f"vs real human following (OpenACC): chain p-value, distance d = rejected "
                  f"states / |S|\n{result.to_dict()['method']}; α = {o.alpha}", fontsize=8,
                  wrap=True)
-    return _save(fig, Path(path))
+    return save_figure(fig, Path(path))
 
 
 def _runs(c) -> str:
@@ -92,7 +92,7 @@ def headway_panel(result: StudyResult, path: str | Path) -> Path:
     axes[0].legend(fontsize=8, title="bars: candidate; dashed: all human", title_fontsize=8)
     fig.suptitle("candidate sets per speed band (descriptive; second half / cars of the "
                  "baselines)", fontsize=10)
-    return _save(fig, Path(path))
+    return save_figure(fig, Path(path))
 
 
 def study_figures(result: StudyResult, out: str | Path,
