@@ -101,8 +101,10 @@ def markov(rng, lengths, row0=MARKOV[0]):
 
 def ar1_ragged(rng, lengths, phi=0.8):
     """Stationary AR(1) x (φ = phi) and y (φ = 0.5), one run per entry of ``lengths``."""
-    return ragged([np.stack([ar1(rng, 1, n, phi, 0.0, 1.0)[0], ar1(rng, 1, n, 0.5, 0.0, 1.0)[0]],
-                            axis=1) for n in lengths])
+    steps = int(max(lengths))
+    xy = np.stack([ar1(rng, len(lengths), steps, phi, 0.0, 1.0),
+                   ar1(rng, len(lengths), steps, 0.5, 0.0, 1.0)], axis=2)
+    return ragged([run[:n] for run, n in zip(xy, lengths, strict=True)])
 
 
 def lengths(rng, runs=40):
