@@ -88,15 +88,15 @@ MARKOV_ROW0 = np.array([.3, .4, .2, .1])
 def markov(rng, lengths, row0=MARKOV[0]):
     """Runs of the MARKOV chain (x, coin y) of the given lengths, started uniformly."""
     cum = np.vstack([row0, MARKOV[1:]]).cumsum(axis=1)
-    out = []
-    for steps in lengths:
-        x = np.empty(steps, dtype=int)
-        x[0] = rng.integers(0, 4)
-        u = rng.random(steps)
-        for t in range(1, steps):
-            x[t] = np.searchsorted(cum[x[t - 1]], u[t], side="right")
-        out.append(np.stack([x, rng.integers(0, 2, size=steps)], axis=1).astype(float))
-    return ragged(out)
+    cum[:, -1] = 1.0  # no rounding below 1: u < 1 always finds a successor
+    runs, steps = len(lengths), int(max(lengths))
+    x = np.empty((runs, steps), dtype=int)
+    x[:, 0] = rng.integers(0, 4, size=runs)
+    u = rng.random((runs, steps))
+    for t in range(1, steps):
+        x[:, t] = (u[:, t, None] >= cum[x[:, t - 1]]).sum(axis=1)
+    xy = np.stack([x, rng.integers(0, 2, size=(runs, steps))], axis=2).astype(float)
+    return ragged([run[:n] for run, n in zip(xy, lengths, strict=True)])
 
 
 def ar1_ragged(rng, lengths, phi=0.8):
