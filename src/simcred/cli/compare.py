@@ -128,8 +128,8 @@ def compare(
         help="Runs test: random half-splits of A compared with each other (the distance's "
              "same-model baseline); 0 = none.")] = 10,
     bootstrap: Annotated[int, typer.Option(
-        help="Runs test: bootstrap replicates for a 95 % interval of the distance; 0 = "
-             "none.")] = 0,
+        help="Runs test: bootstrap replicates for the distance's 95 % re-test spread "
+             "(biased upward, not a confidence interval); 0 = none.")] = 0,
     relevance: Annotated[bool, typer.Option(
         help="Runs test: chain test per feature alone and per feature left out.")] = False,
     continue_on_start_difference: Continue = False,
@@ -178,7 +178,8 @@ def _print_comparison(result, out: Path | None) -> None:
         else f"{100 * result.distance:.2f} %"
     table.add_row("distance", distance)
     if result.interval is not None:
-        table.add_row(f"distance {100 * result.interval.level:.0f} % interval",
+        table.add_row(f"distance re-test spread ({100 * result.interval.level:.0f} %, "
+                      "bootstrap, biased up)",
                       f"{100 * result.interval.low:.2f} – {100 * result.interval.high:.2f} %")
     out_console.print(table)
     if result.relevance:
@@ -199,7 +200,8 @@ def _chain_rows(table: Table, result) -> None:
         base = result.baseline
         table.add_row(f"distance vs same-model baseline ({options.multiplicity})",
                       f"{distance} where {len(base.distances)} splits of A give "
-                      f"{100 * base.low:.2f}–{100 * base.high:.2f} %")
+                      f"{100 * base.low:.2f}–{100 * base.high:.2f} % "
+                      f"({base.nonzero} of {len(base.distances)} > 0)")
     table.add_section()
 
 

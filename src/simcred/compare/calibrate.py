@@ -5,8 +5,9 @@
   multiplicity-controlled per-state verdicts; distance = rejected states / |S| ([1] eq. (6)).
 * Same-model **baseline**: set A's runs split into random halves, compared with the same options
   (same state space): the distance "no difference" gives.
-* **Bootstrap interval**: runs resampled with replacement within each set, the whole test redone;
-  percentile interval of the distance.
+* **Re-test spread** (bootstrap): runs resampled with replacement within each set, the whole
+  test redone; percentile range of the distance. Biased upward (duplicated runs make the sets
+  look more different), so it is a spread of re-tests, not a confidence interval.
 * **Feature relevance**: the chain test on each feature alone and with each feature left out, on
   the same bin edges.
 
@@ -147,7 +148,8 @@ def same_model_baseline(counts: RunCounts, n_a: int, space: StateSpace,
 
 def distance_interval(counts: RunCounts, n_a: int, space: StateSpace,
                       options: ComparisonOptions, permutations: int) -> DistanceInterval:
-    """Percentile interval ([2]) of the distance over ``options.bootstrap`` run resamples."""
+    """Percentile range ([2]) of the distance over ``options.bootstrap`` run resamples: the
+    re-test spread (biased upward; not a confidence interval)."""
     spec = run_spec(options, permutations)
     n_b = counts.n_runs - n_a
     replicates = []

@@ -89,8 +89,9 @@ class ChainVerdict:
 class Baseline:
     """The distance when the reference set is split against itself (random halves of its runs).
 
-    Under "no difference" this is what the distance looks like with the same options; a
-    comparison's distance is read against it.
+    A check that A's runs are interchangeable: with FWER control each split gives distance 0 with
+    probability ≥ 1 − α when they are, so ``nonzero`` (splits with distance > 0) should be about
+    α · splits or fewer. A comparison's distance is read against it.
     """
 
     reference: str
@@ -105,10 +106,19 @@ class Baseline:
     def high(self) -> float:
         return float(max(self.distances))
 
+    @property
+    def nonzero(self) -> int:
+        return sum(d > 0 for d in self.distances)
+
 
 @dataclass(frozen=True, slots=True)
 class DistanceInterval:
-    """Percentile bootstrap interval of the distance, resampling runs within each set."""
+    """Re-test spread of the distance: the test redone on run resamples (with replacement)
+    within each set, percentile range of the distances.
+
+    Not a confidence interval of a "true" distance: a resample duplicates runs, which makes the
+    sets look more different than they are, so the range is biased upward (under H0 too).
+    """
 
     level: float
     low: float
@@ -192,7 +202,8 @@ class Comparison:
             body = {**_chain_first(body, asdict(self.chain))}
         if self.baseline is not None:
             body["baseline"] = {**asdict(self.baseline), "low": self.baseline.low,
-                                "high": self.baseline.high}
+                                "high": self.baseline.high,
+                                "nonzero_splits": self.baseline.nonzero}
         if self.interval is not None:
             body["distance_interval"] = asdict(self.interval)
         if self.relevance is not None:

@@ -13,9 +13,22 @@ Everything is computed from counts. ``R`` is the sparse (columns × runs) matrix
 a run's first state), block ``b ≥ 1`` the successors of one start state. For a batch of permutations
 given as a 0/1 matrix ``Z`` (runs × batch, ``n_A`` ones per column) the A-side counts of every
 state, successor and permutation are the one sparse product ``R @ Z``; the B side is the total
-minus that. The per-state statistic is the MMD of [1] with one fixed bandwidth per state (the
-median of the pooled sample's pairwise distances, which no permutation changes), so a state's
-kernel matrix is fixed and each permutation costs one application of it.
+minus that. The per-state MMD is the one of [1] with one fixed bandwidth per state (the median of
+the pooled sample's pairwise distances, which no permutation changes), so a state's kernel matrix
+is fixed and each permutation costs one application of it.
+
+The per-state *test statistic* is the MMD scaled by its sample sizes, ``T_s = √(m n / (m + n)) ·
+MMD_b`` (``m n / (m + n) · MMD²_u`` for the unbiased estimator), recomputed for every permutation
+with that permutation's ``m`` and ``n``. The null spread of the plain MMD shrinks like
+``√(1/m + 1/n)``; when the two sets' runs have different lengths the observed split has far more
+extreme ``m``/``n`` than the permutations, and the plain MMD would reject a same-process pair for
+that alone. The scaled statistic's null distribution does not depend on ``m``, ``n`` to first
+order. The reported per-state ``statistic`` stays the plain MMD of the observed split.
+
+A state that one set never leaves (one-sided) gets, in every permutation where a side is empty,
+the largest two-sided value of that state's statistic over all P + 1 assignments (``EVIDENCE``):
+at least as extreme as any two-sided split, and a function of the multiset of assignments only,
+so the test stays exact; or its permutation mean (``NEUTRAL``).
 
 Chain level [3]: each state's statistics over the permutations (observed included) are standardised
 by their mean and standard deviation over those permutations; the chain statistic is the sum (or
@@ -75,7 +88,7 @@ class ChainStatistic(StrEnum):
 class OneSided(StrEnum):
     """What a state contributes to a permutation in which one set has no transition from it."""
 
-    EVIDENCE = "evidence"  # the largest possible statistic: a one-sided state differs
+    EVIDENCE = "evidence"  # the state's largest two-sided value: a one-sided state differs
     NEUTRAL = "neutral"  # its permutation mean: no evidence either way
 
 
@@ -167,9 +180,11 @@ class RunTestSpec:
 class RunLevelOutcome:
     """Observed per-state quantities (one entry per block, block 0 = start) and the chain verdict.
 
-    ``m``/``n``: transitions (start block: runs) in A and B. ``statistic``: observed MMD (NaN when
-    one side is empty). ``pvalue``: per-state run-permutation p-value; ``adjusted``: after the
-    multiplicity adjustment (FWER: max-T adjusted p; FDR: BH-adjusted p; none: = ``pvalue``).
+    ``m``/``n``: transitions (start block: runs) in A and B. ``statistic``: observed MMD, not
+    scaled (NaN when one side is empty); ``scaled``: the test statistic ``√(mn/(m+n))·MMD_b``
+    (unbiased: ``mn/(m+n)·MMD²_u``). ``pvalue``: per-state run-permutation p-value;
+    ``adjusted``: after the multiplicity adjustment (FWER: max-T adjusted p; FDR: BH-adjusted p;
+    none: = ``pvalue``).
     ``in_family``: the state's statistic varies over the permutations (others cannot reject).
     """
 
@@ -177,6 +192,7 @@ class RunLevelOutcome:
     m: np.ndarray
     n: np.ndarray
     statistic: np.ndarray
+    scaled: np.ndarray
     bandwidth: np.ndarray
     pvalue: np.ndarray
     adjusted: np.ndarray
@@ -190,7 +206,8 @@ class RunLevelOutcome:
 
 
 def run_level_test(counts: RunCounts, in_a: np.ndarray, grid_of, spec: RunTestSpec,
-                   n_bins: tuple[int, ...], rng: np.random.Generator) -> RunLevelOutcome:
+                   n_bins: tuple[int, ...], rng: np.random.Generator | None,
+                   null: np.ndarray | None = None) -> RunLevelOutcome:
     """Run-permutation test of every state and of the chain ([1] sec. IV-A, R1 and R2).
 
     Parameters
@@ -204,13 +221,21 @@ def run_level_test(counts: RunCounts, in_a: np.ndarray, grid_of, spec: RunTestSp
     spec : RunTestSpec
     n_bins : tuple of int
         Bins per coordinate of a state vector (scale of the linear kernel).
-    rng : numpy.random.Generator
-        Source of the permutations.
+    rng : numpy.random.Generator or None
+        Source of the permutations (``spec.permutations`` of them).
+    null : ndarray of bool, shape (P, runs), optional
+        Given assignments to use as the null instead of random ones (e.g. every split: an exact
+        enumeration); ``rng`` and ``spec.permutations`` are then ignored.
     """
     in_a = np.asarray(in_a, dtype=bool)
     states = StateModels.build(counts, grid_of, spec, n_bins)
-    stats = _permuted_statistics(counts, in_a, states, spec, rng)
-    z, in_family = _standardise(stats, states.evidence, spec.one_sided)
+    if null is None:
+        assignments = random_assignments(in_a, spec.permutations, counts.matrix.shape[0], rng)
+    else:
+        assignments = np.vstack([in_a[None, :], np.asarray(null, dtype=bool)])
+    stats = assignment_statistics(counts, states, assignments, spec.estimator,
+                                  _batch(counts))
+    z, in_family = _standardise(stats, spec.one_sided)
     chain = z[:, in_family].sum(axis=1) if spec.chain is ChainStatistic.SUM \
         else _row_max(z[:, in_family])
     pvalue = exceedance_pvalues(z, z[0])
@@ -223,13 +248,14 @@ def run_level_test(counts: RunCounts, in_a: np.ndarray, grid_of, spec: RunTestSp
         adjusted = benjamini_hochberg(adjusted, in_family)
     observed_a = counts.matrix @ in_a.astype(np.float64)
     m = np.add.reduceat(observed_a, counts.bounds[:-1])
+    n = states.totals - m
     return RunLevelOutcome(
-        blocks=counts.blocks, m=m.astype(np.int64),
-        n=(states.totals - m).astype(np.int64), statistic=stats[0], bandwidth=states.bandwidths,
-        pvalue=pvalue, adjusted=adjusted, in_family=in_family,
+        blocks=counts.blocks, m=m.astype(np.int64), n=n.astype(np.int64),
+        statistic=stats[0] / _size_factor(m, n, spec.estimator), scaled=stats[0],
+        bandwidth=states.bandwidths, pvalue=pvalue, adjusted=adjusted, in_family=in_family,
         chain_statistic=float(chain[0]), chain_pvalue=float(exceedance_pvalues(
             chain[:, None], np.array([chain[0]]))[0]),
-        permutations=spec.permutations)
+        permutations=len(assignments) - 1)
 
 
 def exceedance_pvalues(null: np.ndarray, observed: np.ndarray) -> np.ndarray:
@@ -264,13 +290,12 @@ def _row_max(z: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True, slots=True, eq=False)
 class StateModels:
-    """Per block: kernel operator, pooled bandwidth, totals; and the one-sided evidence value."""
+    """Per block: kernel operator, pooled bandwidth and totals."""
 
     operators: tuple[KernelOperator, ...]
     bandwidths: np.ndarray
     totals: np.ndarray
     column_totals: np.ndarray
-    evidence: float
 
     @classmethod
     def build(cls, counts: RunCounts, grid_of, spec: RunTestSpec, n_bins) -> StateModels:
@@ -283,21 +308,22 @@ class StateModels:
             operators.append(KernelOperator(grid, spec.kernel, sigma, n_bins))
             bandwidths.append(np.nan if sigma is None else sigma)
         totals = np.add.reduceat(column_totals, counts.bounds[:-1])
-        # sup of the statistic for a kernel bounded by K = 1: MMD_b ≤ √2, MMD²_u ≤ 2
-        evidence = np.sqrt(2.0) if spec.estimator is Estimator.BIASED else 2.0
-        return cls(tuple(operators), np.array(bandwidths), totals, column_totals, evidence)
+        return cls(tuple(operators), np.array(bandwidths), totals, column_totals)
 
 
-def _permuted_statistics(counts: RunCounts, in_a: np.ndarray, states: StateModels,
-                         spec: RunTestSpec, rng: np.random.Generator) -> np.ndarray:
-    """(P + 1, blocks) statistics; row 0 is the observed assignment, NaN = one side empty.
+def _batch(counts: RunCounts) -> int:
+    """Assignments per batch: depends only on the data's dimensions."""
+    return int(np.clip(BATCH_BUDGET // max(*counts.matrix.shape, 1), 8, 1024))
 
-    All assignments are drawn first ((P + 1) × runs booleans), in batches whose size depends only
-    on the data's dimensions, each batch one ``Generator.permuted`` call. Then every chunk of the
-    count matrix is made dense once and multiplied with the assignments batch by batch.
+
+def random_assignments(in_a: np.ndarray, permutations: int, n_cols: int,
+                       rng: np.random.Generator) -> np.ndarray:
+    """(P + 1, runs) bool assignments; row 0 is ``in_a``, the others uniform permutations of it.
+
+    Drawn in batches whose size depends only on the data's dimensions, each batch one
+    ``Generator.permuted`` call.
     """
-    total = spec.permutations + 1
-    n_cols, n_runs = counts.matrix.shape
+    total, n_runs = permutations + 1, len(in_a)
     batch = int(np.clip(BATCH_BUDGET // max(n_cols, n_runs, 1), 8, 1024))
     pattern = np.sort(in_a)[::-1].copy()  # n_A ones, then zeros
     assignments = np.empty((total, n_runs), dtype=bool)
@@ -306,7 +332,7 @@ def _permuted_statistics(counts: RunCounts, in_a: np.ndarray, states: StateModel
         assignments[start:start + size] = rng.permuted(np.broadcast_to(pattern, (size, n_runs)),
                                                        axis=1)
     assignments[0] = in_a
-    return assignment_statistics(counts, states, assignments, spec.estimator, batch)
+    return assignments
 
 
 class SideCounts:
@@ -365,7 +391,7 @@ def _block_chunks(bounds: np.ndarray, weights: np.ndarray, budget: int
 
 def assignment_statistics(counts: RunCounts, states: StateModels, assignment: np.ndarray,
                           estimator: Estimator, batch: int = 256) -> np.ndarray:
-    """(k, blocks) statistics of k assignments of runs to A (bool, shape (k, runs))."""
+    """(k, blocks) size-scaled statistics of k assignments of runs to A (bool, (k, runs))."""
     product = SideCounts(counts)
     out = np.empty((len(assignment), len(counts.blocks)))
     for first, last, lo, hi in product.chunks:
@@ -382,32 +408,42 @@ def assignment_statistics(counts: RunCounts, states: StateModels, assignment: np
 
 def _statistic(a: np.ndarray, totals: np.ndarray, kernel: KernelOperator,
                estimator: Estimator) -> np.ndarray:
-    """MMD of A-side counts ``a`` (U, batch) against the rest of ``totals`` (U,), per column.
+    """Scaled MMD of A-side counts ``a`` (U, batch) against the rest of ``totals`` (U,), per column.
 
-    Biased: ``MMD_b = √(dᵀ K d)``, ``d = a/m − (t − a)/n`` ([1] sec. IV-B). Unbiased: ``MMD²_u``
-    ([2] of mmd.py, eq. 3) with the diagonal removed. NaN where a side has too few samples.
+    Biased: ``√(mn/(m+n)) · MMD_b``, ``MMD_b = √(dᵀ K d)``, ``d = a/m − (t − a)/n`` ([1] sec.
+    IV-B). Unbiased: ``mn/(m+n) · MMD²_u`` ([2] of mmd.py, eq. 3). NaN where a side has too few
+    samples.
     """
     m = a.sum(axis=0)
     n = totals.sum() - m
     small = (m < estimator.min_samples) | (n < estimator.min_samples)
     with np.errstate(invalid="ignore", divide="ignore"):  # empty sides: NaN below
         value = kernel_statistics(kernel, a, totals[:, None] - a, estimator, QUADRATIC_FLOOR)
+        value *= _size_factor(m, n, estimator)
     value[small] = np.nan
     return value
 
 
-def _standardise(stats: np.ndarray, evidence: float, one_sided: OneSided
-                 ) -> tuple[np.ndarray, np.ndarray]:
+def _size_factor(m: np.ndarray, n: np.ndarray, estimator: Estimator) -> np.ndarray:
+    """``√(mn/(m+n))`` (biased MMD) or ``mn/(m+n)`` (unbiased MMD²): the statistic's null scale."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        harmonic = m * n / (m + n)
+    return np.sqrt(harmonic) if estimator is Estimator.BIASED else harmonic
+
+
+def _standardise(stats: np.ndarray, one_sided: OneSided) -> tuple[np.ndarray, np.ndarray]:
     """Standardised statistics (P + 1, blocks) and the family of states that vary.
 
-    One-sided entries (NaN) become ``evidence`` (the supremum of the statistic) or, for
-    ``NEUTRAL``, the state's mean over the two-sided permutations (z = 0). Mean and standard
-    deviation are over all P + 1 rows, the observed one included ([3]).
+    One-sided entries (NaN) become, for ``EVIDENCE``, the state's largest two-sided value over
+    all P + 1 rows or, for ``NEUTRAL``, the state's mean over the two-sided rows (z = 0). Both,
+    like the mean and standard deviation, are over all P + 1 rows, the observed one included
+    ([3]): functions of the set of assignments, not of which one is observed, so the test stays
+    exact.
     """
-    filled = np.where(np.isnan(stats), evidence, stats) if one_sided is OneSided.EVIDENCE \
-        else stats
     with warnings.catch_warnings(), np.errstate(invalid="ignore", divide="ignore"):
         warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN columns: never two-sided
+        filled = np.where(np.isnan(stats), np.nanmax(stats, axis=0), stats) \
+            if one_sided is OneSided.EVIDENCE else stats
         mean = np.nanmean(filled, axis=0) if one_sided is OneSided.NEUTRAL \
             else filled.mean(axis=0)
         sd = np.nanstd(filled, axis=0) if one_sided is OneSided.NEUTRAL else filled.std(axis=0)
