@@ -40,6 +40,7 @@ from simcred.compare.result import (
 from simcred.compare.runs import ChainStatistic, Multiplicity, OneSided
 from simcred.engine import Progress
 from simcred.errors import OptionError
+from simcred.seeds import resolve_seed, stream
 from simcred.traces import TraceSet
 
 START_KEY = 0  # seed stream of the start test; state s uses 1 + s
@@ -236,7 +237,7 @@ def compare_prepared(
     states, x, y = aligned(counts_a.start_states, counts_a.start_counts,
                            counts_b.start_states, counts_b.start_counts)
     start = mmd_test(space.vectors(states), x, y, spec, space.shape,
-                     _stream(options.seed, START_KEY))
+                     stream(options.seed, START_KEY))
     stopped = start.rejected and not options.continue_on_start_difference
     tested: list[StateTest] = []
     untestable: list[UntestableState] = []
@@ -248,25 +249,10 @@ def compare_prepared(
                 untestable.append(UntestableState(state, g.m, g.n))
                 continue
             result = mmd_test(space.vectors(g.successors), g.counts_a, g.counts_b, spec,
-                              space.shape, _stream(options.seed, 1 + g.state))
+                              space.shape, stream(options.seed, 1 + g.state))
             tested.append(StateTest(state, result))
     return Comparison(options, (a.info, b.info), space, start, stopped, tuple(tested),
                       tuple(untestable))
-
-
-def _stream(entropy: int, key: int) -> np.random.Generator:
-    return np.random.default_rng(np.random.SeedSequence(entropy, spawn_key=(key,)))
-
-
-def resolve_seed(seed: int | np.random.Generator | None) -> int:
-    """The integer entropy behind ``seed``: fresh if None, one draw from a Generator."""
-    if seed is None:
-        return int(np.random.SeedSequence().entropy)
-    if isinstance(seed, np.random.Generator):
-        return int(seed.integers(2**63))
-    if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
-        raise OptionError(f"seed must be a non-negative integer or a numpy Generator, got {seed!r}")
-    return int(seed)
 
 
 def resolve_features(sets: Sequence[TraceSet], features: Sequence[str] | str | None
