@@ -18,7 +18,7 @@ from simcred.io.openacc import (
     recording_files,
     to_parquet,
 )
-from simcred.traces import RUN_INFO, take
+from simcred.traces import RUN_INFO, TraceSet, take
 
 SUBDIR = Path("data") / "real" / "openacc"
 CANDIDATES = [Path(__file__).resolve().parents[3] / "shared" / SUBDIR,
@@ -227,3 +227,16 @@ def test_bad_file_one_line_error(tmp_path, text, message):
     with pytest.raises(TraceSetError, match=message) as info:
         read_recording(path)
     assert str(path) in str(info.value) and "\n" not in str(info.value)
+
+
+def test_data_openacc_records_its_provenance(tmp_path):
+    from simcred._json import file_digest
+    from simcred.cli import run
+
+    out = tmp_path / "human.parquet"
+    assert run(["--quiet", "data", "openacc", "--out", str(out), "--follower", "human"]) == 0
+    provenance = TraceSet.read(out).metadata["provenance"]
+    assert provenance["options"]["follower"] == "human"
+    root = data.path("openacc")
+    assert provenance["inputs"] == {p.relative_to(root).as_posix(): file_digest(p)
+                                    for p in recording_files(root)}

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 from typing import Annotated
 
@@ -63,6 +64,9 @@ def data_openacc(
     rules = EpisodeRules(duration=duration, min_leader_speed=min_leader_speed,
                          gap_range=(min_gap, max_gap))
     traces = read_openacc(source, rules, follower=follower)
+    traces = dataclasses.replace(traces, metadata={**traces.metadata, "provenance": _provenance(
+        inputs[0], {"follower": follower, "duration": duration, "min_leader_speed":
+                    min_leader_speed, "min_gap": min_gap, "max_gap": max_gap})})
     if is_file:
         path = traces.write(out)
     else:
@@ -75,3 +79,15 @@ def data_openacc(
         f"{cut['pairs']} pairs; of {cut['possible']} possible: {cut['removed_incomplete']} "
         f"incomplete, {cut['removed_leader_stopped']} leader stopped, {cut['removed_gap']} gap "
         f"out of range, {cut['kept']} kept", highlight=False)
+
+
+def _provenance(root: Path, options: dict) -> dict:
+    """What the episodes were cut from (content hashes), with which options and version."""
+    from simcred._json import file_digest
+    from simcred._version import __version__
+    from simcred.io.openacc import recording_files
+
+    files = recording_files(root)
+    names = {p: p.relative_to(root).as_posix() if root.is_dir() else p.name for p in files}
+    return {"simcred_version": __version__, "options": options,
+            "inputs": {names[p]: file_digest(p) for p in files}}
