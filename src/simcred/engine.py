@@ -117,16 +117,39 @@ ALLOWED_FAILURES = 3
 
 
 def _connect(client_class: type, scheduler: str) -> Any:
-    """A client of the scheduler at ``scheduler``, or one line saying why there is none."""
+    """A client of the scheduler at ``scheduler``, or one line saying why there is none.
+
+    The address is parsed, and a TCP scheduler's port probed with a plain socket, before Dask
+    starts its event loop: a malformed or unreachable address then costs no Dask machinery.
+    """
     import dask
 
+    _probe(scheduler)
     try:
         with dask.config.set({"distributed.comm.timeouts.connect": f"{CONNECT_TIMEOUT_S}s"}):
             return client_class(scheduler, timeout=CONNECT_TIMEOUT_S)
     except (OSError, TimeoutError, ValueError, TypeError) as exc:
-        reason = " ".join(str(exc).split()) or type(exc).__name__
-        raise EngineError(f"--scheduler {scheduler}: no Dask scheduler reachable "
-                          f"({reason[:200]})") from None
+        raise _unreachable(scheduler, exc) from None
+
+
+def _probe(scheduler: str) -> None:
+    import socket
+
+    from distributed.comm.addressing import parse_address, parse_host_port
+
+    try:
+        protocol, location = parse_address(scheduler)
+        if protocol not in ("tcp", "tls"):
+            return
+        host, port = parse_host_port(location)
+        socket.create_connection((host, port), timeout=CONNECT_TIMEOUT_S).close()
+    except (OSError, ValueError, TypeError) as exc:
+        raise _unreachable(scheduler, exc) from None
+
+
+def _unreachable(scheduler: str, exc: BaseException) -> EngineError:
+    reason = " ".join(str(exc).split()) or type(exc).__name__
+    return EngineError(f"--scheduler {scheduler}: no Dask scheduler reachable ({reason[:200]})")
 
 
 @contextmanager
