@@ -250,6 +250,8 @@ def monitor_runs(
     from simcred.contracts.monitor import monitor
     from simcred.traces import TraceSet
 
+    if out is not None:  # before any work: the report may not replace an input
+        check_output(out, library, runs, kind="file")
     lib = Library.read(library)
     if (setup is None) == (test_case is None):
         raise OptionError("give either --setup COMPONENT=MODEL,... or --test-case NAME")
@@ -263,7 +265,6 @@ def monitor_runs(
     contracts = {m: lib.contract(m) for m in models}
     report = monitor(TraceSet.read(runs), contracts)
     if out is not None:
-        check_output(out, library, runs, kind="file")
         out.write_text(report.to_json())
     if as_json:
         sys.stdout.write(report.to_json())

@@ -42,8 +42,8 @@ def paper_000(
 
     if runs is not None:
         check_count(runs, "runs", "--runs", minimum=2)
+    check_output(out)
     with engine(workers, scheduler) as runner:
-        check_output(out)
         claims = seed000.run_all(out, runs=runs, seed=seed, runner=runner,
                                  progress_for=progress)
     if not State.quiet:
@@ -68,8 +68,8 @@ def paper_002(
 
     check_count(variations, "variations", "--variations (for the 5th/95th percentiles)",
                 minimum=20)
+    check_output(out)
     with engine(workers, scheduler) as runner:
-        check_output(out)
         claims = seed002.run_all(out, seed=seed, variations=variations, runner=runner,
                                  progress=_steps("paper 002"), progress_for=progress).claims
     if not State.quiet:
@@ -97,8 +97,8 @@ def paper_all(
     if runs is not None:
         check_count(runs, "runs", "--runs", minimum=2)
     check_count(variations, "variations", "--variations", minimum=20)
+    check_output(out)
     with engine(workers, scheduler) as runner:
-        check_output(out)
         claims = run_all(out, AllOptions(runs=runs, variations=variations, seed=seed),
                          runner=runner, progress=_steps("paper 002"), progress_for=progress)
     if not State.quiet:
