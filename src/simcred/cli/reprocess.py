@@ -10,18 +10,20 @@ import typer
 
 from simcred.cli._app import (
     Json,
+    Overwrite,
     ResimVehicle,
+    Resume,
     Scheduler,
     State,
     Workers,
     _steps,
     app,
-    check_output,
     one_line_errors,
     out_console,
     plain_table,
     progress,
     say,
+    writing,
 )
 from simcred.limits import check_count, check_finite
 
@@ -40,6 +42,7 @@ def reprocess(
                                                   "adding sections.")] = 0.02,
     scenario_based: Annotated[bool, typer.Option(
         help="Also resimulate with the scenario-based sensor model (needs GT).")] = True,
+    overwrite: Overwrite = False,
     as_json: Json = False,
 ) -> None:
     """Reprocess a drive: fit, resimulate, refit, assess; errors per step (Wagner, Groh et al.)."""
@@ -51,14 +54,14 @@ def reprocess(
 
     vehicle_model(vehicle)  # validates the name before any work
     check_finite(threshold, "--threshold", minimum=0, open_minimum=True)
-    check_output(out, measurement)
     config = ReprocessConfig(vehicle=vehicle, seed=seed, threshold=threshold,
                              scenario_based=scenario_based)
-    result = run_pipeline(read_measurement(measurement, object_id), config,
-                          _steps("reprocessing"))
-    files = write_reprocessed(result, out)
+    with writing(out, measurement, overwrite=overwrite) as target:
+        result = run_pipeline(read_measurement(measurement, object_id), config,
+                              _steps("reprocessing"))
+        summary = write_reprocessed(result, target.path)["summary"].read_text()
     if as_json:
-        sys.stdout.write(files["summary"].read_text())
+        sys.stdout.write(summary)
     elif not State.quiet:
         _print_reactions(result)
         say(f"wrote errors.json, reaction.json, descriptions, scenario.xosc and "
@@ -78,10 +81,11 @@ def vary(
     vehicle: ResimVehicle = "ks",
     workers: Workers = None,
     scheduler: Scheduler = None,
+    overwrite: Overwrite = False,
+    resume: Resume = False,
     as_json: Json = False,
 ) -> None:
     """Local variations of the TO's cut-in (Wagner, Groh et al. sec. V): vary, resimulate, risk."""
-    from simcred.engine import engine
     from simcred.report.seed002 import write_variations
     from simcred.reprocess.vary import VaryConfig, run_campaign
     from simcred.scenario.description import ScenarioDescription
@@ -89,14 +93,14 @@ def vary(
 
     vehicle_model(vehicle)
     check_count(n, "variations", "-n")
-    check_output(out, description)
-    original = ScenarioDescription.read(description)
-    with engine(workers, scheduler) as runner:
-        campaign = run_campaign(original, VaryConfig(n=n, seed=seed, vehicle=vehicle),
-                                runner=runner, progress_for=progress)
-    files = write_variations(campaign, out)
+    with writing(out, description, overwrite=overwrite, resume=resume) as target:
+        original = ScenarioDescription.read(description)
+        with target.engine(workers, scheduler) as runner:
+            campaign = run_campaign(original, VaryConfig(n=n, seed=seed, vehicle=vehicle),
+                                    runner=runner, progress_for=progress)
+        summary = write_variations(campaign, target.path)["summary"].read_text()
     if as_json:
-        sys.stdout.write(files["summary"].read_text())
+        sys.stdout.write(summary)
     elif not State.quiet:
         _print_campaign(campaign.summary())
         say(f"wrote variations.json, variation_set.json, runs.parquet and "
