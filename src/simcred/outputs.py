@@ -176,6 +176,8 @@ class Checkpoint:
         return self._file(key).read_bytes()
 
     def keys(self) -> list[str]:
+        if not self.directory.is_dir():  # the partial output was removed
+            return []
         return sorted(p.name for p in self.directory.iterdir()
                       if not p.name.startswith(".") and p.name != MANIFEST)
 

@@ -22,7 +22,15 @@ from simcred.cli import (  # noqa: F401  (importing registers the commands)
     study,
     validate,
 )
-from simcred.cli._app import EXIT_BAD_INPUT, Interrupted, State, app, error_line, plain_help
+from simcred.cli._app import (
+    EXIT_BAD_INPUT,
+    EXIT_INTERRUPTED,
+    Interrupted,
+    State,
+    app,
+    error_line,
+    plain_help,
+)
 from simcred.errors import SimcredError
 
 plain_help(app)  # after every command group is registered
@@ -30,7 +38,6 @@ plain_help(app)  # after every command group is registered
 __all__ = ["app", "entry", "run"]
 
 
-EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report it
 EXIT_INTERNAL = 70  # EX_SOFTWARE: a defect of simcred, not of the input
 
 

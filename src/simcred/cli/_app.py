@@ -94,8 +94,12 @@ def error_line(message: str) -> None:
     err_console.print(f"[red]error:[/red] {escape(message)}", highlight=False, soft_wrap=True)
 
 
+EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report it
+
+
 def one_line_errors(command: Callable) -> Callable:
-    """Turn a SimcredError into one red line on stderr and exit code 2."""
+    """Turn a SimcredError into one red line on stderr and exit code 2, and Ctrl-C into one
+    line saying what was kept and exit code 130."""
 
     @wraps(command)
     def wrapper(*args, **kwargs):
@@ -106,6 +110,10 @@ def one_line_errors(command: Callable) -> Callable:
                 raise
             error_line(str(exc))
             raise typer.Exit(EXIT_BAD_INPUT) from None
+        except KeyboardInterrupt as exc:
+            error_line(str(exc) if isinstance(exc, Interrupted)
+                       else "interrupted (Ctrl-C); no output was completed")
+            raise typer.Exit(EXIT_INTERRUPTED) from None
 
     return wrapper
 
@@ -278,7 +286,7 @@ def _interrupted(out: Path, output: Output | None) -> str:
         return f"interrupted (Ctrl-C): nothing kept, {out} unchanged"
     runner = output.runner
     step = "" if runner is None or not runner.total else \
-        f"; the current step had {runner.done}/{runner.total} done"
+        f" (current step {runner.done}/{runner.total})"
     return (f"interrupted (Ctrl-C): {kept} finished chunks kept in {output.partial}{step}; "
             "rerun the same command with --resume to continue")
 
@@ -291,9 +299,12 @@ def _duration(seconds: float) -> str:
 def _job_manifest(inputs: Sequence[Path]) -> str:
     """The command, its options (but not where or how verbosely it runs) and a fingerprint of
     each input (names, sizes and modification times of its files)."""
-    import click
+    try:  # typer vendors click: its context stack is its own
+        from typer._click.globals import get_current_context
+    except ImportError:  # pragma: no cover (a typer that uses click itself)
+        from click import get_current_context
 
-    context = click.get_current_context(silent=True)
+    context = get_current_context(silent=True)
     ignored = {"resume", "overwrite", "workers", "scheduler", "as_json"}
     params = {} if context is None else {k: v for k, v in context.params.items()
                                          if k not in ignored}

@@ -266,7 +266,7 @@ def matrix(
         with writing(out, *sets, overwrite=overwrite, resume=resume) as target, \
                 target.engine(workers, scheduler) as runner:
             if options["seed"] is None:  # fresh entropy, kept for a resumed run
-                options["seed"] = target.value("seed", resolve_seed)
+                options["seed"] = target.value("seed", lambda: resolve_seed(None))
             result = matrix_of_sets(sets, names=_split(names), runner=runner,
                                     progress=progress("comparing pairs"), **options)
             (target.path / "matrix.json").write_text(result.to_json())
