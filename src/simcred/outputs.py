@@ -85,14 +85,20 @@ def output_path(out: Path, inputs: Sequence[Path] = (), *, kind: str = "director
     """
     check_out(out, inputs, overwrite=overwrite, kind=kind)
     partial = partial_path(out)
-    if (partial.exists() or partial.is_symlink()) and not resume:
-        if not overwrite:
-            raise OptionError(f"{partial} holds the output of an interrupted run: continue it "
-                              "with --resume or start over with --overwrite")
-        _remove(partial)
     if partial.exists() and not partial.is_dir():
         raise OptionError(f"{partial} is not a directory: remove it or choose another --out")
+    lock = None
+    if partial.exists() or partial.is_symlink():
+        lock = _lock(partial)  # refuses a partial output another command is writing now
+        if not resume:
+            if not overwrite:
+                _unlock(lock)
+                raise OptionError(f"{partial} holds the output of an interrupted run: continue "
+                                  "it with --resume or start over with --overwrite")
+            _remove(partial)
+            lock = _unlock(lock)
     partial.mkdir(parents=True, exist_ok=True)
+    lock = lock if lock is not None else _lock(partial)
     try:
         yield partial if kind == "directory" else partial / out.name
     except BaseException as exc:
@@ -100,12 +106,37 @@ def output_path(out: Path, inputs: Sequence[Path] = (), *, kind: str = "director
         if not keep:
             shutil.rmtree(partial, ignore_errors=True)
         raise
-    if kind == "directory":
-        shutil.rmtree(partial / CHECKPOINTS, ignore_errors=True)
-        _replace_dir(partial, out)
     else:
-        os.replace(partial / out.name, out)
-        shutil.rmtree(partial, ignore_errors=True)
+        if kind == "directory":
+            shutil.rmtree(partial / CHECKPOINTS, ignore_errors=True)
+            _replace_dir(partial, out)
+        else:
+            os.replace(partial / out.name, out)
+            shutil.rmtree(partial, ignore_errors=True)
+    finally:
+        _unlock(lock)
+
+
+def _lock(directory: Path) -> int | None:
+    """An exclusive lock on ``directory`` for this process (released when it ends, even by
+    SIGKILL); one line if another process holds it."""
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover (not POSIX: no locking)
+        return None
+    handle = os.open(directory, os.O_RDONLY)
+    try:
+        fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        os.close(handle)
+        raise OptionError(f"{directory} is being written by another running command: wait for "
+                          "it to finish, or choose another --out") from None
+    return handle
+
+
+def _unlock(handle: int | None) -> None:
+    if handle is not None:
+        os.close(handle)
 
 
 @contextmanager

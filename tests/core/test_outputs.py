@@ -91,3 +91,16 @@ def test_write_atomic_leaves_no_temporary_on_failure(tmp_path):
 def test_checkpoint_keys_are_plain_names(tmp_path, key):
     with pytest.raises(ValueError, match="plain file name"):
         Checkpoint(tmp_path).save(key, b"")
+
+
+def test_a_partial_output_being_written_is_refused(tmp_path):
+    """Two commands writing one output: the second stops with one line, the first goes on."""
+    out = tmp_path / "out"
+    with output_dir(out, keep_partial=True) as partial:
+        (partial / "a.json").write_text("1")
+        for options in ({"resume": True}, {"overwrite": True}, {}):
+            with pytest.raises(OptionError, match="being written by another"), \
+                    output_dir(out, **options):
+                pass
+        assert (partial / "a.json").read_text() == "1"
+    assert (out / "a.json").read_text() == "1"

@@ -304,12 +304,12 @@ def example(
 
     suffix = ".parquet" if parquet else ""
     with writing(out, overwrite=overwrite) as target:
-        for traces, name in zip(lane_change_sets(runs, steps, seed=seed,
-                                                 duration_scale=duration_scale),
-                                ("baseline", "variant"), strict=True):
+        sets = lane_change_sets(runs, steps, seed=seed, duration_scale=duration_scale)
+        for traces, name in zip(sets, ("baseline", "variant"), strict=True):
             traces.write(target.path / f"{name}{suffix}")
-            if not State.quiet:
-                out_console.print(f"wrote {out / f'{name}{suffix}'} ({traces.n_runs} runs)",
-                                  highlight=False)
+    if not State.quiet:
+        for traces, name in zip(sets, ("baseline", "variant"), strict=True):
+            out_console.print(f"wrote {out / f'{name}{suffix}'} ({traces.n_runs} runs)",
+                              highlight=False)
 
 
