@@ -41,15 +41,17 @@ from simcred.risk.prediction import (
     travel_distance,
     unit_vector,
 )
-from simcred.risk.scene import STATE_FIELDS, Lanes, VehicleStates
+from simcred.risk.scene import (
+    STATE_FIELDS,
+    Lanes,
+    RoadFrames,
+    VehicleStates,
+    forward_states,
+    road_frames,
+)
 
-"""The EGO's evasive maneuvers, in the order of :attr:`RiskResult.maneuver` codes."""
-
-
+# work arrays of one chunk of scenes hold at most about this many samples
 _CHUNK_SAMPLES = 1 << 16
-
-
-"""Priors standing in for the euroFOT statistics of [1] (see docs/risk.md): not fitted to data."""
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -163,10 +165,14 @@ def _avoids(r: _Rows, idx: np.ndarray, start: np.ndarray, j0: int, times: np.nda
     xi_s, v_s = travel_distance(v0, a0, s)
     after = t > s
     for m, name in enumerate(evasion.maneuvers):
-        if name == "brake":
-            # instantaneous full braking from `start` on, lateral path unchanged
-            xi = np.where(after, xi_s + travel_distance(v_s, evasion.brake_acceleration,
-                                                np.maximum(t - s, 0.0))[0], ego_x)
+        if name in ("brake", "kickdown"):
+            # instantaneous full braking or kickdown from `start` on, lateral path unchanged
+            since = np.maximum(t - s, 0.0)
+            if name == "brake":
+                travel = travel_distance(v_s, evasion.brake_acceleration, since)[0]
+            else:
+                travel = evasion.kickdown_travel(v_s, since)[0]
+            xi = np.where(after, xi_s + travel, ego_x)
             path = PredictedPath(r.ego_path.y0[idx], tuple(b[idx] for b in r.ego_path.b),
                          r.ego_path.length[idx])
             y, slope = path.at(xi)
@@ -242,31 +248,48 @@ def _search(r: _Rows, first: np.ndarray, times: np.ndarray, evasion: EvasionSet,
 
 def _plan(e: dict[str, np.ndarray], predictions: PredictionSet, lanes: Lanes
           ) -> dict[str, Any]:
-    """The EGO's plan (scenes, T): its current acceleration along its reference lane ([1])."""
+    """The EGO's plan (scenes, T) in its road frame: its current acceleration along its
+    reference lane ([1]). ``x0`` is its local x, ``frame`` its road frame."""
+    frame, e = road_frames(forward_states(e), lanes, predictions.lane_heading_limit)
     e = {k: v[:, None] for k, v in e.items()}                           # (S, 1)
     v0 = e["v"] * np.cos(e["heading"])
     xi, speed = travel_distance(v0, e["acceleration"], predictions.times)       # (S, T)
-    path = lateral_plan(e, np.zeros(1), predictions, lanes)
+    path = lateral_plan(e, frame.centre[:, None], np.zeros(1), predictions, lanes)
     y, slope = path.at(xi)
     return dict(xi=xi, speed=speed, y=y, slope=slope, path=path, v0=v0, a0=e["acceleration"],
-                half=(0.5 * e["length"], 0.5 * e["width"]))
+                half=(0.5 * e["length"], 0.5 * e["width"]), x0=e["x"][:, 0], frame=frame)
 
 
-def _predict(o: dict[str, np.ndarray], x0: np.ndarray, predictions: PredictionSet,
-             lanes: Lanes) -> tuple[np.ndarray, ...]:
-    """TO rectangles (x - x0, y, cos, sin) of every prediction, (S, O, P, T) ([1] predictions)."""
+def _predict(o: dict[str, np.ndarray], plan: dict[str, Any],
+             predictions: PredictionSet, lanes: Lanes) -> tuple[np.ndarray, ...]:
+    """TO rectangles of every prediction in the EGO's road frame, (S, O, P, T): x relative to
+    the EGO's local x at the scene, y, and the heading's cos and sin ([1] predictions).
+
+    ``o`` holds world states with x relative to the EGO's; each TO moves in its own road
+    frame, and its rectangles are turned into the EGO's.
+    """
     levels = np.array([np.nan if p.acceleration is None else p.acceleration
                        for p in predictions.predictions])
+    offsets = np.array([p.acceleration_offset for p in predictions.predictions])
     shift = np.array([p.lane_change for p in predictions.predictions], dtype=float)
+    frame, o = road_frames(forward_states(o), lanes, predictions.lane_heading_limit)
     o = {k: v[:, :, None] for k, v in o.items()}                       # (S, O, 1)
-    accel = np.where(np.isnan(levels), o["acceleration"], levels)      # (S, O, P)
+    current = np.clip(o["acceleration"], *predictions.acceleration_bounds)
+    accel = np.where(np.isnan(levels), current + offsets, levels)      # (S, O, P)
     xi = travel_distance((o["v"] * np.cos(o["heading"]))[..., None], accel[..., None],
                  predictions.times)[0]                                  # (S, O, P, T)
-    path = lateral_plan(o, shift, predictions, lanes)
+    path = lateral_plan(o, frame.centre[:, :, None], shift, predictions, lanes)
     path = PredictedPath(path.y0[..., None], tuple(b[..., None] for b in path.b),
                          path.length[..., None])
     y, slope = path.at(xi)
-    return (o["x"][..., None] - x0[:, :, None, None] + xi, y, *heading_vector(slope))
+    to_world = RoadFrames(*(a[:, :, None, None] for a in (frame.cos, frame.sin, frame.centre)))
+    x, y = to_world.to_world(o["x"][..., None] + xi, y)
+    cos, sin = to_world.to_world(*heading_vector(slope))
+    ego: RoadFrames = plan["frame"]
+    to_ego = RoadFrames(*(a[:, None, None, None] for a in (ego.cos, ego.sin, ego.centre)))
+    x, y = to_ego.to_local(x, y)
+    cos, sin = to_ego.to_local(cos, sin)
+    return (x - plan["x0"][:, None, None, None], y, cos, sin)
 
 
 def _take(a: np.ndarray, shape: tuple[int, ...], sel: np.ndarray) -> np.ndarray:
@@ -278,8 +301,9 @@ def _chunk(ego: dict[str, np.ndarray], obj: dict[str, np.ndarray], predictions: 
            evasion: EvasionSet, lanes: Lanes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """TTR, maneuver code and planned collision time (scenes, objects, predictions)."""
     times = predictions.times
-    plan = _plan(ego, predictions, lanes)
-    to = _predict(obj, ego["x"][:, None], predictions, lanes)
+    x_ego = ego["x"]                       # lanes run along x: work relative to the EGO's x
+    plan = _plan({**ego, "x": np.zeros_like(x_ego)}, predictions, lanes)
+    to = _predict({**obj, "x": obj["x"] - x_ego[:, None]}, plan, predictions, lanes)
     to_half = (0.5 * obj["length"][..., None, None], 0.5 * obj["width"][..., None, None])
     ego_rect = tuple(a[:, None, None, :] for a in (plan["xi"], plan["y"],
                                                    *heading_vector(plan["slope"])))
@@ -361,21 +385,24 @@ def risk(ego: VehicleStates, objects: VehicleStates, *,
     >>> ego = VehicleStates(x=[0.0, 0.0], y=0.0, v=27.8, heading=0.0, name="ego")
     >>> lead = VehicleStates(x=[30.0, 150.0], y=0.0, v=20.0, heading=0.0, name="to")
     >>> result = risk(ego, lead)
-    >>> result.ttr[0, 0].round(2)
-    array([2.78, 4.47, 1.62, 1.21, 0.95, 0.8 ,  inf,  inf])
+    >>> result.prediction_names[:4]
+    ('keep[-3.75]', 'keep[-2.37]', 'keep[-1.15]', 'keep[+0.00]')
+    >>> result.ttr[0, 0, :7].round(2)    # keep: the lead's acceleration 0 ± quadrature nodes
+    array([1.23, 1.48, 2.01, 2.78,  inf,  inf,  inf])
     >>> result.risk.round(4), result.prediction_names[result.dominant_prediction[0]]
-    (array([0.0507, 0.    ]), 'brake-2')
+    (array([0.0615, 0.    ]), 'brake-2')
     """
     predictions, evasion, lanes, reaction, e, o = _risk_iv(ego, objects, predictions, evasion,
                                                            lanes, reaction)
+    nodes = predictions.expanded()
     n_scenes, n_obj = o["x"].shape
-    n_pred = len(predictions.predictions)
-    per_chunk = max(1, _CHUNK_SAMPLES // (n_obj * n_pred * predictions.times.size))
+    n_pred = len(nodes.predictions)
+    per_chunk = max(1, _CHUNK_SAMPLES // (n_obj * n_pred * nodes.times.size))
     parts = [_chunk({k: v[i:i + per_chunk] for k, v in e.items()},
-                    {k: v[i:i + per_chunk] for k, v in o.items()}, predictions, evasion, lanes)
+                    {k: v[i:i + per_chunk] for k, v in o.items()}, nodes, evasion, lanes)
              for i in range(0, n_scenes, per_chunk)]
     ttr, code, collision_time = (np.concatenate(a) for a in zip(*parts, strict=True))
-    contribution = predictions.probabilities * reaction.accident_probability(ttr)
+    contribution = nodes.probabilities * reaction.accident_probability(ttr)
     per_object = contribution.sum(axis=-1)
     with np.errstate(divide="ignore"):                  # log1p(-1) = -inf: a certain accident
         total = 0.0 - np.expm1(np.log1p(-np.minimum(per_object, 1.0)).sum(axis=-1))  # no -0.0
@@ -388,7 +415,7 @@ def risk(ego: VehicleStates, objects: VehicleStates, *,
         ttr_min=ttr.reshape(n_scenes, -1).min(axis=1),
         dominant_object=np.where(none, -1, best // n_pred),
         dominant_prediction=np.where(none, -1, best % n_pred),
-        prediction_names=predictions.names, maneuver_names=evasion.maneuvers,
+        prediction_names=nodes.names, maneuver_names=evasion.maneuvers,
         resolution=predictions.dt / 2 ** evasion.bisection_steps,
         predictions=predictions, evasion=evasion, lanes=lanes, reaction=reaction,
     )
@@ -453,7 +480,7 @@ def risk_series(samples: Mapping[str, ArrayLike], *, ego: str = "ego",
     ...         "to.x": 60 + 20 * t, "to.y": 0 * t, "to.v": 20 + 0 * t, "to.heading": 0 * t}
     >>> series = risk_series(cols)
     >>> series.ttr_min.round(2), series.risk.round(4)
-    (array([1.95, 1.81, 1.67, 1.53]), array([0.002 , 0.0028, 0.0038, 0.0055]))
+    (array([1.95, 1.81, 1.67, 1.53]), array([0.0022, 0.0033, 0.0048, 0.0071]))
     """
     if isinstance(objects, str) or len(objects) == 0:
         raise OptionError("objects must be a non-empty sequence of column prefixes")
