@@ -211,7 +211,7 @@ def test_no_object_nearby_means_no_risk():
     far = VehicleStates(x=[[600.0, -300.0], [-100.0, 700.0], [0.0, 500.0]],
                         y=[[0.0, 0.0], [0.0, 3.5], [-7.0, 7.0]], v=27.8, heading=0.0)
     result = risk(ego, far)
-    assert result.ttr.shape == (3, 2, 14)
+    assert result.ttr.shape == (3, 2, 7 + PredictionSet().acceleration_nodes)
     assert np.all(result.ttr == np.inf) and np.all(result.risk == 0)
     assert np.all(result.ttr_min == np.inf) and np.all(result.maneuver == -1)
     assert np.all(result.dominant_object == -1) and np.all(result.dominant_maneuver == -1)

@@ -111,7 +111,7 @@ class PredictionSet:
         (:meth:`expanded`). It covers the fit error of the measured acceleration (0.6 m/s²
         RMS on the A9 cut-in) and the driver's changes over the horizon. 0: the current
         acceleration alone.
-    acceleration_nodes : int, default: 7
+    acceleration_nodes : int, default: 11
         Quadrature nodes per "keep" prediction (1 to 21).
     acceleration_bounds : (float, float), default: (-10.0, 6.0)
         The current acceleration is clipped to these bounds (m/s²) before use: a glitch of the
@@ -134,7 +134,7 @@ class PredictionSet:
     lane_anticipation: float = 1.0
     path_speed_floor: float = 5.0
     acceleration_sigma: float = 1.0
-    acceleration_nodes: int = 7
+    acceleration_nodes: int = 11
     acceleration_bounds: tuple[float, float] = (-10.0, 6.0)
     lane_heading_limit: float = math.pi / 4
     max_lateral_acceleration: float = 8.0
@@ -419,6 +419,23 @@ def rectangles_overlap(a: tuple[np.ndarray, ...], b: tuple[np.ndarray, ...]) -> 
     convex polygons are disjoint iff their projections on one of the (here four) edge normals
     are disjoint.
     """
+    ax, ay, _, _, al, aw = a
+    bx, by, _, _, bl, bw = b
+    dx, dy = bx - ax, by - ay
+    # circumscribed circles first: most sample pairs are far apart, the exact test runs on the
+    # rest only
+    reach = np.hypot(al, aw) + np.hypot(bl, bw)
+    near = dx * dx + dy * dy <= reach * reach
+    overlap = np.zeros(near.shape, dtype=bool)
+    if near.any():
+        parts = np.broadcast_arrays(*a, *b)
+        overlap[near] = _separating_axes(tuple(p[near] for p in parts[:6]),
+                                         tuple(p[near] for p in parts[6:]))
+    return overlap
+
+
+def _separating_axes(a: tuple[np.ndarray, ...], b: tuple[np.ndarray, ...]) -> np.ndarray:
+    """The separating-axis test of :func:`rectangles_overlap` on equal-shaped arrays."""
     ax, ay, ac, as_, al, aw = a
     bx, by, bc, bs, bl, bw = b
     dx, dy = bx - ax, by - ay

@@ -152,46 +152,59 @@ def _avoids(r: _Rows, idx: np.ndarray, start: np.ndarray, j0: int, times: np.nda
             evasion: EvasionSet, lanes: Lanes) -> np.ndarray:
     """(rows, maneuvers): maneuver started at ``start`` (rows,) avoids the TO at times[j0:].
 
-    The EGO follows its plan before ``start``; collisions are checked on the samples
-    ``times[j0:]`` only, so ``times[j0 - 1]`` must not be a planned collision.
+    Maneuvers are tried in order, each only on the rows no earlier maneuver avoids: a row's
+    first avoiding maneuver (and whether there is one) is exact, later columns of a row that
+    is already avoided stay False. The EGO follows its plan before ``start``; collisions are
+    checked on the samples ``times[j0:]`` only, so ``times[j0 - 1]`` must not be a planned
+    collision.
     """
+    ok = np.zeros((idx.size, len(evasion.maneuvers)), dtype=bool)
+    pending = np.arange(idx.size)
+    for m, name in enumerate(evasion.maneuvers):
+        ok[pending, m] = ~_hits(r, idx[pending], start[pending], j0, times, name, evasion,
+                                lanes)
+        pending = pending[~ok[pending, m]]
+        if not pending.size:
+            break
+    return ok
+
+
+def _hits(r: _Rows, idx: np.ndarray, start: np.ndarray, j0: int, times: np.ndarray, name: str,
+          evasion: EvasionSet, lanes: Lanes) -> np.ndarray:
+    """(rows,): maneuver ``name`` started at ``start`` still hits the TO at times[j0:]."""
     t = times[j0:]
     s = start[:, None]
     to = tuple(a[idx, j0:] for a in r.to) + tuple(a[idx] for a in r.to_half)
-    ego_x, ego_y = r.ego_x[idx, j0:], r.ego_y[idx, j0:]
+    ego_x = r.ego_x[idx, j0:]
     v0, a0 = r.ego_v0[idx], r.ego_a0[idx]
-    half_l, half_w = r.ego_half[0][idx], r.ego_half[1][idx]
-    hit = np.zeros((idx.size, len(evasion.maneuvers)), dtype=bool)
+    half = (r.ego_half[0][idx], r.ego_half[1][idx])
     xi_s, v_s = travel_distance(v0, a0, s)
-    after = t > s
-    for m, name in enumerate(evasion.maneuvers):
-        if name in ("brake", "kickdown"):
-            # instantaneous full braking or kickdown from `start` on, lateral path unchanged
-            since = np.maximum(t - s, 0.0)
-            if name == "brake":
-                travel = travel_distance(v_s, evasion.brake_acceleration, since)[0]
-            else:
-                travel = evasion.kickdown_travel(v_s, since)[0]
-            xi = np.where(after, xi_s + travel, ego_x)
-            path = PredictedPath(r.ego_path.y0[idx], tuple(b[idx] for b in r.ego_path.b),
-                         r.ego_path.length[idx])
-            y, slope = path.at(xi)
-            cos, sin = heading_vector(slope)
+    unusable = np.zeros(idx.size, dtype=bool)
+    if name in ("brake", "kickdown"):
+        # instantaneous full braking or kickdown from `start` on, lateral path unchanged
+        since = np.maximum(t - s, 0.0)
+        if name == "brake":
+            travel = travel_distance(v_s, evasion.brake_acceleration, since)[0]
         else:
-            # smoothstep lateral offset of one lane width over `duration`, travel as planned
-            sign = 1.0 if name == "left" else -1.0
-            duration = evasion.steer_duration(lanes.width)
-            u = np.clip((t - s) / duration, 0.0, 1.0)
-            y = ego_y + sign * lanes.width * u * u * u * (10.0 + u * (-15.0 + 6.0 * u))
-            dydt = sign * lanes.width / duration * 30.0 * u * u * (1.0 - u) ** 2
-            speed = r.ego_speed[idx, j0:]
-            cos, sin = unit_vector(speed, r.ego_slope[idx, j0:] * speed + dydt)
-            xi = ego_x
-            v_end = travel_distance(v0, a0, s + duration)[1]
-            usable = np.minimum(v_s, v_end)[:, 0] >= evasion.min_steer_speed
-            hit[~usable, m] = True
-        hit[:, m] |= rectangles_overlap((xi, y, cos, sin, half_l, half_w), to).any(axis=1)
-    return ~hit
+            travel = evasion.kickdown_travel(v_s, since)[0]
+        xi = np.where(t > s, xi_s + travel, ego_x)
+        path = PredictedPath(r.ego_path.y0[idx], tuple(b[idx] for b in r.ego_path.b),
+                             r.ego_path.length[idx])
+        y, slope = path.at(xi)
+        cos, sin = heading_vector(slope)
+    else:
+        # smoothstep lateral offset of one lane width over `duration`, travel as planned
+        sign = 1.0 if name == "left" else -1.0
+        duration = evasion.steer_duration(lanes.width)
+        u = np.clip((t - s) / duration, 0.0, 1.0)
+        y = r.ego_y[idx, j0:] + sign * lanes.width * u * u * u * (10.0 + u * (-15.0 + 6.0 * u))
+        dydt = sign * lanes.width / duration * 30.0 * u * u * (1.0 - u) ** 2
+        speed = r.ego_speed[idx, j0:]
+        cos, sin = unit_vector(speed, r.ego_slope[idx, j0:] * speed + dydt)
+        xi = ego_x
+        v_end = travel_distance(v0, a0, s + duration)[1]
+        unusable = np.minimum(v_s, v_end)[:, 0] < evasion.min_steer_speed
+    return unusable | rectangles_overlap((xi, y, cos, sin, *half), to).any(axis=1)
 
 
 def _search(r: _Rows, first: np.ndarray, times: np.ndarray, evasion: EvasionSet,
@@ -385,12 +398,12 @@ def risk(ego: VehicleStates, objects: VehicleStates, *,
     >>> ego = VehicleStates(x=[0.0, 0.0], y=0.0, v=27.8, heading=0.0, name="ego")
     >>> lead = VehicleStates(x=[30.0, 150.0], y=0.0, v=20.0, heading=0.0, name="to")
     >>> result = risk(ego, lead)
-    >>> result.prediction_names[:4]
-    ('keep[-3.75]', 'keep[-2.37]', 'keep[-1.15]', 'keep[+0.00]')
-    >>> result.ttr[0, 0, :7].round(2)    # keep: the lead's acceleration 0 ± quadrature nodes
-    array([1.23, 1.48, 2.01, 2.78,  inf,  inf,  inf])
+    >>> result.prediction_names[4:7]
+    ('keep[-0.93]', 'keep[+0.00]', 'keep[+0.93]')
+    >>> result.ttr[0, 0, 4:7].round(2)    # keep: the lead's acceleration 0 ± quadrature nodes
+    array([2.13, 2.78, 4.22])
     >>> result.risk.round(4), result.prediction_names[result.dominant_prediction[0]]
-    (array([0.0615, 0.    ]), 'brake-2')
+    (array([0.0614, 0.    ]), 'brake-2')
     """
     predictions, evasion, lanes, reaction, e, o = _risk_iv(ego, objects, predictions, evasion,
                                                            lanes, reaction)
@@ -480,7 +493,7 @@ def risk_series(samples: Mapping[str, ArrayLike], *, ego: str = "ego",
     ...         "to.x": 60 + 20 * t, "to.y": 0 * t, "to.v": 20 + 0 * t, "to.heading": 0 * t}
     >>> series = risk_series(cols)
     >>> series.ttr_min.round(2), series.risk.round(4)
-    (array([1.95, 1.81, 1.67, 1.53]), array([0.0022, 0.0033, 0.0048, 0.0071]))
+    (array([1.95, 1.81, 1.67, 1.53]), array([0.0023, 0.0032, 0.0048, 0.0072]))
     """
     if isinstance(objects, str) or len(objects) == 0:
         raise OptionError("objects must be a non-empty sequence of column prefixes")
