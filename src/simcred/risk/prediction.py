@@ -343,7 +343,7 @@ class ReactionTime:
 
 def travel_distance(v0: np.ndarray, a: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Distance and speed after time ``t`` at constant acceleration ``a``, speed floored at 0."""
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         t_stop = np.where(a < 0, v0 / -a, np.inf)
     te = np.minimum(t, t_stop)
     return v0 * te + 0.5 * a * te * te, np.maximum(v0 + a * te, 0.0)
