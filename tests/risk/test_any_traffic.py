@@ -251,7 +251,7 @@ def test_oncoming_in_the_egos_lane_cannot_be_avoided_by_braking_alone():
     both = risk(ego, to)
     brake = risk(ego, to, evasion=BRAKE)
     keep = both.prediction_names.index("keep[+0.00]")
-    assert brake.ttr[0, 0, keep] == 0.0                  # the TO keeps coming: stopping is not enough
+    assert brake.ttr[0, 0, keep] == 0.0       # the TO keeps coming: stopping is not enough
     assert both.ttr[0, 0, keep] > 1.0
     assert both.risk[0] < brake.risk[0]
 

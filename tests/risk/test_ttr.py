@@ -397,3 +397,14 @@ def test_states_of_tracks_match_the_columns():
     np.testing.assert_array_equal(by_tracks.risk, by_columns.risk)
     np.testing.assert_array_equal(by_tracks.ttr, by_columns.ttr)
     assert VehicleStates.of_tracks([to, to]).x.shape == (5, 2)
+
+
+def test_ttc_and_thw_for_oncoming_reversing_and_backward_traffic():
+    ego = VehicleStates(x=[0.0, 0.0, 0.0], y=0.0, v=[20.0, 20.0, 20.0],
+                        heading=[0.0, 0.0, np.pi])
+    # oncoming lead 44.5 m ahead (gap 40) at 10 m/s; a lead reversing towards the EGO at 5 m/s;
+    # the EGO drives along -x with a lead 44.5 m ahead of it (at x = -44.5) at 10 m/s
+    objects = VehicleStates(x=[44.5, 44.5, -44.5], y=0.0, v=[10.0, -5.0, 10.0],
+                            heading=[np.pi, 0.0, np.pi])
+    np.testing.assert_allclose(time_to_collision(ego, objects), [40 / 30, 40 / 25, 40 / 10])
+    np.testing.assert_allclose(time_headway(ego, objects), [2.0, 2.0, 2.0])
