@@ -363,3 +363,24 @@ def test_glitched_acceleration_is_clipped():
     bound = VehicleStates(x=[40.0], y=0.0, v=20.0, heading=0.0, acceleration=-10.0)
     np.testing.assert_array_equal(risk(ego, wild).ttr, risk(ego, bound).ttr)
     assert ReactionTime().accident_probability(risk(ego, wild).ttr_min)[0] < 1
+
+
+def test_coarser_scan_agrees_within_the_resolution():
+    """scan_step 2 (default) against scanning every sample: the coarser scan can only miss a
+    non-monotone gap in the avoidable starts (a larger TTR); on cut-ins and traffic in any
+    direction the TTRs agree within the resolution (measured: max 3.1 ms, resolution 6.25 ms).
+    """
+    rng = np.random.default_rng(12)
+    ego, others = random_scenes(rng, 300, objects=1)
+    cut_in_to = dict(x=rng.uniform(20, 40, 300), y=rng.uniform(0, 2.5, 300),
+                     v=rng.uniform(18, 26, 300), heading=-rng.uniform(0, 0.08, 300),
+                     acceleration=-rng.uniform(0, 6, 300))
+    straight = dict(x=np.zeros(300), y=0.0, v=27.8, heading=0.0)
+    for e, o in ((ego, others), (straight, cut_in_to)):
+        every = risk(VehicleStates(**e), VehicleStates(**o), evasion=EvasionSet(scan_step=1))
+        coarse = risk(VehicleStates(**e), VehicleStates(**o))
+        finite = np.isfinite(every.ttr)
+        assert finite.sum() > 200
+        np.testing.assert_array_equal(np.isfinite(coarse.ttr), finite)
+        difference = coarse.ttr[finite] - every.ttr[finite]
+        assert np.all((difference > -1e-9) & (difference <= every.resolution + 1e-9))

@@ -241,6 +241,11 @@ class EvasionSet:
         to the end of the steer.
     bisection_steps : int, default: 4
         Bisection steps refining the TTR below the grid step: resolution ``dt / 2**steps``.
+    scan_step : int, default: 2
+        Start times are scanned every ``scan_step`` samples before the bisection (which takes
+        ``log2(scan_step)`` more steps, so the resolution stays ``dt / 2**bisection_steps``): a
+        non-monotone gap shorter than ``scan_step * dt`` in the avoidable starts may go
+        unseen. 1 scans every sample.
     """
 
     maneuvers: tuple[str, ...] = MANEUVERS
@@ -251,6 +256,7 @@ class EvasionSet:
     lateral_acceleration: float = 5.0
     min_steer_speed: float = 5.0
     bisection_steps: int = 4
+    scan_step: int = 2
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "maneuvers", tuple(self.maneuvers))
@@ -267,6 +273,8 @@ class EvasionSet:
                  f"lateral_acceleration must be > 0, got {self.lateral_acceleration!r}")
         require(math.isfinite(self.min_steer_speed) and self.min_steer_speed >= 0,
                  f"min_steer_speed must be >= 0, got {self.min_steer_speed!r}")
+        require(isinstance(self.scan_step, int) and 1 <= self.scan_step <= 64,
+                 f"scan_step must be an integer in [1, 64], got {self.scan_step!r}")
         require(isinstance(self.bisection_steps, int) and 0 <= self.bisection_steps <= 30,
                  f"bisection_steps must be an integer in [0, 30], got {self.bisection_steps!r}")
 

@@ -52,6 +52,8 @@ from simcred.risk.scene import (
 
 # work arrays of one chunk of scenes hold at most about this many samples
 _CHUNK_SAMPLES = 1 << 16
+# the bisection treats rows whose last avoidable grid start lies within this many samples together
+_BISECTION_GROUP = 10
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -212,50 +214,55 @@ def _search(r: _Rows, first: np.ndarray, times: np.ndarray, evasion: EvasionSet,
     """TTR and maneuver code of every row; ``first`` (rows,) is the index of the first planned
     collision sample, >= 1.
 
-    Grid: start index k = 0, 1, ... while every earlier start was avoidable by some maneuver
-    (monotone-safe: the TTR is the end of the avoidable prefix, not the last avoidable start);
-    the first k that is not (at the latest k = first) ends the prefix, and the TTR lies in
-    [(k - 1) dt, k dt). Bisection on that step then refines it (prefix assumed within the step)
-    and returns its lower end, the latest start known to be avoidable. Starts are evaluated in
-    blocks (several k per numpy call) when few rows are active; results do not depend on that.
+    Scan: start indices k = 0, q, 2q, ... (q = ``evasion.scan_step``) while every earlier
+    start was avoidable by some maneuver (monotone-safe: the TTR is the end of the avoidable
+    prefix, not the last avoidable start); the first start that is not (a start at the planned
+    collision, index ``first``, never is) ends the prefix, and the TTR lies between the last
+    avoidable start and min(that start, first). Bisection on that interval then refines it
+    (prefix assumed within it) to ``dt / 2**bisection_steps`` and returns its lower end, the
+    latest start known to be avoidable. Starts are evaluated in blocks (several per numpy call)
+    when few rows are active; results do not depend on that.
     """
-    rows = first.size
-    fail = np.full(rows, -1)
-    code = np.full(rows, -1)
-    active = np.arange(rows)
+    q = evasion.scan_step
+    lo_idx = np.full(first.size, -1)              # last avoidable start; -1: none (TTR 0)
+    hi_idx = first.copy()
+    code = np.full(first.size, -1)
+    active = np.arange(first.size)
     k = 0
     while active.size:
-        # a block of start times k .. k + block - 1 at once: fewer, larger numpy calls
+        # a block of start indices k, k + q, ... at once: fewer, larger numpy calls
         work = active.size * (times.size - k) * len(evasion.maneuvers)
-        block = int(np.clip(_CHUNK_SAMPLES // max(work, 1), 1, times.size - 1 - k))
-        starts = np.tile(times[k:k + block], active.size)
-        ok = _avoids(r, np.repeat(active, block), starts, k + 1, times, evasion, lanes)
+        block = int(np.clip(_CHUNK_SAMPLES // max(work, 1), 1, (times.size - 2 - k) // q + 1))
+        index = k + q * np.arange(block)
+        ok = _avoids(r, np.repeat(active, block), np.tile(times[index], active.size), k + 1,
+                     times, evasion, lanes)
         can = ok.any(axis=1).reshape(active.size, block)
         codes = np.argmax(ok, axis=1).reshape(active.size, block)
         ends = np.where(can.all(axis=1), block, np.argmin(can, axis=1))  # first failing start
-        last = np.maximum(ends - 1, 0)
         has = ends > 0
+        last = np.maximum(ends - 1, 0)
         code[active[has]] = codes[has, last[has]]
+        lo_idx[active[has]] = index[last[has]]
         stopped = ends < block
-        fail[active[stopped]] = k + ends[stopped]
+        hi_idx[active[stopped]] = np.minimum(index[ends[stopped]], first[active[stopped]])
         active = active[~stopped]
-        k += block
-        done = first[active] == k                # the next start is the planned collision
-        fail[active[done]] = k
-        active = active[~done]
-    lo = np.where(fail > 0, times[np.maximum(fail - 1, 0)], 0.0)
-    hi = times[np.maximum(fail, 0)]
-    refine = np.flatnonzero(fail > 0)
-    if refine.size:
-        j0 = int(fail[refine].min())              # the sample after the earliest lo
-        for _ in range(evasion.bisection_steps):
+        k += q * block
+        active = active[first[active] > k]       # the next start is at or after the collision
+    lo = np.where(lo_idx >= 0, times[np.maximum(lo_idx, 0)], 0.0)
+    hi = times[hi_idx]
+    # rows grouped by their lo (about a second each): a group checks from its earliest lo on
+    valid = lo_idx >= 0
+    for group in np.unique(lo_idx[valid] // _BISECTION_GROUP):
+        refine = np.flatnonzero(valid & (lo_idx // _BISECTION_GROUP == group))
+        j0 = int(lo_idx[refine].min()) + 1        # the sample after the earliest lo
+        for _ in range(evasion.bisection_steps + (q - 1).bit_length()):
             mid = 0.5 * (lo[refine] + hi[refine])
             ok = _avoids(r, refine, mid, j0, times, evasion, lanes)
             can = ok.any(axis=1)
             lo[refine[can]] = mid[can]
             hi[refine[~can]] = mid[~can]
             code[refine[can]] = np.argmax(ok[can], axis=1)
-    code[fail == 0] = -1
+    code[~valid] = -1
     return lo, code
 
 
