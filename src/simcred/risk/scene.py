@@ -153,11 +153,6 @@ class Lanes:
         require(math.isfinite(self.width) and self.width > 0, "lanes.width must be > 0")
         require(math.isfinite(self.centre), "lanes.centre must be finite")
 
-    def centre_of(self, y: ArrayLike) -> np.ndarray:
-        """Centre of the lane that contains lateral position ``y``."""
-        k = np.round((np.asarray(y, dtype=float) - self.centre) / self.width)
-        return self.centre + k * self.width
-
 
 # -- frames: traffic in any direction ---------------------------------------------------------
 
