@@ -9,7 +9,7 @@ ego.v, ego.heading`` (:data:`MOTION_SIGNALS`), optionally ``ego.acceleration``, 
 The scenario description (seed 002, [1] eq. (1)) samples into tracks, the reprocessing pipeline
 compares tracks, the risk measures and the closed loop take the batched view
 (:class:`TrackBatch`: the same columns as arrays of any one shape, e.g. ``(runs, steps)``; and
-:meth:`Track.states`, :func:`stack`: ``(..., 4)`` arrays of x, y, v, θ).
+:meth:`Track.states`, :meth:`TrackBatch.states`: ``(..., 4)`` arrays of x, y, v, θ).
 
 References
 ----------
@@ -34,7 +34,6 @@ __all__ = [
     "TIME_TOLERANCE",
     "Track",
     "TrackBatch",
-    "stack",
 ]
 
 #: Width (m) of a lane where the road does not say otherwise (German motorway lanes: 3.5 to 3.75).
@@ -170,16 +169,6 @@ class Track:
                          for f in ("t", *MOTION_SIGNALS, *RATE_SIGNALS)))
 
 
-def stack(tracks: Sequence[Track]) -> np.ndarray:
-    """Batched view of tracks on one time grid: ``(n, len(tracks), 4)`` (x, y, v, heading)."""
-    if not tracks:
-        raise SimcredError("no tracks to stack")
-    n = len(tracks[0])
-    if any(len(track) != n for track in tracks):
-        raise SimcredError(f"tracks of different lengths: {[len(t) for t in tracks]}")
-    return np.stack([track.states() for track in tracks], axis=1)
-
-
 @dataclass(frozen=True, slots=True, eq=False)
 class TrackBatch:
     """The batched view: the columns of many tracks (or of many scenes) as arrays of one shape.
@@ -226,6 +215,8 @@ class TrackBatch:
         group = [tracks] if single else list(tracks)
         if not group:
             raise SimcredError(f"{options.get('name', 'track batch')}: no tracks")
+        if any(len(track) != len(group[0]) for track in group):
+            raise SimcredError(f"tracks of different lengths: {[len(t) for t in group]}")
         fields = {f: [getattr(track, f) for track in group] for f in MOTION_SIGNALS}
         for rate in RATE_SIGNALS:
             if any(getattr(track, rate) is not None for track in group):
