@@ -30,8 +30,8 @@ def require(condition: bool, message: str) -> None:
 @dataclass(frozen=True, slots=True, eq=False)
 class VehicleStates(TrackBatch):
     """States of vehicles in many scenes: the kinematics batched view
-    (:class:`~simcred.kinematics.TrackBatch`, rates 0 where not given) plus the vehicles' size,
-    checked against the risk model's road (traffic drives along +x).
+    (:class:`~simcred.kinematics.TrackBatch`, rates 0 where not given) plus the vehicles' size.
+    Any finite values are accepted (sizes > 0): traffic may drive in any direction.
 
     Parameters
     ----------
