@@ -384,3 +384,31 @@ def test_coarser_scan_agrees_within_the_resolution():
         np.testing.assert_array_equal(np.isfinite(coarse.ttr), finite)
         difference = coarse.ttr[finite] - every.ttr[finite]
         assert np.all((difference > -1e-9) & (difference <= every.resolution + 1e-9))
+
+
+def test_ttr_is_the_largest_single_maneuver_ttr():
+    """commonroad-crime defines TTR = max(TTB, TTS, TTK), the best single maneuver's. Ours (the
+    end of the prefix of starts that *some* maneuver avoids) is never smaller, and equal where
+    each maneuver's avoidable starts form a prefix: braking avoids until 1.9 s, steering only
+    from 1.5 s (earlier it runs into the lane the TO still occupies) until 3.2 s gives 3.2 s
+    here and 1.9 s as the maximum of the single maneuvers' prefixes. Checked on traffic in any
+    direction (measured equal for 96.9 % of the finite TTRs) and on faster TOs from behind
+    (where kickdown is the best maneuver; 100 %)."""
+    rng = np.random.default_rng(8)
+    ego, others = random_scenes(rng, 300, objects=1)
+    behind = dict(x=-rng.uniform(6, 40, 300), y=rng.uniform(-1, 1, 300),
+                  v=rng.uniform(28, 45, 300), heading=0.0)
+    straight = dict(x=np.zeros(300), y=0.0, v=27.8, heading=0.0)
+    for e, o in ((ego, others), (straight, behind)):
+        e, o = VehicleStates(**e), VehicleStates(**o)
+        full = risk(e, o)
+        single = np.stack([risk(e, o, evasion=EvasionSet(maneuvers=(m,))).ttr
+                           for m in full.maneuver_names])
+        best = single.max(axis=0)
+        finite = np.isfinite(full.ttr)
+        assert finite.sum() > 100
+        np.testing.assert_array_equal(np.isfinite(best), finite)
+        assert np.all(full.ttr[finite] >= best[finite] - full.resolution)
+        equal = np.mean(np.abs(full.ttr[finite] - best[finite]) <= full.resolution)
+        assert equal > 0.95
+    assert (full.maneuver == full.maneuver_names.index("kickdown")).mean() > 0.05
