@@ -412,3 +412,19 @@ def test_ttr_is_the_largest_single_maneuver_ttr():
         equal = np.mean(np.abs(full.ttr[finite] - best[finite]) <= full.resolution)
         assert equal > 0.95
     assert (full.maneuver == full.maneuver_names.index("kickdown")).mean() > 0.05
+
+
+def test_u_turn_ahead_gives_finite_risk_in_every_scene():
+    """A slow TO 40 m ahead in the EGO's lane turns round (radius 5 m, 4 s): its heading
+    passes along the lanes, across them (own frame) and against them; the risk is in [0, 1]
+    at every scene and the slow TO ahead is a hazard at the start."""
+    t = np.arange(0.0, 4.01, 0.1)
+    omega, speed = np.pi / 4, 4.0
+    heading = omega * t
+    radius = speed / omega
+    ego = VehicleStates(x=15.0 * t, y=0.0, v=15.0, heading=0.0, name="ego")
+    to = VehicleStates(x=40.0 + radius * np.sin(heading), y=radius * (1 - np.cos(heading)),
+                       v=speed, heading=heading, yaw_rate=omega, name="to")
+    result = risk(ego, to)
+    assert np.all((result.risk >= 0) & (result.risk <= 1))
+    assert np.isfinite(result.ttr_min[:5]).all() and result.risk[0] > 0.01
