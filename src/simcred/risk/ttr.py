@@ -1,11 +1,14 @@
 """Time-To-React (TTR) risk of highway scenes, after Wagner et al. 2018 [1] as used in [2] II-D.
 
 A *scene* is one time instant: the EGO and one or more traffic objects (TOs), each with position,
-speed and heading on a straight road along +x. For every TO a set of predictions (keep lane, brake
-at several levels, change lane, accelerate) with prior probabilities is checked against the EGO's
-plan (keep going in its lane). For every prediction that collides within the horizon, the TTR is
-the latest time at which an evasive EGO maneuver (full braking, steering one lane left or right)
-can still start and avoid that collision. A log-normal reaction-time law maps each TTR to an
+speed and heading on a straight road along +x; vehicles may drive in any direction (oncoming,
+crossing, reversing, standing: each is predicted in its road frame, see
+:func:`~simcred.risk.scene.road_frames`). For every TO a set of predictions (keep lane -- as a
+set over its uncertain acceleration --, brake at several levels, change lane, accelerate) with
+prior probabilities is checked against the EGO's plan (keep going in its lane). For every
+prediction that collides within the horizon, the TTR is the latest time at which an evasive EGO
+maneuver (full braking, steering one lane left or right, kickdown) can still start and avoid
+that collision. A log-normal reaction-time law maps each TTR to an
 accident probability, and the probability-weighted sum over the predictions is the scene's risk.
 Everything is batched over scenes: a whole scenario at 10-100 Hz is one call of :func:`risk` or
 :func:`risk_series`.
@@ -81,7 +84,8 @@ class RiskResult(JsonResult):
     dominant_object, dominant_prediction : ndarray of int, shape (scenes,)
         The (object, prediction) with the largest contribution; -1 where the risk is 0.
     prediction_names, maneuver_names : tuple of str
-        Labels of the prediction and maneuver axes.
+        Labels of the prediction and maneuver axes; the prediction axis is the expanded set
+        (:meth:`PredictionSet.expanded`: "keep" as ``keep[<offset>]`` quadrature nodes).
     resolution : float
         Search resolution of the TTR (s): ``dt / 2**bisection_steps``.
     predictions, evasion, lanes, reaction
@@ -394,11 +398,13 @@ def risk(ego: VehicleStates, objects: VehicleStates, *,
     - collisions are sampled every ``dt`` within the horizon only: a maneuver that merely
       postpones a collision past the horizon counts as avoiding it;
     - an evasive maneuver is checked against the one predicted TO trajectory it evades (not
-      against other TOs or road edges); braking is instantaneous, steering does not brake;
+      against other TOs or road edges); braking and kickdown are instantaneous, steering does
+      not brake;
+    - crossing and turning traffic is predicted straight on in its own frame (no junctions);
     - TOs are combined as independent: risk = 1 - Π_o (1 - risk_o).
 
-    Cost: about 0.6 ms per scene for one TO with the defaults (docs/risk.md); it grows with
-    ``(horizon / dt)²`` for every prediction that collides.
+    Cost: about 1.5 ms per scene for one TO with the defaults on a cut-in (docs/risk.md); it
+    grows with ``(horizon / dt)²`` for every prediction that collides.
 
     Examples
     --------
