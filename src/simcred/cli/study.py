@@ -94,7 +94,7 @@ def car_following(
     """Real human car following (OpenACC) vs SUMO models and real ACC, per speed band."""
     from simcred import data
     from simcred.report.study import study_figures
-    from simcred.study.car_following import StudyOptions, run_study, write_study
+    from simcred.study import StudyOptions, run_study, write_study
 
     options = StudyOptions(models=_names(models), bands=_bands(bands), features=_names(features),
                            bins=bins, sample_step=sample_step, test=test, alpha=alpha,
