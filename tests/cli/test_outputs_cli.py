@@ -188,3 +188,30 @@ def test_checkpointed_engine_computes_only_missing_tasks(tmp_path):
     assert seen == [3, 4] and (again.done, again.total) == (5, 5)
     assert again.map(square, [5]) == [25]  # the next map call has its own keys
     assert "map001-000000" in store
+
+
+def test_matrix_resumes_after_ctrl_c_with_the_same_bytes(sets, tmp_path, monkeypatch, capsys):
+    """Pairs are checkpointed; without --seed the entropy drawn first is kept for the resume."""
+    import simcred.compare.pairwise as pairwise
+
+    a, b = sets
+    args = ["-q", "matrix", str(a), str(b), str(a), "--names", "a,b,a2", "-f", "y", "--bins",
+            "3", "--permutations", "19", "--out", str(tmp_path / "m")]
+    real, calls = pairwise._compare_pair, []
+
+    def interrupted_at_the_third_pair(pair):
+        calls.append(pair)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return real(pair)
+
+    monkeypatch.setattr(pairwise, "_compare_pair", interrupted_at_the_third_pair)
+    assert run(args) == 130
+    assert "2 finished chunks kept" in capsys.readouterr().err
+    calls.clear()
+    assert run([*args, "--resume"]) == 0
+    assert calls == [(1, 2)]  # the one pair left
+    monkeypatch.setattr(pairwise, "_compare_pair", real)
+    seed = json.loads((tmp_path / "m" / "matrix.json").read_text())["options"]["seed"]
+    assert run([*args[:-2], "--seed", str(seed), "--out", str(tmp_path / "whole")]) == 0
+    assert tree(tmp_path / "m") == tree(tmp_path / "whole")
