@@ -273,7 +273,7 @@ def writing(out: Path, *inputs: Path, kind: str = "directory", overwrite: bool =
         raise Interrupted(_interrupted(out, holder[0] if holder else None)) from None
     except SimcredError as exc:
         if holder and holder[0].kept():
-            raise SimcredError(f"{exc} ({holder[0].kept()} finished chunks kept in {partial}: "
+            raise SimcredError(f"{exc} ({_chunks(holder[0].kept())} kept in {partial}: "
                                "--resume continues)") from None
         raise
     if not State.quiet:
@@ -287,8 +287,12 @@ def _interrupted(out: Path, output: Output | None) -> str:
     runner = output.runner
     step = "" if runner is None or not runner.total else \
         f" (current step {runner.done}/{runner.total})"
-    return (f"interrupted (Ctrl-C): {kept} finished chunks kept in {output.partial}{step}; "
+    return (f"interrupted (Ctrl-C): {_chunks(kept)} kept in {output.partial}{step}; "
             "rerun the same command with --resume to continue")
+
+
+def _chunks(count: int) -> str:
+    return f"{count} finished chunk{'' if count == 1 else 's'}"
 
 
 def _duration(seconds: float) -> str:
