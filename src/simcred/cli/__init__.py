@@ -25,12 +25,12 @@ from simcred.cli import (  # noqa: F401  (importing registers the commands)
 from simcred.cli._app import (
     EXIT_BAD_INPUT,
     EXIT_INTERRUPTED,
-    Interrupted,
     State,
     app,
     error_line,
     plain_help,
 )
+from simcred.cli._writing import Interrupted
 from simcred.errors import SimcredError
 
 plain_help(app)  # after every command group is registered

@@ -11,8 +11,6 @@ from rich.table import Table
 
 from simcred.cli._app import (
     Json,
-    Overwrite,
-    Resume,
     Scheduler,
     Seed,
     State,
@@ -21,8 +19,8 @@ from simcred.cli._app import (
     one_line_errors,
     out_console,
     progress,
-    writing,
 )
+from simcred.cli._writing import Overwrite, Resume, writing
 from simcred.compare import compare as compare_sets
 from simcred.compare import matrix as matrix_of_sets
 from simcred.compare.kernels import Kernel

@@ -13,7 +13,6 @@ from rich.table import Table
 
 from simcred.cli._app import (
     Json,
-    Overwrite,
     State,
     _emit,
     app,
@@ -21,6 +20,7 @@ from simcred.cli._app import (
     one_line_errors,
     out_console,
 )
+from simcred.cli._writing import Overwrite
 from simcred.errors import OptionError
 
 contracts_app = typer.Typer(help="Contracts of simulation models (Braun et al.): check, refine, "

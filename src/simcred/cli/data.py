@@ -9,13 +9,11 @@ from typing import Annotated
 import typer
 
 from simcred.cli._app import (
-    Overwrite,
     app,
     one_line_errors,
     out_console,
-    trace_set_kind,
-    writing,
 )
+from simcred.cli._writing import Overwrite, trace_set_kind, writing
 
 data_app = typer.Typer(help="Real data shipped with simcred (with licences and attribution).")
 app.add_typer(data_app, name="data")

@@ -8,8 +8,6 @@ from typing import Annotated
 import typer
 
 from simcred.cli._app import (
-    Overwrite,
-    Resume,
     Scheduler,
     State,
     Workers,
@@ -21,8 +19,8 @@ from simcred.cli._app import (
     plain_table,
     progress,
     say,
-    writing,
 )
+from simcred.cli._writing import Overwrite, Resume, writing
 from simcred.limits import check_count
 
 paper_app = typer.Typer(help="Regenerate the papers' experiments and check their claims.")

@@ -10,9 +10,7 @@ import typer
 
 from simcred.cli._app import (
     Json,
-    Overwrite,
     ResimVehicle,
-    Resume,
     Scheduler,
     State,
     Workers,
@@ -23,8 +21,8 @@ from simcred.cli._app import (
     plain_table,
     progress,
     say,
-    writing,
 )
+from simcred.cli._writing import Overwrite, Resume, writing
 from simcred.limits import check_count, check_finite
 
 

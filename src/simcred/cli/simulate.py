@@ -8,8 +8,6 @@ from typing import Annotated
 import typer
 
 from simcred.cli._app import (
-    Overwrite,
-    Resume,
     Scheduler,
     State,
     Workers,
@@ -17,9 +15,8 @@ from simcred.cli._app import (
     one_line_errors,
     progress,
     say,
-    trace_set_kind,
-    writing,
 )
+from simcred.cli._writing import Overwrite, Resume, trace_set_kind, writing
 from simcred.errors import OptionError
 from simcred.limits import check_count, check_finite
 

@@ -10,8 +10,6 @@ from rich.table import Table
 
 from simcred.cli._app import (
     Json,
-    Overwrite,
-    Resume,
     Scheduler,
     State,
     Workers,
@@ -20,8 +18,8 @@ from simcred.cli._app import (
     one_line_errors,
     out_console,
     progress,
-    writing,
 )
+from simcred.cli._writing import Overwrite, Resume, writing
 from simcred.errors import OptionError
 
 study_app = typer.Typer(help="Validity studies on real data (data → simulation → comparison).")

@@ -9,7 +9,13 @@ from typing import Annotated
 import typer
 
 from simcred._json import dumps
-from simcred.cli._app import Overwrite, Resume, State, app, one_line_errors, out_console, writing
+from simcred.cli._app import (
+    State,
+    app,
+    one_line_errors,
+    out_console,
+)
+from simcred.cli._writing import Overwrite, Resume, writing
 from simcred.errors import SimcredError
 from simcred.outputs import Checkpoint, partial_path
 from simcred.report.validate import write_validation_report
