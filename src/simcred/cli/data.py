@@ -8,11 +8,7 @@ from typing import Annotated
 
 import typer
 
-from simcred.cli._app import (
-    app,
-    one_line_errors,
-    out_console,
-)
+from simcred.cli._app import app, one_line_errors, out_console
 from simcred.cli._writing import Overwrite, trace_set_kind, writing
 
 data_app = typer.Typer(help="Real data shipped with simcred (with licences and attribution).")
@@ -70,10 +66,9 @@ def data_openacc(
                 "follower": follower, "duration": duration, "min_leader_speed":
                 min_leader_speed, "min_gap": min_gap, "max_gap": max_gap})})
         traces.write(target.path)
-    path = out
     cut = traces.metadata["cut"]
     out_console.print(
-        f"wrote {path}: {traces.n_runs} episodes of {duration} s from {cut['files']} files, "
+        f"wrote {out}: {traces.n_runs} episodes of {duration} s from {cut['files']} files, "
         f"{cut['pairs']} pairs; of {cut['possible']} possible: {cut['removed_incomplete']} "
         f"incomplete, {cut['removed_leader_stopped']} leader stopped, {cut['removed_gap']} gap "
         f"out of range, {cut['kept']} kept", highlight=False)
