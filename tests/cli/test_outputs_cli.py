@@ -215,3 +215,36 @@ def test_matrix_resumes_after_ctrl_c_with_the_same_bytes(sets, tmp_path, monkeyp
     seed = json.loads((tmp_path / "m" / "matrix.json").read_text())["options"]["seed"]
     assert run([*args[:-2], "--seed", str(seed), "--out", str(tmp_path / "whole")]) == 0
     assert tree(tmp_path / "m") == tree(tmp_path / "whole")
+
+
+@pytest.mark.slow
+def test_vary_resumes_after_ctrl_c_with_the_same_bytes(tmp_path, monkeypatch, capsys):
+    import simcred.reprocess.vary as vary
+
+    assert run(["-q", "simulate", "cutin", "--out", str(tmp_path / "m")]) == 0
+    assert run(["-q", "reprocess", str(tmp_path / "m"), "--out", str(tmp_path / "r"),
+                "--no-scenario-based"]) == 0
+    description = tmp_path / "r" / "descriptions" / "fit_GT.json"
+
+    def args(out: str, *extra: str) -> list[str]:
+        return ["-q", "vary", str(description), "-n", "60", "--seed", "2", "--out",
+                str(tmp_path / out), *extra]
+
+    assert run(args("whole")) == 0
+    real, calls = vary._resimulate_chunk, []
+
+    def interrupted_at_the_third_chunk(job):
+        calls.append(job[0])
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return real(job)
+
+    monkeypatch.setattr(vary, "_resimulate_chunk", interrupted_at_the_third_chunk)
+    capsys.readouterr()
+    assert run(args("v")) == 130
+    err = capsys.readouterr().err  # 2 chunks generating variations, 2 of 3 resimulating them
+    assert "4 finished chunks kept" in err and "(current step 2/3)" in err
+    calls.clear()
+    assert run(args("v", "--resume")) == 0
+    assert len(calls) == 1  # the chunk left
+    assert tree(tmp_path / "v") == tree(tmp_path / "whole")
