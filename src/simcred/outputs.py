@@ -48,11 +48,22 @@ def check_out(out: Path, inputs: Sequence[Path] = (), *, overwrite: bool = False
         if not overwrite and (target.is_file() or any(target.iterdir())):
             raise OptionError(f"--out {out} exists and is not empty: choose another path or "
                               "pass --overwrite to replace it")
+    if overwrite and target.is_dir():
+        _refuse_replacing_a_home(out, target)
     for parent in target.parents:
         if parent.exists():
             if not parent.is_dir():
                 raise OptionError(f"--out {out}: {parent} is not a directory")
             break
+
+
+def _refuse_replacing_a_home(out: Path, target: Path) -> None:
+    """``--overwrite`` replaces a folder whole: never the working directory, a folder holding
+    it, or the home directory."""
+    cwd = Path(os.path.abspath(Path.cwd()))
+    if cwd.is_relative_to(target) or target == Path(os.path.abspath(Path.home())):
+        raise OptionError(f"--out {out} holds the working or home directory: --overwrite would "
+                          "delete it; choose a folder of its own")
 
 
 @contextmanager

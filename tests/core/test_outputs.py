@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from simcred.errors import OptionError
@@ -104,3 +106,17 @@ def test_a_partial_output_being_written_is_refused(tmp_path):
                 pass
         assert (partial / "a.json").read_text() == "1"
     assert (out / "a.json").read_text() == "1"
+
+
+def test_overwrite_never_replaces_the_working_or_home_directory(tmp_path, monkeypatch):
+    work = tmp_path / "work"
+    (work / "sub").mkdir(parents=True)
+    (work / "sub" / "data.csv").write_text("t,x\n")
+    monkeypatch.chdir(work / "sub")
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    (tmp_path / "home").mkdir()
+    (tmp_path / "home" / "notes").write_text("mine")
+    for out in (Path("."), work, tmp_path / "home"):
+        with pytest.raises(OptionError, match="--overwrite would delete it"):
+            check_out(out, overwrite=True)
+    assert (work / "sub" / "data.csv").exists() and (tmp_path / "home" / "notes").exists()
