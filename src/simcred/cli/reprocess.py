@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import sys
+from dataclasses import replace
+from enum import StrEnum
 from pathlib import Path
 from typing import Annotated
 
@@ -24,6 +26,11 @@ from simcred.cli._app import (
     say,
 )
 from simcred.limits import check_count, check_finite
+
+
+class CrossingSide(StrEnum):
+    left = "left"
+    right = "right"
 
 
 @app.command()
@@ -76,11 +83,23 @@ def vary(
                                            "spawn_key=(i,)); paper 002 varies with its seed "
                                            "+ 1.")] = 0,
     vehicle: ResimVehicle = "ks",
+    crossing_side: Annotated[CrossingSide | None, typer.Option(
+        help="Boundary of the EGO's lane the TO crosses: left (e.g. a cut-in from the left) or "
+             "right (a cut-in from the right). Default: whichever it crosses first.")] = None,
+    crossing_time: Annotated[float | None, typer.Option(
+        help="Time [s] of the lane crossing (instead of detecting it).")] = None,
+    boundary_y: Annotated[float | None, typer.Option(
+        help="Lateral position [m] of the boundary the TO crosses (instead of the EGO's lane "
+             "± lane width / 2).")] = None,
+    lane_width: Annotated[float, typer.Option(
+        help="Width [m] of the EGO's lane when the boundary is detected.")] = 3.5,
     workers: Workers = None,
     scheduler: Scheduler = None,
     as_json: Json = False,
 ) -> None:
-    """Local variations of the TO's cut-in (Wagner, Groh et al. sec. V): vary, resimulate, risk."""
+    """Local variations of the TO's lane change (Wagner, Groh et al. sec. V): vary, resimulate,
+    risk. The crossing is detected from the description (the first crossing of a boundary of
+    the EGO's lane) unless given."""
     from simcred.engine import engine
     from simcred.report.seed002 import write_variations
     from simcred.reprocess.vary import VaryConfig, run_campaign
@@ -89,10 +108,14 @@ def vary(
 
     vehicle_model(vehicle)
     check_count(n, "variations", "-n")
+    options = replace(VaryConfig().options, crossing_time=crossing_time, boundary_y=boundary_y,
+                      crossing_side=None if crossing_side is None else crossing_side.value,
+                      lane_width=lane_width)
     check_output(out, description)
     original = ScenarioDescription.read(description)
     with engine(workers, scheduler) as runner:
-        campaign = run_campaign(original, VaryConfig(n=n, seed=seed, vehicle=vehicle),
+        campaign = run_campaign(original, VaryConfig(n=n, seed=seed, vehicle=vehicle,
+                                                     options=options),
                                 runner=runner, progress_for=progress)
     files = write_variations(campaign, out)
     if as_json:
