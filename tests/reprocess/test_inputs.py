@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -12,7 +13,7 @@ import pytest
 
 from simcred.cli import run
 from simcred.errors import SimcredError
-from simcred.io import commonroad
+from simcred.io import commonroad, longformat
 from simcred.io.measurement import Measurement
 from simcred.kinematics import LANE_WIDTH, Track
 from simcred.reprocess.inputs import (
@@ -284,3 +285,56 @@ def test_cli_ego_is_refused_for_an_a9_recording(tmp_path, capsys):
     path = data.path("a9/trajectories_file.csv")
     assert run(["reprocess", str(path), "--ego", "3", "--out", str(tmp_path / "o")]) == 2
     assert "A9 recording's EGO is the recording car" in capsys.readouterr().err
+
+
+def _without_states(tmp_path: Path, obstacle: int, steps) -> Path:
+    """US-101-3 with the trajectory states ``steps`` of ``obstacle`` deleted (a real gap)."""
+    text = US101.read_text()
+    start = text.index(f'<obstacle id="{obstacle}">')
+    end = text.index("</obstacle>", start)
+    block = text[start:end]
+    for k in steps:
+        pattern = (r"\s*<state>(?:(?!</state>).)*?<time>\s*<exact>" + str(k)
+                   + r"</exact>\s*</time>(?:(?!</state>).)*?</state>")
+        block, n = re.subn(pattern, "", block, flags=re.S)
+        assert n == 1
+    path = tmp_path / "gap.xml"
+    path.write_text(text[:start] + block + text[end:])
+    return path
+
+
+def test_cli_reports_a_gap_in_a_commonroad_trajectory(tmp_path, capsys):
+    path = _without_states(tmp_path, 394, (10, 11, 12))  # no state from 0.9 s to 1.3 s
+    out = tmp_path / "r"
+    assert run(["reprocess", str(path), "--object", "394", "--out", str(out)]) == 0
+    assert "gap: SD object 'to' 0.900-1.300 s (0.400 s, 3 sample(s) missing)" in (
+        capsys.readouterr().out)
+    report = json.loads((out / "reprocess.json").read_text())["input"]
+    assert report["samples"] == 32 - 3 and len(report["gaps"]) == 1
+
+
+def test_cli_refuses_or_cuts_a_gap_over_the_limit(tmp_path, capsys):
+    path = _without_states(tmp_path, 394, range(5, 12))  # 0.4 s to 1.2 s: 0.8 s
+    assert run(["reprocess", str(path), "--object", "394", "--out", str(tmp_path / "a")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1
+    assert "gap.xml: SD object 'to': no sample from 0.400 s to 1.200 s (0.800 s) > max_gap" in err
+    out = tmp_path / "b"
+    assert run(["--quiet", "reprocess", str(path), "--object", "394", "--long-gaps", "longest",
+                "--out", str(out)]) == 0
+    report = json.loads((out / "reprocess.json").read_text())["input"]
+    assert report["cut_to_longest_stretch"] == pytest.approx([1.2, 3.1])
+    assert report["span"] == pytest.approx([1.2, 3.1]) and report["samples"] == 20
+
+
+def test_the_long_reader_drops_and_counts_dropouts_only_when_asked(tmp_path):
+    path = tmp_path / "d.csv"
+    path.write_text("run,t,x,lane\na,0,1,\na,1,,\na,2,nan,\na,3,4,\nb,0,1,\nb,1,2,\n")
+    with pytest.raises(SimcredError, match="column 'x', row 3: value is nan"):
+        longformat.read(path, run_column="run", signals=["x"])
+    with pytest.raises(SimcredError, match="dropouts='drop' needs signals"):
+        longformat.read(path, run_column="run", dropouts="drop")
+    traces = longformat.read(path, run_column="run", signals=["x"], dropouts="drop")
+    assert traces.metadata["dropouts"] == {"a": 2}
+    np.testing.assert_array_equal(traces.run(0)[TIME], [0.0, 3.0])
+    np.testing.assert_array_equal(traces.run(0)["x"], [1.0, 4.0])
