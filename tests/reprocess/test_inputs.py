@@ -63,8 +63,8 @@ def test_gt_at_a_lower_rate_is_compared_on_its_own_samples(short):
     assert result.input_report["steps"]["GT"] == pytest.approx(0.05)
     # SD's samples include GT's, so linear interpolation onto them is exact
     run = short.sd.run(0)
-    np.testing.assert_allclose(result.states["SD"]["to"][:, 0], run["to.x"][::5], rtol=0, atol=1e-9)
-    np.testing.assert_allclose(result.states["GT"]["to"][:, 0], gt.run(0)["to.x"], rtol=0, atol=0)
+    np.testing.assert_allclose(result.states["SD"]["to"].x, run["to.x"][::5], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(result.states["GT"]["to"].x, gt.run(0)["to.x"], rtol=0, atol=0)
     # the sensor offset (1.4 m) is still what the sensor step measures
     assert result.errors["ideal"]["S"]["to"]["d"].median == pytest.approx(1.4, abs=0.1)
     assert result.errors["ideal"]["S"]["to"]["d"].n == len(result.times)
