@@ -338,3 +338,25 @@ def test_the_long_reader_drops_and_counts_dropouts_only_when_asked(tmp_path):
     assert traces.metadata["dropouts"] == {"a": 2}
     np.testing.assert_array_equal(traces.run(0)[TIME], [0.0, 3.0])
     np.testing.assert_array_equal(traces.run(0)["x"], [1.0, 4.0])
+
+
+def test_a_measurement_with_nan_dropouts_is_read_as_long_tables(short, tmp_path):
+    """simcred's own Parquet files are long tables too (``run``, ``t``, ``ego.x``, ...): read so,
+    NaN samples are dropouts instead of an error."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    short.write(tmp_path / "m")
+    sd = pq.read_table(tmp_path / "m" / "sd.parquet")
+    x = sd.column("to.x").to_numpy().copy()
+    x[100:120] = np.nan  # 0.2 s of the TO lost by the sensor
+    sd = sd.set_column(sd.column_names.index("to.x"), "to.x", pa.array(x))
+    pq.write_table(sd, tmp_path / "m" / "sd_nan.parquet")
+    drive = read_measurement(tmp_path / "m" / "sd_nan.parquet", gt=tmp_path / "m" / "gt.parquet")
+    assert drive.sd.dropouts == {"ego": 20, "to": 20}  # a row without an object column
+    result = reprocess(drive, ReprocessConfig(scenario_based=False))
+    [gap] = [g for g in result.input_report["gaps"] if g["object"] == "to"]
+    t = short.sd.run(0)[TIME]
+    assert (gap["recording"], gap["start"], gap["end"]) == ("SD", t[99], t[120])
+    assert len(result.times) == len(t) - 20
+    assert result.errors["ideal"]["S"]["to"]["d"].median == pytest.approx(1.4, abs=0.1)
