@@ -226,7 +226,7 @@ def test_the_follower_agrees_with_a_literal_loop(path):
             assert chosen is not None and chosen[0] == literal, obstacle
 
 
-def test_the_us101_lane_changer_gets_the_car_it_cuts_in_front_of():
+def test_the_us101_lane_changer_gets_the_car_behind_it_in_its_lane():
     drive = commonroad_drive(US101, 394)
     assert drive.metadata["ego"] == 401
     assert drive.metadata["ego_choice"] == "follower in its lane"
