@@ -34,6 +34,7 @@ from simcred.io.a9_lanes import lane_changer
 from simcred.io.measurement import INDEX, Measurement
 from simcred.kinematics import MOTION_SIGNALS, TIME_TOLERANCE, Track
 from simcred.reprocess.timebase import Drive, Recording, tracks_digest
+from simcred.scenario.fit import MIN_SAMPLES
 from simcred.scenario.frenet import to_path_frame
 from simcred.traces import TIME, TraceSet
 
@@ -186,9 +187,9 @@ def _obstacle_track(traces: TraceSet, run: str) -> Track:
 
 def _shared_steps(path: Path, tracks: dict[str, Track], ego: str, to: str) -> dict[str, Track]:
     common = np.intersect1d(tracks[EGO].t, tracks[TO].t)
-    if len(common) < 2:
-        raise TraceSetError(f"{path}: obstacles {to[3:]} and {ego[3:]} share {len(common)} time "
-                            "step(s); at least 2 are needed")
+    if len(common) < MIN_SAMPLES:
+        raise TraceSetError(f"{path}: obstacles {to[3:]} (TO) and {ego[3:]} (EGO) share "
+                            f"{len(common)} time step(s); a fit needs at least {MIN_SAMPLES}")
     lo, hi = common[0] - TIME_TOLERANCE, common[-1] + TIME_TOLERANCE
     return {k: t[(t.t >= lo) & (t.t <= hi)] for k, t in tracks.items()}
 
