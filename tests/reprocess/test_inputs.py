@@ -360,3 +360,15 @@ def test_a_measurement_with_nan_dropouts_is_read_as_long_tables(short, tmp_path)
     assert (gap["recording"], gap["start"], gap["end"]) == ("SD", t[99], t[120])
     assert len(result.times) == len(t) - 20
     assert result.errors["ideal"]["S"]["to"]["d"].median == pytest.approx(1.4, abs=0.1)
+
+
+def test_a_commonroad_reprocessing_is_byte_identical_when_repeated(tmp_path):
+    from simcred.reprocess.output import write
+
+    for name in ("a", "b"):
+        write(reprocess(commonroad_drive(US101, 388)), tmp_path / name)
+    for file in ("reprocess.json", "errors.json", "risk.json", "descriptions/fit_SD.json"):
+        assert (tmp_path / "a" / file).read_bytes() == (tmp_path / "b" / file).read_bytes()
+    summary = json.loads((tmp_path / "a" / "reprocess.json").read_text())
+    assert summary["inputs"]["SD"].startswith("sha256:")
+    assert summary["input"]["drive"]["ego"] == 394  # 388's follower

@@ -16,6 +16,7 @@ from simcred.kinematics import LANE_WIDTH
 from simcred.reprocess.inputs import read_measurement
 from simcred.reprocess.pipeline import ReprocessConfig, reprocess
 from simcred.reprocess.vary import VaryConfig, run_campaign
+from simcred.scenario.description import ScenarioDescription
 from simcred.scenario.variation import (
     PlausibilityLimits,
     VariationOptions,
@@ -136,3 +137,20 @@ def test_cli_vary_bad_crossing_options_are_one_line(a9, tmp_path, capsys, args, 
     assert run(["vary", str(path), "-n", "1", "--out", str(tmp_path / "o"), *args]) == 2
     err = capsys.readouterr().err.strip()
     assert message in err and len(err.splitlines()) == 1
+
+
+def test_cli_varies_a_commonroad_cut_out_to_the_left(tmp_path):
+    """US-101-3 obstacle 394 leaves its follower's lane to the left: found on the left boundary.
+    (Fitted at 0.1 m: NGSIM positions at 10 Hz carry decimetre noise, a 2 cm fit follows it.)"""
+    path = "tests/data/commonroad-ngsim/USA_US101-3_3_T-1.xml"
+    rep, out = tmp_path / "rep", tmp_path / "vary"
+    assert run(["--quiet", "reprocess", path, "--object", "394", "--threshold", "0.1",
+                "--out", str(rep)]) == 0
+    assert run(["--quiet", "vary", str(rep / "descriptions" / "fit_SD.json"), "-n", "4",
+                "--out", str(out)]) == 0
+    document = json.loads((out / "variation_set.json").read_text())
+    description = ScenarioDescription.read(rep / "descriptions" / "fit_SD.json")
+    left = ego_lane_boundaries(description, "ego", description.objects["to"].t0)[0]
+    assert document["boundary_y"] == pytest.approx(left)
+    assert document["crossing_time"] == pytest.approx(_first_crossing(description, left),
+                                                      abs=0.01)

@@ -25,6 +25,7 @@ from simcred.cli._app import (
     progress,
     say,
 )
+from simcred.errors import SimcredError
 from simcred.limits import check_count, check_finite
 
 
@@ -94,7 +95,10 @@ def reprocess(
     columns = (None if all(v is None for v in (time_column, run_column, object_column, run))
                else LongColumns(time_column or "t", run_column, object_column, run))
     drive = read_measurement(measurement, object_id, ego=ego, long=columns, gt=gt)
-    result = run_pipeline(drive, config, _steps("reprocessing"))
+    try:
+        result = run_pipeline(drive, config, _steps("reprocessing"))
+    except SimcredError as exc:  # a step's message names the object, not the input
+        raise SimcredError(f"{_where(measurement, drive.metadata)}: {exc}") from None
     files = write_reprocessed(result, out)
     if as_json:
         sys.stdout.write(files["summary"].read_text())
@@ -131,6 +135,13 @@ def _reprocess_all(path: Path, ego: str | None, config, out: Path, as_json: bool
             f"reprocessed; wrote reprocess_all.json and obj<ID>/ to {out}")
     if batch.failed:
         raise typer.Exit(1)
+
+
+def _where(path: Path, metadata) -> str:
+    """The input and the chosen objects, for a message of a pipeline step."""
+    chosen = [f"{role} {metadata[key]}" for role, key in (("TO", "object"), ("EGO", "ego"))
+              if key in metadata]
+    return f"{path}" + (f" ({', '.join(chosen)})" if chosen else "")
 
 
 def _print_input(report: dict) -> None:
