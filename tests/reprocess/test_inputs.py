@@ -176,6 +176,9 @@ def test_a_long_table_with_gt_at_another_rate(short, tmp_path):
     (["--object-column", "vehicle"], "no column 'vehicle'"),
     (["--object-column", "object", "--object", "12"], "no object 'obj12' in column 'object'"),
     (["--object-column", "object", "--max-gap", "0"], "--max-gap"),
+    (["--object-column", "object", "--run", "a"], "--run needs --run-column"),
+    (["--object-column", "object", "--ego", "to"], "--ego and --object are both 'to'"),
+    (["--run-column", "object"], "no column 'ego.x' (columns are: t, object, x, y"),
 ])
 def test_cli_bad_long_input_is_one_line(short, tmp_path, capsys, args, message):
     path = _long_csv(short, tmp_path / "drive.csv", {})
@@ -372,3 +375,16 @@ def test_a_commonroad_reprocessing_is_byte_identical_when_repeated(tmp_path):
     summary = json.loads((tmp_path / "a" / "reprocess.json").read_text())
     assert summary["inputs"]["SD"].startswith("sha256:")
     assert summary["input"]["drive"]["ego"] == 394  # 388's follower
+
+
+def test_a_long_table_with_several_runs_needs_a_choice(short, tmp_path):
+    one = short.sd.run(0)
+    two = TraceSet.from_runs([one, one], run_ids=["a", "b"], source="two")
+    path = tmp_path / "two.csv"
+    longformat.write(two, path)
+    with pytest.raises(SimcredError, match=r"2 runs \(a, b\); choose one with --run"):
+        long_drive(path, LongColumns(run_column="run"))
+    drive = long_drive(path, LongColumns(run_column="run", run="b"))
+    assert drive.metadata["run"] == "b" and len(drive.sd.tracks["to"]) == len(one[TIME])
+    with pytest.raises(SimcredError, match=r"no run 'c' \(runs: a, b\)"):
+        long_drive(path, LongColumns(run_column="run", run="c"))

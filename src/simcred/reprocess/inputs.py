@@ -224,7 +224,11 @@ def long_drive(path: str | Path, columns: LongColumns = LongColumns(), *,
                to: int | str | None = None, ego: str | None = None,
                gt: str | Path | None = None) -> Drive:
     """A long-format table (and optionally its GT twin) with the EGO and the TO."""
+    if columns.run is not None and columns.run_column is None:
+        raise OptionError("--run needs --run-column (the column that names the runs)")
     names = (str(ego) if ego is not None else EGO, str(to) if to is not None else TO)
+    if names[0] == names[1]:
+        raise OptionError(f"--ego and --object are both {names[0]!r}")
     sd = _long_recording(Path(path), columns, names)
     gt_recording = None if gt is None else _long_recording(Path(gt), columns, names)
     metadata = {"source": str(path), "format": "long", "ego": names[0], "object": names[1],
