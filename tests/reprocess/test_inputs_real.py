@@ -55,11 +55,6 @@ def test_every_ngsim_obstacle_gets_an_ego_and_a_reported_outcome(outcomes):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason=(
-    "before the robust fit and the risk for any traffic (issue 14 parts 1 and 3) merge, 15 "
-    "obstacles besides the too short 507 fail: fitted v < 0 on stop-and-go/standing vehicles "
-    "(14) and an oncoming TO (Lankershim 1261); with both merged all 67 reprocess (measured on "
-    "a trial merge): remove this marker then"))
 def test_every_ngsim_obstacle_reprocesses(outcomes):
     failed = {key: o.reason for key, o in outcomes.items() if o.status != "ok"}
     too_short = {key for key, reason in failed.items() if SHORT_REASON in reason}
