@@ -1,0 +1,93 @@
+"""Regularisation that keeps the position fit physically plausible (simcred's, not [1]'s).
+
+[1] sec. II-B fits v(t), θ(t) to positions only. On real tracks (noise, glitches, standstill)
+the unconstrained fit chases the data into descriptions no vehicle can drive: v < 0, |v̇| of
+hundreds of m/s², a heading spinning while the vehicle stands. :class:`FitConstraints` adds
+residual rows, linear in the spline coefficients (so that Levenberg–Marquardt converges as fast as
+without them), on a grid of check times:
+
+* **standstill**: where the smoothed measured speed v̂ is low, W · s(t) · θ̇(t) with
+  s = 1 / (1 + (v̂ / 0.5 m/s)⁴) (W = 10): the heading is frozen while the vehicle stands;
+  positions there hardly depend on θ, so nothing else fixes it;
+* **smoothing** (only when needed): μ · v̇(t) / 1 m/s² and μ · θ̇(t) / 0.1 rad/s; the fit raises
+  μ through :data:`SMOOTHING_STEPS` until the track is inside the plausibility limits.
+
+After solving, the speed coefficients are clipped onto [min_speed, max_speed]: by the B-spline's
+convex-hull property v(t) then holds v ≥ 0 exactly at every time.
+
+References
+----------
+[1] Wagner, Groh, Kühbeck, Knoll, Towards Cross-Verification and Use of Simulation in the
+    Assessment of Automated Driving (seed 002), sec. II-B.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.interpolate import BSpline
+
+from simcred.scenario.plausibility import PlausibilityLimits
+from simcred.scenario.spline import DEGREE, spline_knots
+
+STOP_SPEED = 0.5
+"""Speed (m/s) at which the standstill weight s has fallen to one half."""
+STOP_WEIGHT = 10.0
+"""W of the standstill rows (per rad/s of yaw rate, against metres of position error)."""
+SMOOTHING_STEPS = (0.0, 0.01, 0.03, 0.1, 0.3)
+"""μ tried in turn until the fitted track is inside the plausibility limits."""
+_ACCELERATION_SCALE = 1.0  # m/s²
+_YAW_RATE_SCALE = 0.1  # rad/s
+
+
+class FitConstraints:
+    """Linear regularisation rows and their (constant) Jacobian on a check grid.
+
+    Parameters
+    ----------
+    limits : PlausibilityLimits or None
+        Speed limits for :meth:`clip_speed`; None: no standstill rows, no clipping.
+    t0, t1 : float
+        Span of the splines.
+    sections : int
+        Sections of the splines.
+    grid : ndarray
+        Check times in [t0, t1].
+    measured_speed : ndarray
+        Smoothed measured speed v̂ at ``grid`` (m/s), for the standstill weight.
+    smoothing : float, default: 0.0
+        μ.
+    """
+
+    def __init__(self, limits: PlausibilityLimits | None, t0: float, t1: float, sections: int,
+                 grid: np.ndarray, measured_speed: np.ndarray, *, smoothing: float = 0.0) -> None:
+        self.limits = limits
+        n = sections + DEGREE
+        basis = BSpline(spline_knots(t0, t1, sections), np.eye(n), DEGREE, extrapolate=False)
+        b0, b1 = basis(grid), basis(grid, nu=1)
+        zeros = np.zeros_like(b0)
+        stop = STOP_WEIGHT / (1.0 + (np.asarray(measured_speed) / STOP_SPEED) ** 4)
+        self._stop = (zeros, stop[:, None] * b1) if limits is not None \
+            else (np.zeros((0, n)), np.zeros((0, n)))
+        self._smooth = (np.concatenate([b1 / _ACCELERATION_SCALE, zeros]),
+                        np.concatenate([zeros, b1 / _YAW_RATE_SCALE]))
+        self.smoothing = smoothing
+
+    def jacobian(self) -> tuple[np.ndarray, np.ndarray]:
+        """∂rows/∂c_v and ∂rows/∂c_θ (constant: the rows are linear)."""
+        mu = self.smoothing
+        if not mu:
+            return self._stop
+        return (np.vstack([self._stop[0], mu * self._smooth[0]]),
+                np.vstack([self._stop[1], mu * self._smooth[1]]))
+
+    def residuals(self, cv: np.ndarray, ch: np.ndarray) -> np.ndarray:
+        """The rows: standstill, then (if μ > 0) smoothing."""
+        d_cv, d_ch = self.jacobian()
+        return d_cv @ cv + d_ch @ ch
+
+    def clip_speed(self, cv: np.ndarray) -> np.ndarray:
+        """Speed coefficients clipped onto [min_speed, max_speed]: by the B-spline's convex hull
+        property the speed then holds the bounds at every time, not only on the grid."""
+        if self.limits is None:
+            return cv
+        return np.clip(cv, self.limits.min_speed, self.limits.max_speed)
