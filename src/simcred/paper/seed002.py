@@ -49,8 +49,8 @@ def reprocess_claims(result: Reprocessed, configured_offset: float) -> list[Clai
                             f"ΔFIT_GT is far below ΔFIT_SD (TO Δ{q}: RMS ratio < 0.5)",
                             gt / sd, 0.5, f"RMS ΔFIT_GT = {gt:.4f} {unit}, "
                                           f"RMS ΔFIT_SD = {sd:.4f} {unit}"))
-    gt_v = result.states["GT"][to][:, 2]
-    fitted, raw = (_rmse(result.states[k][to][:, 2], gt_v) for k in ("fit(SD)", "SD"))
+    gt_v = result.states["GT"][to].v
+    fitted, raw = (_rmse(result.states[k][to].v, gt_v) for k in ("fit(SD)", "SD"))
     claims.append(below("fit_corrects_delay",
                         "the SD fit's TO speed is closer to GT than the raw SD speed (Fig. 5)",
                         fitted, raw, f"RMSE vs GT: fit(SD) {fitted:.3f} m/s, SD {raw:.3f} m/s"))

@@ -116,7 +116,7 @@ def test_simulate_is_deterministic_per_seed(measurement):
 
 
 def truth_columns(record):
-    ego, to = record.ego[0, :, :4], record.objects[0, :, 0]
+    ego, to = record.ego.states()[0], record.objects.states()[0, :, 0]
     return {"ego": ego, "to": to}
 
 
@@ -132,15 +132,15 @@ def test_gt_noise_has_the_configured_dgps_levels(measurement, reality):
             assert abs(error.mean()) < 5 * scale[signal] / np.sqrt(n), (name, signal)
             assert abs(error.std() / scale[signal] - 1) < 5 / np.sqrt(2 * (n - 1)), (name, signal)
     # SD's odometry carries its own draws: independent of GT's (|r| < 5/sqrt(n))
-    odometry = sd["ego.x"] - reality.ego[0, :, 0]
+    odometry = sd["ego.x"] - reality.ego.x[0]
     assert abs(odometry.std() / CONFIG.dgps.position - 1) < 5 / np.sqrt(2 * (n - 1))
-    r = np.corrcoef(odometry, gt["ego.x"] - reality.ego[0, :, 0])[0, 1]
+    r = np.corrcoef(odometry, gt["ego.x"] - reality.ego.x[0])[0, 1]
     assert abs(r) < 5 / np.sqrt(n)
 
 
 def test_sd_sees_the_to_farther_by_the_configured_offset(measurement, reality):
     sd = measurement.sd.run(0)
-    ego, to = reality.ego[0, :, :2], reality.objects[0, :, 0, :2]
+    ego, to = reality.ego.states()[0, :, :2], reality.objects.states()[0, :, 0, :2]
     sight = (to - ego) / np.hypot(*(to - ego).T)[:, None]
     error = np.column_stack([sd["to.x"], sd["to.y"]]) - to
     along = np.einsum("nc,nc->n", error, sight)
@@ -155,7 +155,7 @@ def test_sd_sees_the_to_farther_by_the_configured_offset(measurement, reality):
 
 def overlapping_gap(record):
     """Bumper gap |Δx| − length at the samples where EGO and TO overlap laterally."""
-    ego, to = record.ego[0], record.objects[0, :, 0]
+    ego, to = record.ego.states()[0], record.objects.states()[0, :, 0]
     overlap = np.abs(to[:, 1] - ego[:, 1]) < WIDTH
     return np.abs(to[overlap, 0] - ego[overlap, 0]) - DRIVER.vehicle_length
 
@@ -163,8 +163,8 @@ def overlapping_gap(record):
 def test_in_reality_the_ego_brakes_and_never_evades(reality):
     mode = reality.mode[0]
     assert (mode == BRAKE).any() and not (mode == EVADE).any()
-    assert np.abs(reality.ego[0, :, 1]).max() < 0.01  # it keeps its lane
-    assert reality.ego[0, :, 4].min() < -DRIVER.react_decel  # emergency, not comfort braking
+    assert np.abs(reality.ego.y[0]).max() < 0.01  # it keeps its lane
+    assert reality.ego.acceleration[0].min() < -DRIVER.react_decel  # emergency, not comfort braking
     assert overlapping_gap(reality).min() > 0
 
 
@@ -172,15 +172,15 @@ def test_with_an_ideal_sensor_the_ego_evades_to_the_left_lane(ideal):
     mode = ideal.mode[0]
     assert (mode == EVADE).any() and not (mode == BRAKE).any()
     left = DRIVER.lane_centres[1]
-    assert abs(ideal.ego[0, -1, 1] - left) < 0.05
-    assert np.all(ideal.ego[0, :, 1] < left + 0.1)  # no overshoot out of the road
+    assert abs(ideal.ego.y[0, -1] - left) < 0.05
+    assert np.all(ideal.ego.y[0] < left + 0.1)  # no overshoot out of the road
     assert overlapping_gap(ideal).min() > 0
 
 
 @pytest.mark.parametrize("which", ["reality", "ideal"])
 def test_the_steering_rate_stays_within_the_vehicle_limit(which, request):
     record = request.getfixturevalue(which)
-    rate = np.diff(record.ego[0, :, 5]) / CONFIG.dt
+    rate = np.diff(record.steering[0]) / CONFIG.dt
     assert np.abs(rate).max() <= DRIVER.max_steer_rate * (1 + 1e-9)
 
 
@@ -214,8 +214,8 @@ def keep_lane(script):
 def test_acc_holds_the_set_speed_with_no_object_in_its_lane():
     record = drive(replace(CONFIG, script=keep_lane(SCRIPT)), 0)
     np.testing.assert_array_equal(record.mode[0], CRUISE)
-    np.testing.assert_allclose(record.ego[0, :, 2], DRIVER.set_speed, rtol=0, atol=1e-9)
-    np.testing.assert_array_equal(record.ego[0, :, 1], 0.0)
+    np.testing.assert_allclose(record.ego.v[0], DRIVER.set_speed, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(record.ego.y[0], 0.0)
 
 
 def test_acc_speeds_up_to_the_set_speed_by_its_literal_law():
@@ -228,8 +228,8 @@ def test_acc_speeds_up_to_the_set_speed_by_its_literal_law():
     for k in range(config.steps - 1):
         accel = min(DRIVER.speed_gain * (DRIVER.set_speed - speed[k]), DRIVER.max_accel)
         speed[k + 1] = speed[k] + config.dt * accel
-    np.testing.assert_allclose(record.ego[0, :, 2], speed, rtol=0, atol=1e-9)
-    assert record.ego[0, :, 2].max() < DRIVER.set_speed  # approaches, never overshoots
+    np.testing.assert_allclose(record.ego.v[0], speed, rtol=0, atol=1e-9)
+    assert record.ego.v[0].max() < DRIVER.set_speed  # approaches, never overshoots
 
 
 def test_the_collision_check_catches_a_blind_ego():
