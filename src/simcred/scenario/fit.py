@@ -207,7 +207,8 @@ def fit_track(
         A step whose ``growth`` × more sections reduce the RMSE by less than this fraction makes
         no progress; ``patience`` such steps in a row end the search.
     patience : int, default: 3
-        Steps without progress in a row after which the search gives up (``stalled``).
+        Steps without progress in a row after which the search gives up (``stalled``); ≤ 2 for an
+        object that reverses (see ``reversals``), which the description cannot follow.
     max_sections : int, optional
         Upper bound on the sections; default one per 0.25 s, at most (n − 4) / 2 (at least 1).
     initial_sections : int, optional
@@ -273,8 +274,10 @@ def fit_track(
     limit = _max_sections(max_sections, duration, len(t), name)
     sections = min(limit, _positive_int(initial_sections, "initial_sections")
                    or max(1, math.ceil(duration / SECONDS_PER_SECTION - 1e-9)))
-    settings = _Settings(float(threshold), float(min_gain), patience, limits,
-                         position_noise(x, y))
+    turns = reversals(t, x, y) if len(t) >= SHORT_TRACK else ()
+    # A reversing object cannot be followed by a forward-driving description: give up early.
+    settings = _Settings(float(threshold), float(min_gain),
+                         min(2, patience) if turns else patience, limits, position_noise(x, y))
     steps: list[_Step] = []
     while True:
         steps.append(_solve_step(t, x, y, sections, settings,
@@ -283,7 +286,7 @@ def fit_track(
         if reason is not None:
             break
         sections = min(limit, max(sections + 1, math.ceil(growth * sections - 1e-9)))
-    return _result(t, x, y, steps, reason, settings, length, width)
+    return _result(steps, reason, settings, turns, length, width)
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -356,14 +359,13 @@ def _stop(steps: list[_Step], settings: _Settings, at_limit: bool) -> StopReason
     return StopReason.MAX_SECTIONS if at_limit else None
 
 
-def _result(t: np.ndarray, x: np.ndarray, y: np.ndarray, steps: list[_Step], reason: StopReason,
-            settings: _Settings, length: float, width: float) -> TrackFit:
+def _result(steps: list[_Step], reason: StopReason, settings: _Settings,
+            turns: tuple[float, ...], length: float, width: float) -> TrackFit:
     best = steps[-1]
     if reason in (StopReason.STALLED, StopReason.MAX_SECTIONS):
         lowest = min(step.solution.rmse for step in steps)
         best = next(step for step in steps
                     if step.solution.rmse <= (1.0 + settings.min_gain) * lowest)
-    turns = reversals(t, x, y) if len(t) >= SHORT_TRACK else ()
     if turns and reason is not StopReason.THRESHOLD:
         reason = StopReason.REVERSING
     track = best.solution.track(length, width)
@@ -430,7 +432,7 @@ class _Problem:
         jac = self.jacobian_positions(p)
         if self.constraints is None:
             return jac
-        d_cv, d_ch = self.constraints.jacobian()
+        d_cv, d_ch = self.constraints.jacobian(p[2:2 + self.n])
         return np.vstack([jac, np.hstack([np.zeros((len(d_cv), 2)), d_cv, d_ch])])
 
     def jacobian_positions(self, p: np.ndarray) -> np.ndarray:

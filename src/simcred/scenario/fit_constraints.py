@@ -3,17 +3,20 @@
 [1] sec. II-B fits v(t), θ(t) to positions only. On real tracks (noise, glitches, standstill)
 the unconstrained fit chases the data into descriptions no vehicle can drive: v < 0, |v̇| of
 hundreds of m/s², a heading spinning while the vehicle stands. :class:`FitConstraints` adds
-residual rows, linear in the spline coefficients (so that Levenberg–Marquardt converges as fast as
-without them), on a grid of check times:
+residual rows, (piecewise) linear in the spline coefficients (so that Levenberg–Marquardt
+converges about as fast as without them), on a grid of check times:
 
+* **speed floor**: W_v · min(v(t) − min_speed, 0) (W_v = 10), a one-sided hinge that keeps
+  v ≥ 0 while solving (its square is smooth);
 * **standstill**: where the smoothed measured speed v̂ is low, W · s(t) · θ̇(t) with
   s = 1 / (1 + (v̂ / 0.5 m/s)⁴) (W = 10): the heading is frozen while the vehicle stands;
   positions there hardly depend on θ, so nothing else fixes it;
 * **smoothing** (only when needed): μ · v̇(t) / 1 m/s² and μ · θ̇(t) / 0.1 rad/s; the fit raises
   μ through :data:`SMOOTHING_STEPS` until the track is inside the plausibility limits.
 
-After solving, the speed coefficients are clipped onto [min_speed, max_speed]: by the B-spline's
-convex-hull property v(t) then holds v ≥ 0 exactly at every time.
+The other rows are linear. After solving, the speed coefficients are clipped onto
+[min_speed, max_speed]: by the B-spline's convex-hull property v(t) then holds v ≥ 0 exactly at
+every time.
 
 References
 ----------
@@ -33,6 +36,8 @@ STOP_SPEED = 0.5
 """Speed (m/s) at which the standstill weight s has fallen to one half."""
 STOP_WEIGHT = 10.0
 """W of the standstill rows (per rad/s of yaw rate, against metres of position error)."""
+FLOOR_WEIGHT = 10.0
+"""Weight of the speed floor rows (per m/s below min_speed)."""
 SMOOTHING_STEPS = (0.0, 0.01, 0.03, 0.1, 0.3)
 """μ tried in turn until the fitted track is inside the plausibility limits."""
 _ACCELERATION_SCALE = 1.0  # m/s²
@@ -71,19 +76,29 @@ class FitConstraints:
         self._smooth = (np.concatenate([b1 / _ACCELERATION_SCALE, zeros]),
                         np.concatenate([zeros, b1 / _YAW_RATE_SCALE]))
         self.smoothing = smoothing
+        self._b0 = b0 if limits is not None else np.zeros((0, n))
+        self._floor = 0.0 if limits is None else limits.min_speed
 
-    def jacobian(self) -> tuple[np.ndarray, np.ndarray]:
-        """∂rows/∂c_v and ∂rows/∂c_θ (constant: the rows are linear)."""
+    def _linear(self) -> tuple[np.ndarray, np.ndarray]:
         mu = self.smoothing
         if not mu:
             return self._stop
         return (np.vstack([self._stop[0], mu * self._smooth[0]]),
                 np.vstack([self._stop[1], mu * self._smooth[1]]))
 
+    def jacobian(self, cv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """∂rows/∂c_v and ∂rows/∂c_θ: the speed floor's rows, then the linear rows."""
+        d_cv, d_ch = self._linear()
+        below = (self._b0 @ cv < self._floor)[:, None]
+        floor = FLOOR_WEIGHT * below * self._b0
+        return np.vstack([floor, d_cv]), np.vstack([np.zeros_like(floor), d_ch])
+
     def residuals(self, cv: np.ndarray, ch: np.ndarray) -> np.ndarray:
-        """The rows: standstill, then (if μ > 0) smoothing."""
-        d_cv, d_ch = self.jacobian()
-        return d_cv @ cv + d_ch @ ch
+        """The rows: speed floor W_v · min(v − min_speed, 0), standstill, then (if μ > 0)
+        smoothing."""
+        d_cv, d_ch = self._linear()
+        floor = FLOOR_WEIGHT * np.minimum(self._b0 @ cv - self._floor, 0.0)
+        return np.concatenate([floor, d_cv @ cv + d_ch @ ch])
 
     def clip_speed(self, cv: np.ndarray) -> np.ndarray:
         """Speed coefficients clipped onto [min_speed, max_speed]: by the B-spline's convex hull
