@@ -503,10 +503,8 @@ class _Problem:
         for mu in steps if use else (None,):
             if mu is not None:
                 self.constraints.smoothing = max(mu, SHORT_SMOOTHING if self.short else 0.0)
-            result = least_squares(self.residuals, p, jac=self.jacobian, method="lm",
-                                   x_scale="jac", ftol=1e-10, xtol=1e-10, gtol=1e-10,
-                                   max_nfev=100 * len(start))
-            p, iterations = result.x, iterations + int(result.njev or 0)
+            p, used = self._least_squares(p)
+            iterations += used
             if self.limits is None:
                 break
             p = p.copy()
@@ -520,6 +518,13 @@ class _Problem:
         return _Solution(self.t0, self.t1, self.sections, p,
                          rmse=float(np.sqrt(np.mean(squared))),
                          max_error=float(np.sqrt(squared.max())), iterations=iterations)
+
+
+    def _least_squares(self, p: np.ndarray) -> tuple[np.ndarray, int]:
+        result = least_squares(self.residuals, p, jac=self.jacobian, method="lm",
+                               x_scale="jac", ftol=1e-10, xtol=1e-10, gtol=1e-10,
+                               max_nfev=100 * len(p))
+        return result.x, int(result.njev or 0)
 
 
 # -- validation -----------------------------------------------------------------------------------

@@ -6,8 +6,9 @@ hundreds of m/s², a heading spinning while the vehicle stands. :class:`FitConst
 residual rows, (piecewise) linear in the spline coefficients (so that Levenberg–Marquardt
 converges about as fast as without them), on a grid of check times:
 
-* **speed floor**: W_v · min(v(t) − min_speed, 0) (W_v = 10), a one-sided hinge that keeps
-  v ≥ 0 while solving (its square is smooth);
+* **speed floor**: W_v · min(c_v,k − min_speed, 0) for every speed coefficient (W_v = 100), a
+  one-sided hinge on the coefficients (its square is smooth): by the B-spline's convex-hull
+  property, coefficients ≥ 0 give v(t) ≥ 0 at every time;
 * **standstill**: where the smoothed measured speed v̂ is low, W · s(t) · θ̇(t) with
   s = 1 / (1 + (v̂ / 0.5 m/s)⁴) (W = 10): the heading is frozen while the vehicle stands;
   positions there hardly depend on θ, so nothing else fixes it;
@@ -15,8 +16,8 @@ converges about as fast as without them), on a grid of check times:
   μ through :data:`SMOOTHING_STEPS` until the track is inside the plausibility limits.
 
 The other rows are linear. After solving, the speed coefficients are clipped onto
-[min_speed, max_speed]: by the B-spline's convex-hull property v(t) then holds v ≥ 0 exactly at
-every time.
+[min_speed, max_speed] (the hinge leaves them at most millimetres per second outside), so that
+v(t) ≥ 0 holds exactly at every time.
 
 References
 ----------
@@ -36,8 +37,8 @@ STOP_SPEED = 0.5
 """Speed (m/s) at which the standstill weight s has fallen to one half."""
 STOP_WEIGHT = 10.0
 """W of the standstill rows (per rad/s of yaw rate, against metres of position error)."""
-FLOOR_WEIGHT = 10.0
-"""Weight of the speed floor rows (per m/s below min_speed)."""
+FLOOR_WEIGHT = 100.0
+"""Weight of the speed floor rows (per m/s of a speed coefficient below min_speed)."""
 SMOOTHING_STEPS = (0.0, 0.01, 0.03, 0.1, 0.3)
 """μ tried in turn until the fitted track is inside the plausibility limits."""
 _ACCELERATION_SCALE = 1.0  # m/s²
@@ -76,7 +77,7 @@ class FitConstraints:
         self._smooth = (np.concatenate([b1 / _ACCELERATION_SCALE, zeros]),
                         np.concatenate([zeros, b1 / _YAW_RATE_SCALE]))
         self.smoothing = smoothing
-        self._b0 = b0 if limits is not None else np.zeros((0, n))
+        self._b0 = np.eye(n) if limits is not None else np.zeros((0, n))
         self._floor = 0.0 if limits is None else limits.min_speed
 
     def _linear(self) -> tuple[np.ndarray, np.ndarray]:
@@ -94,7 +95,7 @@ class FitConstraints:
         return np.vstack([floor, d_cv]), np.vstack([np.zeros_like(floor), d_ch])
 
     def residuals(self, cv: np.ndarray, ch: np.ndarray) -> np.ndarray:
-        """The rows: speed floor W_v · min(v − min_speed, 0), standstill, then (if μ > 0)
+        """The rows: speed floor W_v · min(c_v − min_speed, 0), standstill, then (if μ > 0)
         smoothing."""
         d_cv, d_ch = self._linear()
         floor = FLOOR_WEIGHT * np.minimum(self._b0 @ cv - self._floor, 0.0)
