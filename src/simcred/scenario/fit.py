@@ -278,15 +278,23 @@ def fit_track(
     # A reversing object cannot be followed by a forward-driving description: give up early.
     settings = _Settings(float(threshold), float(min_gain),
                          min(2, patience) if turns else patience, limits, position_noise(x, y))
+    data = (t, x, y, measured_speed(t, x, y))
     steps: list[_Step] = []
     while True:
-        steps.append(_solve_step(t, x, y, sections, settings,
-                                 steps[-1] if steps else None))
+        steps.append(_solve_step(data, sections, settings, steps[-1] if steps else None))
         reason = _stop(steps, settings, sections >= limit)
+        if reason is StopReason.THRESHOLD and limits is not None:
+            # Only the returned fit must be plausible: smooth it now; if that costs the
+            # threshold, keep searching with more sections.
+            steps[-1] = _plausible(data, steps[-1], settings)
+            reason = _stop(steps, settings, sections >= limit)
         if reason is not None:
             break
         sections = min(limit, max(sections + 1, math.ceil(growth * sections - 1e-9)))
-    return _result(steps, reason, settings, turns, length, width)
+    chosen = _best(steps, reason, settings)
+    best = chosen if limits is None else _plausible(data, chosen, settings)
+    extra = best.iterations - chosen.iterations
+    return _result(steps, best, extra, reason, settings, turns, length, width)
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -315,11 +323,37 @@ class _Step:
     solution: _Solution
     glitches: np.ndarray
     iterations: int
+    plausible: bool = False
 
 
-def _solve_step(t: np.ndarray, x: np.ndarray, y: np.ndarray, sections: int,
-                settings: _Settings, previous: _Step | None) -> _Step:
+def measured_speed(t: np.ndarray, x: np.ndarray, y: np.ndarray) -> Spline:
+    """|(ẋ, ẏ)| of positions smoothed by least-squares cubic splines, one section per second,
+    itself as such a spline (the speed that decides where the vehicle stands)."""
+    t0, t1 = float(t[0]), float(t[-1])
+    sections = min(max(1, math.ceil(t1 - t0 - 1e-9)), max(1, (len(t) - 4) // 2))
+    dx = Spline.least_squares(t, x, t0=t0, t1=t1, sections=sections).derivative(t)
+    dy = Spline.least_squares(t, y, t0=t0, t1=t1, sections=sections).derivative(t)
+    return Spline.least_squares(t, np.hypot(dx, dy), t0=t0, t1=t1, sections=sections)
+
+
+def _plausible(data: tuple, step: _Step, settings: _Settings) -> _Step:
+    """The step solved again, from its solution, with the smoothing raised until plausible."""
+    if step.plausible:
+        return step
+    if not check_plausibility(step.solution.track(), settings.limits):
+        return _Step(step.solution, step.glitches, step.iterations, True)
+    t, x, y, speed = data
+    keep = ~step.glitches
+    problem = _Problem(t[keep], x[keep], y[keep], step.solution.sections,
+                       span=(float(t[0]), float(t[-1])), limits=settings.limits)
+    solution = problem.solve(step.solution.params, speed, plausible=True)
+    return _Step(solution, step.glitches, step.iterations + solution.iterations, True)
+
+
+def _solve_step(data: tuple, sections: int, settings: _Settings,
+                previous: _Step | None) -> _Step:
     """One search step: solve, set glitches aside, solve again until the glitches settle."""
+    t, x, y, speed = data
     glitch = np.zeros(len(t), dtype=bool) if previous is None else previous.glitches
     start_from = None if previous is None else previous.solution
     iterations = 0
@@ -328,9 +362,9 @@ def _solve_step(t: np.ndarray, x: np.ndarray, y: np.ndarray, sections: int,
         keep = ~glitch
         problem = _Problem(t[keep], x[keep], y[keep], sections, span=span,
                            limits=settings.limits)
-        guess = problem.initial_guess()
-        start = guess if start_from is None else problem.warm_start(start_from)
-        solution = problem.solve(start, problem.measured_speed)
+        start = problem.initial_guess() if start_from is None \
+            else problem.warm_start(start_from)
+        solution = problem.solve(start, speed)
         iterations += solution.iterations
         if len(t) < SHORT_TRACK:
             break
@@ -359,13 +393,20 @@ def _stop(steps: list[_Step], settings: _Settings, at_limit: bool) -> StopReason
     return StopReason.MAX_SECTIONS if at_limit else None
 
 
-def _result(steps: list[_Step], reason: StopReason, settings: _Settings,
-            turns: tuple[float, ...], length: float, width: float) -> TrackFit:
-    best = steps[-1]
-    if reason in (StopReason.STALLED, StopReason.MAX_SECTIONS):
-        lowest = min(step.solution.rmse for step in steps)
-        best = next(step for step in steps
-                    if step.solution.rmse <= (1.0 + settings.min_gain) * lowest)
+def _best(steps: list[_Step], reason: StopReason, settings: _Settings) -> _Step:
+    """The last step; after a failed search the fewest sections within (1 + min_gain) of the
+    best RMSE."""
+    if reason not in (StopReason.STALLED, StopReason.MAX_SECTIONS):
+        return steps[-1]
+    lowest = min(step.solution.rmse for step in steps)
+    return next(step for step in steps if step.solution.rmse <= (1.0 + settings.min_gain) * lowest)
+
+
+def _result(steps: list[_Step], best: _Step, extra: int, reason: StopReason,
+            settings: _Settings, turns: tuple[float, ...], length: float, width: float
+            ) -> TrackFit:
+    if reason is StopReason.THRESHOLD and best.solution.rmse > settings.threshold:
+        reason = StopReason.MAX_SECTIONS  # unreachable in practice: the search checks this
     if turns and reason is not StopReason.THRESHOLD:
         reason = StopReason.REVERSING
     track = best.solution.track(length, width)
@@ -374,7 +415,8 @@ def _result(steps: list[_Step], reason: StopReason, settings: _Settings,
     s = best.solution
     return TrackFit(track=track, rmse=s.rmse, max_error=s.max_error, sections=s.sections,
                     history=tuple((step.solution.sections, step.solution.rmse) for step in steps),
-                    iterations=sum(step.iterations for step in steps), stop_reason=reason,
+                    iterations=sum(step.iterations for step in steps) + extra,
+                    stop_reason=reason,
                     threshold=settings.threshold, min_gain=settings.min_gain,
                     noise=settings.noise, glitches=tuple(int(i) for i in np.flatnonzero(
                         best.glitches)), reversals=turns, violations=violations)
@@ -468,7 +510,6 @@ class _Problem:
         else:
             heading = np.zeros_like(t)
         weights = speed**2 / (speed**2 + 0.25) + 1e-9
-        self.measured_speed = Spline.least_squares(t, speed, t0=t0, t1=t1, sections=smooth)
         return self._with_offsets(
             Spline.least_squares(t, speed, t0=t0, t1=t1, sections=self.sections).coefficients,
             Spline.least_squares(t, heading, t0=t0, t1=t1, sections=self.sections,
@@ -491,12 +532,14 @@ class _Problem:
         p[0], p[1] = np.mean(self.x - xh), np.mean(self.y - yh)
         return p
 
-    def solve(self, start: np.ndarray, measured_speed: Spline) -> _Solution:
-        """Least squares; with limits, the smoothing grows until the track is inside them."""
+    def solve(self, start: np.ndarray, measured_speed: Spline, *,
+              plausible: bool = False) -> _Solution:
+        """Least squares; with limits and ``plausible``, the smoothing grows until the track is
+        inside them."""
         p, iterations = start, 0
         grid = self.quad.grid
         use = self.limits is not None or self.short
-        steps = SMOOTHING_STEPS if self.limits is not None else (SHORT_SMOOTHING,)
+        steps = SMOOTHING_STEPS if self.limits is not None and plausible else (0.0,)
         if use:
             self.constraints = FitConstraints(self.limits, self.t0, self.t1, self.sections,
                                               grid, np.abs(measured_speed(grid)))

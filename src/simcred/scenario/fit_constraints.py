@@ -39,8 +39,9 @@ STOP_WEIGHT = 10.0
 """W of the standstill rows (per rad/s of yaw rate, against metres of position error)."""
 FLOOR_WEIGHT = 100.0
 """Weight of the speed floor rows (per m/s of a speed coefficient below min_speed)."""
-SMOOTHING_STEPS = (0.0, 0.01, 0.03, 0.1, 0.3)
-"""μ tried in turn until the fitted track is inside the plausibility limits."""
+SMOOTHING_STEPS = (0.0, 0.01, 0.03, 0.1, 0.3, 1.0, 3.0, 10.0, 100.0)
+"""μ tried in turn until the fitted track is inside the plausibility limits. As μ grows the track
+tends to a straight line at constant speed, which is inside any limits that admit its speed."""
 _ACCELERATION_SCALE = 1.0  # m/s²
 _YAW_RATE_SCALE = 0.1  # rad/s
 
@@ -72,8 +73,8 @@ class FitConstraints:
         b0, b1 = basis(grid), basis(grid, nu=1)
         zeros = np.zeros_like(b0)
         stop = STOP_WEIGHT / (1.0 + (np.asarray(measured_speed) / STOP_SPEED) ** 4)
-        self._stop = (zeros, stop[:, None] * b1) if limits is not None \
-            else (np.zeros((0, n)), np.zeros((0, n)))
+        stop_rows = stop > 1e-6 * STOP_WEIGHT if limits is not None else np.zeros(len(grid), bool)
+        self._stop = (zeros[stop_rows], stop[stop_rows, None] * b1[stop_rows])
         self._smooth = (np.concatenate([b1 / _ACCELERATION_SCALE, zeros]),
                         np.concatenate([zeros, b1 / _YAW_RATE_SCALE]))
         self.smoothing = smoothing
