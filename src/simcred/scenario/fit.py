@@ -539,7 +539,8 @@ class _Problem:
         p, iterations = start, 0
         grid = self.quad.grid
         use = self.limits is not None or self.short
-        steps = SMOOTHING_STEPS if self.limits is not None and plausible else (0.0,)
+        # Called with ``plausible`` only for an implausible solution: μ = 0 is known to fail.
+        steps = SMOOTHING_STEPS[1:] if self.limits is not None and plausible else (0.0,)
         if use:
             self.constraints = FitConstraints(self.limits, self.t0, self.t1, self.sections,
                                               grid, np.abs(measured_speed(grid)))
