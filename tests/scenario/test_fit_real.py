@@ -64,6 +64,21 @@ def test_every_ngsim_obstacle_fits_plausibly():
     assert sum(r is StopReason.THRESHOLD for r in reasons) >= 45
 
 
+def test_ngsim_stop_and_go_obstacle_has_no_spurious_yaw():
+    # US-101 obstacle 427 stands ~3.7 s; before issue 14 its fit turned at up to 15 rad/s with
+    # v < 0. The recorded orientation stays in [-0.82, -0.60] rad.
+    traces = read(next(p for p in NGSIM if p.stem == "USA_US101-4_1_T-1"))
+    run = traces.run(list(traces.run_ids).index("obj427"))
+    fit = fit_track(run["t"], run["x"], run["y"])
+    assert fit.reached
+    assert_plausible(fit)
+    t = np.linspace(fit.track.t0, fit.track.t1, 1001)
+    heading = fit.track.heading(t)
+    recorded = run["heading"]
+    assert heading.min() > recorded.min() - 0.05 and heading.max() < recorded.max() + 0.05
+    assert np.abs(fit.track.heading.derivative(t)).max() < 0.2
+
+
 # -- hard cases -----------------------------------------------------------------------------------
 
 
