@@ -232,9 +232,12 @@ def fit_track(
     -----
     For S sections, the parameters are p = (x0, y0, c_v, c_θ), 2S + 8 numbers, and the residuals
     are the integrated positions minus the measured ones, (x̂(tᵢ) − xᵢ, ŷ(tᵢ) − yᵢ), plus the
-    hinge residuals of ``limits`` on the integration grid. Positions use the description's own
-    quadrature (:meth:`ObjectTrack.states`), so the Jacobian is exact for it: with Bₖ the
-    B-spline basis and I[f](t) that cumulative quadrature of f, ∂x̂/∂c_v,k = I[Bₖ cos θ],
+    rows of :class:`~simcred.scenario.fit_constraints.FitConstraints` (a hinge that keeps the
+    speed coefficients ≥ min_speed; θ̇ pulled to 0 where the vehicle stands; and, only for the
+    returned fit and only while it violates ``limits``, smoothing of v̇ and θ̇). Positions use
+    the description's own quadrature (:meth:`ObjectTrack.states`), so the Jacobian is exact for
+    it: with Bₖ the B-spline basis and I[f](t) that cumulative quadrature of f,
+    ∂x̂/∂c_v,k = I[Bₖ cos θ],
     ∂ŷ/∂c_v,k = I[Bₖ sin θ], ∂x̂/∂c_θ,k = −I[v sin θ Bₖ], ∂ŷ/∂c_θ,k = I[v cos θ Bₖ],
     ∂x̂/∂x0 = ∂ŷ/∂y0 = 1. The solver is ``scipy.optimize.least_squares(method="lm",
     x_scale="jac")``; the speed coefficients are finally clipped onto the speed limits, so that
