@@ -175,6 +175,15 @@ def test_forward_stop_and_go_is_not_a_reversal():
     assert fit_track(t, *noisy(x, y, 0.02, 7)).reversals == ()
 
 
+def test_hard_stop_then_crawl_is_not_a_reversal():
+    # Peachtree obstacle 564 brakes from 6.6 m/s to a 0.17 m/s crawl in 0.5 s; the smoothed speed
+    # overshoots backwards there, the measured displacements do not.
+    traces = read(next(p for p in NGSIM if p.stem == "USA_Peach-4_8_T-1"))
+    run = traces.run(list(traces.run_ids).index("obj564"))
+    fit = fit_track(run["t"], run["x"], run["y"])
+    assert fit.reversals == () and fit.stop_reason is not StopReason.REVERSING
+
+
 @pytest.mark.parametrize("n", [2, 3, 5, 7])
 def test_short_tracks_fit_without_nan(n):
     t = 0.1 * np.arange(n)

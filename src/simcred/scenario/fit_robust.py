@@ -36,6 +36,11 @@ MOVING_SPEED = 1.0
 REVERSAL_ANGLE = 2.0 * math.pi / 3.0
 """Direction change (rad) across a stop that counts as a reversal (120°)."""
 
+REVERSAL_WINDOW = 1.0
+"""Time (s) over which the measured displacement before and after a stop gives the direction."""
+REVERSAL_DISTANCE = 0.5
+"""Least displacement (m) in that time on both sides of a stop for a direction to count."""
+
 _MAD_TO_SIGMA = 1.4826
 _THIRD_DIFFERENCE_VARIANCE = 20.0  # Var(x[i+3] − 3x[i+2] + 3x[i+1] − x[i]) = 20 σ² for white noise
 
@@ -95,11 +100,12 @@ def glitches(residuals: np.ndarray, noise: float) -> np.ndarray:
 def reversals(t: np.ndarray, x: np.ndarray, y: np.ndarray) -> tuple[float, ...]:
     """Times where the direction of travel turns by more than 120° across a stop.
 
-    The positions are smoothed by least-squares cubic splines (one section per second); where the
-    smoothed speed exceeds 1 m/s the direction of travel is defined. Between two such moving
-    stretches the vehicle (nearly) stops; if the direction at the end of the first and at the
-    start of the second differ by more than 120°, it reversed: the middle of the stop is reported.
-    A U-turn keeps moving while it turns and is not a reversal.
+    Stops are where the speed of the positions smoothed by least-squares cubic splines (one
+    section per second) is below 1 m/s between two stretches above it. The direction before a
+    stop is the measured displacement over the 1 s before it, the direction after is that over
+    the 1 s after it (both at least 0.5 m, else the stop is not judged: the smoothed speed can
+    overshoot after a hard stop); if they differ by more than 120°, the object reversed and the
+    middle of the stop is reported. A U-turn keeps moving while it turns and is not a reversal.
     """
     t0, t1 = float(t[0]), float(t[-1])
     sections = max(1, min(math.ceil(t1 - t0 - 1e-9), (len(t) - 4) // 2))
@@ -114,8 +120,20 @@ def reversals(t: np.ndarray, x: np.ndarray, y: np.ndarray) -> tuple[float, ...]:
         if not later.size:
             break
         after = later[0] + 1  # first moving sample after it
-        turn = math.atan2(dx[before] * dy[after] - dy[before] * dx[after],
-                          dx[before] * dx[after] + dy[before] * dy[after])
+        came = _chord(t, x, y, t[before] - REVERSAL_WINDOW, t[before])
+        went = _chord(t, x, y, t[after], t[after] + REVERSAL_WINDOW)
+        if min(np.hypot(*came), np.hypot(*went)) < REVERSAL_DISTANCE:
+            continue  # too little motion on one side to tell a direction
+        turn = math.atan2(came[0] * went[1] - came[1] * went[0],
+                          came[0] * went[0] + came[1] * went[1])
         if abs(turn) > REVERSAL_ANGLE:
             out.append(float(0.5 * (t[before] + t[after])))
     return tuple(out)
+
+
+def _chord(t: np.ndarray, x: np.ndarray, y: np.ndarray, start: float, end: float
+           ) -> tuple[float, float]:
+    """Measured displacement from ``start`` to ``end`` (clamped to the track, interpolated)."""
+    a, b = np.clip([start, end], t[0], t[-1])
+    return (float(np.interp(b, t, x) - np.interp(a, t, x)),
+            float(np.interp(b, t, y) - np.interp(a, t, y)))
