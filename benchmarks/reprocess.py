@@ -32,7 +32,8 @@ from scipy.optimize import least_squares
 
 from simcred.reprocess.pipeline import reprocess
 from simcred.risk import EvasionSet, PredictionSet, VehicleStates, risk
-from simcred.scenario.fit import _Problem, fit_track
+from simcred.scenario.fit import fit_track
+from simcred.scenario.fit_problem import PositionProblem
 from simcred.sim.experiments import cutin
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -54,7 +55,7 @@ def trace_20s() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def bench_fit(repeats: int) -> dict:
     t, x, y = trace_20s()
     seconds, fit = best_of(lambda: fit_track(t, x, y), repeats)
-    problem = _Problem(t, x, y, fit.sections)
+    problem = PositionProblem(t, x, y, fit.sections)
     start = problem.initial_guess()
     analytic, _ = best_of(lambda: least_squares(problem.residuals, start, jac=problem.jacobian,
                                                 method="lm", x_scale="jac"), repeats)

@@ -28,7 +28,7 @@ import numpy as np
 
 from simcred.errors import OptionError, TraceSetError
 from simcred.io._xml import xml_root
-from simcred.io.longformat import Records, to_traceset
+from simcred.io.longformat_records import Records, to_traceset
 from simcred.kinematics import LANE_WIDTH
 from simcred.traces import TraceSet
 

@@ -42,7 +42,8 @@ from pathlib import Path
 import numpy as np
 
 from simcred.errors import OptionError, TraceSetError
-from simcred.io.longformat import Records, object_name, split_signal, to_traceset
+from simcred.io.longformat import split_signal
+from simcred.io.longformat_records import Records, object_name, to_traceset
 from simcred.traces import TraceSet
 
 FIELDS = {

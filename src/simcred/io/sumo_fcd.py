@@ -28,7 +28,7 @@ import numpy as np
 
 from simcred.errors import TraceSetError
 from simcred.io._xml import XML_ERRORS, iterparse, open_xml, unreadable
-from simcred.io.longformat import Records, to_traceset
+from simcred.io.longformat_records import Records, to_traceset
 from simcred.traces import TraceSet
 
 ROOT = "fcd-export"

@@ -1,8 +1,8 @@
 """Risk measures of highway scenes: Time-To-React risk after Wagner et al. 2018, TTC and THW.
 
 Modules: ``scene`` (the inputs: vehicle states, lanes), ``prediction`` (the TOs' predictions, the
-EGO's evasions, the reaction-time law, predicted paths), ``ttr`` (the TTR search and the risk),
-``measures`` (TTC, THW).
+EGO's evasions, the reaction-time law, predicted paths), ``ttr`` (plans, collisions and the
+risk), ``ttr_search`` (evasive maneuvers, the TTR search), ``measures`` (TTC, THW).
 """
 
 from simcred.risk.measures import time_headway, time_to_collision

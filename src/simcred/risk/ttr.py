@@ -13,6 +13,9 @@ accident probability, and the probability-weighted sum over the predictions is t
 Everything is batched over scenes: a whole scenario at 10-100 Hz is one call of :func:`risk` or
 :func:`risk_series`.
 
+This module builds the plans, predictions and collisions and aggregates the risk; the TTR search
+itself (the evasive maneuvers, scan and bisection) is :mod:`simcred.risk.ttr_search`.
+
 References
 ----------
 [1] S. Wagner, K. Groh, T. Kuehbeck, M. Doerfel, A. Knoll, "Using Time-To-React Based on
@@ -42,7 +45,6 @@ from simcred.risk.prediction import (
     lateral_plan,
     rectangles_overlap,
     travel_distance,
-    unit_vector,
 )
 from simcred.risk.scene import (
     STATE_FIELDS,
@@ -52,11 +54,11 @@ from simcred.risk.scene import (
     forward_states,
     road_frames,
 )
+from simcred.risk.ttr_search import CollidingRows, search_ttr
 
-# work arrays of one chunk of scenes hold at most about this many samples
+# work arrays of one chunk of scenes (and of a block of TTR search starts) hold at most about this
+# many samples
 _CHUNK_SAMPLES = 1 << 16
-# the bisection treats rows whose last avoidable grid start lies within this many samples together
-_BISECTION_GROUP = 10
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -135,139 +137,7 @@ class RiskResult(JsonResult):
         return np.where(self.dominant_object >= 0, self.maneuver[scenes, o, p], -1)
 
 
-# -- TTR search ----------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True, slots=True)
-class _Rows:
-    """(scene, object, prediction) triples whose plan collides, with what the search needs."""
-
-    to: tuple[np.ndarray, ...]     # TO x, y, cos, sin, each (rows, T)
-    to_half: tuple[np.ndarray, np.ndarray]  # TO half length and width, (rows, 1)
-    ego_x: np.ndarray              # planned EGO travel ξ(t), (rows, T)
-    ego_y: np.ndarray
-    ego_slope: np.ndarray
-    ego_speed: np.ndarray
-    ego_v0: np.ndarray             # (rows, 1): longitudinal speed and acceleration at the scene
-    ego_a0: np.ndarray
-    ego_path: PredictedPath                # lateral path, parameters (rows, 1)
-    ego_half: tuple[np.ndarray, np.ndarray]
-
-
-def _avoids(r: _Rows, idx: np.ndarray, start: np.ndarray, j0: int, times: np.ndarray,
-            evasion: EvasionSet, lanes: Lanes) -> np.ndarray:
-    """(rows, maneuvers): maneuver started at ``start`` (rows,) avoids the TO at times[j0:].
-
-    Maneuvers are tried in order, each only on the rows no earlier maneuver avoids: a row's
-    first avoiding maneuver (and whether there is one) is exact, later columns of a row that
-    is already avoided stay False. The EGO follows its plan before ``start``; collisions are
-    checked on the samples ``times[j0:]`` only, so ``times[j0 - 1]`` must not be a planned
-    collision.
-    """
-    ok = np.zeros((idx.size, len(evasion.maneuvers)), dtype=bool)
-    pending = np.arange(idx.size)
-    for m, name in enumerate(evasion.maneuvers):
-        ok[pending, m] = ~_hits(r, idx[pending], start[pending], j0, times, name, evasion,
-                                lanes)
-        pending = pending[~ok[pending, m]]
-        if not pending.size:
-            break
-    return ok
-
-
-def _hits(r: _Rows, idx: np.ndarray, start: np.ndarray, j0: int, times: np.ndarray, name: str,
-          evasion: EvasionSet, lanes: Lanes) -> np.ndarray:
-    """(rows,): maneuver ``name`` started at ``start`` still hits the TO at times[j0:]."""
-    t = times[j0:]
-    s = start[:, None]
-    to = tuple(a[idx, j0:] for a in r.to) + tuple(a[idx] for a in r.to_half)
-    ego_x = r.ego_x[idx, j0:]
-    v0, a0 = r.ego_v0[idx], r.ego_a0[idx]
-    half = (r.ego_half[0][idx], r.ego_half[1][idx])
-    xi_s, v_s = travel_distance(v0, a0, s)
-    unusable = np.zeros(idx.size, dtype=bool)
-    if name in ("brake", "kickdown"):
-        # instantaneous full braking or kickdown from `start` on, lateral path unchanged
-        since = np.maximum(t - s, 0.0)
-        if name == "brake":
-            travel = travel_distance(v_s, evasion.brake_acceleration, since)[0]
-        else:
-            travel = evasion.kickdown_travel(v_s, since)[0]
-        xi = np.where(t > s, xi_s + travel, ego_x)
-        path = PredictedPath(r.ego_path.y0[idx], tuple(b[idx] for b in r.ego_path.b),
-                             r.ego_path.length[idx])
-        y, slope = path.at(xi)
-        cos, sin = heading_vector(slope)
-    else:
-        # smoothstep lateral offset of one lane width over `duration`, travel as planned
-        sign = 1.0 if name == "left" else -1.0
-        duration = evasion.steer_duration(lanes.width)
-        u = np.clip((t - s) / duration, 0.0, 1.0)
-        y = r.ego_y[idx, j0:] + sign * lanes.width * u * u * u * (10.0 + u * (-15.0 + 6.0 * u))
-        dydt = sign * lanes.width / duration * 30.0 * u * u * (1.0 - u) ** 2
-        speed = r.ego_speed[idx, j0:]
-        cos, sin = unit_vector(speed, r.ego_slope[idx, j0:] * speed + dydt)
-        xi = ego_x
-        v_end = travel_distance(v0, a0, s + duration)[1]
-        unusable = np.minimum(v_s, v_end)[:, 0] < evasion.min_steer_speed
-    return unusable | rectangles_overlap((xi, y, cos, sin, *half), to).any(axis=1)
-
-
-def _search(r: _Rows, first: np.ndarray, times: np.ndarray, evasion: EvasionSet,
-            lanes: Lanes) -> tuple[np.ndarray, np.ndarray]:
-    """TTR and maneuver code of every row; ``first`` (rows,) is the index of the first planned
-    collision sample, >= 1.
-
-    Scan: start indices k = 0, q, 2q, ... (q = ``evasion.scan_step``) while every earlier
-    start was avoidable by some maneuver (monotone-safe: the TTR is the end of the avoidable
-    prefix, not the last avoidable start); the first start that is not (a start at the planned
-    collision, index ``first``, never is) ends the prefix, and the TTR lies between the last
-    avoidable start and min(that start, first). Bisection on that interval then refines it
-    (prefix assumed within it) to ``dt / 2**bisection_steps`` and returns its lower end, the
-    latest start known to be avoidable. Starts are evaluated in blocks (several per numpy call)
-    when few rows are active; results do not depend on that.
-    """
-    q = evasion.scan_step
-    lo_idx = np.full(first.size, -1)              # last avoidable start; -1: none (TTR 0)
-    hi_idx = first.copy()
-    code = np.full(first.size, -1)
-    active = np.arange(first.size)
-    k = 0
-    while active.size:
-        # a block of start indices k, k + q, ... at once: fewer, larger numpy calls
-        work = active.size * (times.size - k) * len(evasion.maneuvers)
-        block = int(np.clip(_CHUNK_SAMPLES // max(work, 1), 1, (times.size - 2 - k) // q + 1))
-        index = k + q * np.arange(block)
-        ok = _avoids(r, np.repeat(active, block), np.tile(times[index], active.size), k + 1,
-                     times, evasion, lanes)
-        can = ok.any(axis=1).reshape(active.size, block)
-        codes = np.argmax(ok, axis=1).reshape(active.size, block)
-        ends = np.where(can.all(axis=1), block, np.argmin(can, axis=1))  # first failing start
-        has = ends > 0
-        last = np.maximum(ends - 1, 0)
-        code[active[has]] = codes[has, last[has]]
-        lo_idx[active[has]] = index[last[has]]
-        stopped = ends < block
-        hi_idx[active[stopped]] = np.minimum(index[ends[stopped]], first[active[stopped]])
-        active = active[~stopped]
-        k += q * block
-        active = active[first[active] > k]       # the next start is at or after the collision
-    lo = np.where(lo_idx >= 0, times[np.maximum(lo_idx, 0)], 0.0)
-    hi = times[hi_idx]
-    # rows grouped by their lo (about a second each): a group checks from its earliest lo on
-    valid = lo_idx >= 0
-    for group in np.unique(lo_idx[valid] // _BISECTION_GROUP):
-        refine = np.flatnonzero(valid & (lo_idx // _BISECTION_GROUP == group))
-        j0 = int(lo_idx[refine].min()) + 1        # the sample after the earliest lo
-        for _ in range(evasion.bisection_steps + (q - 1).bit_length()):
-            mid = 0.5 * (lo[refine] + hi[refine])
-            ok = _avoids(r, refine, mid, j0, times, evasion, lanes)
-            can = ok.any(axis=1)
-            lo[refine[can]] = mid[can]
-            hi[refine[~can]] = mid[~can]
-            code[refine[can]] = np.argmax(ok[can], axis=1)
-    code[~valid] = -1
-    return lo, code
+# -- the scenes: the EGO's plan, the TOs' predictions, their collisions --------------------------
 
 
 def _plan(e: dict[str, np.ndarray], predictions: PredictionSet, lanes: Lanes
@@ -342,7 +212,7 @@ def _chunk(ego: dict[str, np.ndarray], obj: dict[str, np.ndarray], predictions: 
     if sel.size:
         scene = sel // (collides.shape[1] * collides.shape[2])
         path = plan["path"]
-        rows = _Rows(
+        rows = CollidingRows(
             to=tuple(_take(a, hit.shape, sel) for a in to),
             to_half=tuple(_take(h, (*collides.shape, 1), sel) for h in to_half),
             ego_x=plan["xi"][scene], ego_y=plan["y"][scene], ego_slope=plan["slope"][scene],
@@ -351,7 +221,8 @@ def _chunk(ego: dict[str, np.ndarray], obj: dict[str, np.ndarray], predictions: 
                                    path.length[scene]),
             ego_half=tuple(h[scene] for h in plan["half"]),
         )
-        found, found_code = _search(rows, first.ravel()[sel], times, evasion, lanes)
+        found, found_code = search_ttr(rows, first.ravel()[sel], times, evasion, lanes,
+                                        work_samples=_CHUNK_SAMPLES)
         np.put(ttr, sel, found)
         np.put(code, sel, found_code)
     return ttr, code, collision_time
@@ -360,6 +231,7 @@ def _chunk(ego: dict[str, np.ndarray], obj: dict[str, np.ndarray], predictions: 
 # -- public API ----------------------------------------------------------------------------------
 
 
+# Long only by its numpydoc docstring (with the deviations from [1]); the code is ~25 lines.
 def risk(ego: VehicleStates, objects: VehicleStates, *,
          predictions: PredictionSet | None = None, evasion: EvasionSet | None = None,
          lanes: Lanes | None = None, reaction: ReactionTime | None = None) -> RiskResult:

@@ -9,10 +9,11 @@ Bézier path (:class:`BezierPath`) and rejects implausible variations
 (:class:`PlausibilityLimits`).
 
 Modules: ``spline`` (time curves, the quadrature of eq. (1)), ``description`` (objects,
-JSON), ``fit`` (least squares, sections), ``fit_constraints`` (plausibility rows of the fit),
-``fit_robust`` (noise, glitches, reversals), ``openscenario`` (export), ``frenet`` (path frame),
-``bezier`` (the path), ``plausibility`` (limits), ``variation`` (drawing and refitting
-variations), ``variation_set`` (options and results).
+JSON), ``fit`` (the fit's face: one track, a recording), ``fit_search`` (sections, stop rules),
+``fit_problem`` (one step's least squares), ``fit_result`` (results), ``fit_constraints``
+(plausibility rows of the fit), ``fit_robust`` (noise, glitches, reversals), ``openscenario``
+(export), ``frenet`` (path frame), ``bezier`` (the path), ``plausibility`` (limits),
+``variation`` (drawing and refitting variations), ``variation_set`` (options and results).
 """
 
 from simcred.scenario.bezier import BezierPath, influence
