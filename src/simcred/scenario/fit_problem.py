@@ -218,8 +218,8 @@ class PositionProblem:
         rows = len(self.t)
         squared = r[:rows] ** 2 + r[rows:] ** 2
         return Solution(self.t0, self.t1, self.sections, p,
-                         rmse=float(np.sqrt(np.mean(squared))),
-                         max_error=float(np.sqrt(squared.max())), iterations=iterations)
+                        rmse=float(np.sqrt(np.mean(squared))),
+                        max_error=float(np.sqrt(squared.max())), iterations=iterations)
 
 
     def _least_squares(self, p: np.ndarray) -> tuple[np.ndarray, int]:

@@ -90,7 +90,7 @@ def _plausible(data: tuple, step: Step, settings: SearchSettings) -> Step:
     t, x, y, speed = data
     keep = ~step.glitches
     problem = PositionProblem(t[keep], x[keep], y[keep], step.solution.sections,
-                       span=(float(t[0]), float(t[-1])), limits=settings.limits)
+                              span=(float(t[0]), float(t[-1])), limits=settings.limits)
     solution = problem.solve(step.solution.params, speed, plausible=True)
     return Step(solution, step.glitches, step.iterations + solution.iterations, True)
 
@@ -106,7 +106,7 @@ def _solve_step(data: tuple, sections: int, settings: SearchSettings,
     for _ in range(_GLITCH_PASSES):
         keep = ~glitch
         problem = PositionProblem(t[keep], x[keep], y[keep], sections, span=span,
-                           limits=settings.limits)
+                                  limits=settings.limits)
         start = problem.initial_guess() if start_from is None \
             else problem.warm_start(start_from)
         solution = problem.solve(start, speed)
