@@ -30,6 +30,7 @@ from rich.console import Console
 from rich.table import Table
 from scipy.optimize import least_squares
 
+from simcred import data
 from simcred.reprocess.pipeline import reprocess
 from simcred.risk import EvasionSet, PredictionSet, VehicleStates, risk
 from simcred.scenario.fit import fit_track
@@ -41,7 +42,7 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 from _timing import best_of, machine, save_results  # noqa: E402
 
 TARGETS = {"fit": 0.2, "fit real": 0.2, "ttr per scene": 5e-3, "pipeline": 15.0}
-A9_FILE = Path("/work/shared/data/real/osc-generator-a9/testfile_llc.csv")
+A9_FILE = data.path("a9/testfile_llc.csv")  # shipped with simcred (Apache-2.0)
 
 
 def trace_20s() -> tuple[np.ndarray, np.ndarray, np.ndarray]:

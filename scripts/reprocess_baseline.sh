@@ -5,7 +5,7 @@
 set -euo pipefail
 DIR=${1:?usage: reprocess_baseline.sh DIR}
 SIMCRED=${SIMCRED:-simcred}
-A9=${A9:-/work/shared/data/real/osc-generator-a9/trajectories_file.csv}
+A9=${A9:-$($SIMCRED data path a9/trajectories_file.csv)}
 mkdir -p "$DIR"
 $SIMCRED --quiet simulate cutin --out "$DIR/m"
 $SIMCRED --quiet reprocess "$DIR/m" --out "$DIR/cutin"

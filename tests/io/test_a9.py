@@ -16,8 +16,7 @@ from simcred.io.a9 import A9Recording, heading_offset, read_a9
 from simcred.io.a9_lanes import lane_changer, lane_offset
 
 SUBDIR = Path("data") / "real" / "osc-generator-a9"
-CANDIDATES = [data.path("a9"), Path(__file__).resolve().parents[2] / "shared" / SUBDIR,
-              Path("/work/shared") / SUBDIR]
+CANDIDATES = [data.path("a9"), Path(__file__).resolve().parents[3] / "shared" / SUBDIR]
 DATA = next((p for p in CANDIDATES if (p / "trajectories_file.csv").is_file()), None)
 pytestmark = pytest.mark.skipif(
     DATA is None, reason=f"A9 recording not found in {' or '.join(map(str, CANDIDATES))}"

@@ -21,8 +21,7 @@ from simcred.io.openacc import (
 from simcred.traces import RUN_INFO, TraceSet, take
 
 SUBDIR = Path("data") / "real" / "openacc"
-CANDIDATES = [Path(__file__).resolve().parents[3] / "shared" / SUBDIR,
-              Path("/work/shared") / SUBDIR]
+CANDIDATES = [Path(__file__).resolve().parents[3] / "shared" / SUBDIR]
 ORIGINAL = next((p for p in CANDIDATES if (p / "no_ACC").is_dir()), None)
 needs_original = pytest.mark.skipif(ORIGINAL is None, reason="original OpenACC CSVs not found")
 SHIPPED = data.path("openacc")
