@@ -64,6 +64,9 @@ class ReprocessConfig:
     driver: DriverConfig = field(default_factory=DriverConfig)
     scenario_based: bool = True
     criteria: ReactionCriteria = field(default_factory=ReactionCriteria)
+    # a scenario-based sensor model estimated on other drives ([1] §IV: "a set of drives");
+    # None: estimated from this measurement's own GT/SD pair
+    sensor_model: OffsetDelaySensor | None = None
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -124,7 +127,8 @@ def reprocess(measurement: Measurement, config: ReprocessConfig | None = None,
     for name, traces in raw.items():
         say(f"fit {name}")
         fits[name.fit()] = fit_scenario(traces, objects=list(objects), threshold=c.threshold)
-    sensor_model = _sensor_model(measurement, c) if c.scenario_based and GT in raw else None
+    sensor_model = c.sensor_model if c.sensor_model is not None else (
+        _sensor_model(measurement, c) if c.scenario_based and GT in raw else None)
     for name in raw:
         for kind, sensor in _sensors(name, sensor_model):
             say(f"resimulate {name} ({sensor.name} sensor)")
