@@ -199,10 +199,10 @@ def sensor_prediction_errors(measurement: Measurement, model: OffsetDelaySensor,
                              ego: str = "ego", to: str = "to") -> dict[str, float]:
     """RMSE of the TO's object list predicted from GT — by ``model`` and by the ideal sensor —
     against the measured SD (position: Euclidean; velocity: the velocity vector)."""
-    gt, sd = (_object(measurement.gt, to), _object(measurement.sd, to))
+    gt, sd = (object_states(measurement.gt, to), object_states(measurement.sd, to))
     t = measurement.gt.run(0)[TIME]
     predicted = perceive_recording(replace(model, position_sd=0.0), t,
-                                   _object(measurement.gt, ego)[:, :2], gt)
+                                   object_states(measurement.gt, ego)[:, :2], gt)
     errors = {}
     for name, guess in (("model", predicted), ("ideal", gt)):
         errors[f"{name}_position"] = float(np.sqrt(np.mean(np.sum(
@@ -212,7 +212,8 @@ def sensor_prediction_errors(measurement: Measurement, model: OffsetDelaySensor,
     return errors
 
 
-def _object(traces: TraceSet, name: str) -> np.ndarray:
+def object_states(traces: TraceSet, name: str) -> np.ndarray:
+    """``(n, 4)`` x, y, v, heading of object ``name`` in the first run of ``traces``."""
     run = traces.run(0)
     return np.column_stack([run[f"{name}.{s}"] for s in MOTION_SIGNALS])
 
