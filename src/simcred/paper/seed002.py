@@ -177,15 +177,11 @@ def mechanism_claims(result: Reprocessed, dynamic: Reprocessed, static: Reproces
 
 def held_out_claims(held_out: Reprocessed, sensor_errors: dict[str, float]) -> list[Claim]:
     """The sensor model estimated on one drive, evaluated on another ([1] §IV's "set of
-    drives"): it predicts the held-out drive's object list better than the ideal sensor, and
-    its resimulation behaves more like that drive's GT."""
+    drives"): it predicts the held-out drive's object velocities better than the ideal sensor,
+    and its resimulation behaves more like that drive's GT. (Not the position: both drives carry
+    the offset the universe planted, so recovering it would test nothing.)"""
     e = sensor_errors
     return [
-        below("held_out_sensor_position",
-              "on a held-out drive the estimated sensor model predicts SD's TO position better "
-              "than the ideal sensor (RMSE vs measured SD)", e["model_position"],
-              e["ideal_position"], f"RMSE: model {e['model_position']:.3f} m, ideal "
-                                   f"{e['ideal_position']:.3f} m"),
         below("held_out_sensor_velocity",
               "on a held-out drive the estimated sensor model predicts SD's TO velocity better "
               "than the ideal sensor (RMSE of the velocity vector)", e["model_velocity"],
