@@ -1,4 +1,4 @@
-"""Track: conversions from/to trace-set columns, heading-unwrapping interpolation, batches."""
+"""Track: conversions from/to trace-set columns, heading-unwrapping interpolation; TrackBatch."""
 
 import numpy as np
 import pytest
@@ -6,7 +6,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from simcred.errors import SimcredError
-from simcred.kinematics import MOTION_SIGNALS, Track, stack
+from simcred.kinematics import MOTION_SIGNALS, Track, TrackBatch
 
 
 def _track(n=5, rates=False):
@@ -37,9 +37,9 @@ def test_states_is_the_batched_view():
     for j, name in enumerate(MOTION_SIGNALS):
         np.testing.assert_array_equal(states[:, j], getattr(track, name))
     assert Track.from_states(track.t, states).equals(track)
-    assert stack([track, track]).shape == (5, 2, 4)
+    assert TrackBatch.of_tracks([track, track]).states().shape == (5, 2, 4)
     with pytest.raises(SimcredError, match="different lengths"):
-        stack([track, _track(3)])
+        TrackBatch.of_tracks([track, _track(3)])
 
 
 @given(st.floats(-3.0, 3.0), st.floats(0.01, 0.99))
@@ -55,3 +55,31 @@ def test_shapes_are_checked():
     with pytest.raises(SimcredError, match="'x' has shape"):
         Track([0.0, 1.0], [0.0], [0.0, 0.0], [1.0, 1.0], [0.0, 0.0])
     assert repr(_track()) == "Track(5 samples, [0, 0.4] s)"
+
+
+def test_a_batch_of_tracks_holds_their_columns_and_gives_them_back():
+    with_rates, without = _track(rates=True), _track()
+    single = TrackBatch.of_tracks(without)
+    assert single.shape == (5,) and single.acceleration is None and single.yaw_rate is None
+    batch = TrackBatch.of_tracks([with_rates, without])
+    assert batch.shape == (5, 2)
+    for k, track in enumerate((with_rates, without)):
+        for name in MOTION_SIGNALS:
+            np.testing.assert_array_equal(getattr(batch, name)[:, k], getattr(track, name))
+    np.testing.assert_array_equal(batch.acceleration, [[0.5, 0.0]] * 5)  # missing rate: 0
+    assert batch.track(with_rates.t, (slice(None), 0)).equals(with_rates)
+    back = TrackBatch.from_states(batch.states())
+    np.testing.assert_array_equal(back.states(), batch.states())
+    assert back.acceleration is None
+    with pytest.raises(ValueError):
+        batch.x[0, 0] = 1.0  # read-only
+    with pytest.raises(SimcredError, match="no tracks"):
+        TrackBatch.of_tracks([])
+
+
+def test_a_batch_broadcasts_scalars_and_refuses_other_shapes():
+    batch = TrackBatch(x=[[0.0, 1.0]], y=0.0, v=[[1.0], [2.0]], heading=0.0)
+    assert batch.shape == (2, 2) and repr(batch) == "TrackBatch(shape=(2, 2))"
+    with pytest.raises(SimcredError, match="do not broadcast"):
+        TrackBatch(x=[0.0, 1.0], y=[0.0, 1.0, 2.0], v=0.0, heading=0.0)
+

@@ -7,8 +7,9 @@ folded into (−π, π]) and, where known, acceleration a = v̇ (m/s²) and yaw 
 ego.v, ego.heading`` (:data:`MOTION_SIGNALS`), optionally ``ego.acceleration``, ``ego.yaw_rate``.
 
 The scenario description (seed 002, [1] eq. (1)) samples into tracks, the reprocessing pipeline
-compares tracks, the risk measures and the resimulation take the batched view
-(:meth:`Track.states`, :func:`stack`: ``(..., 4)`` arrays of x, y, v, θ).
+compares tracks, the risk measures and the closed loop take the batched view
+(:class:`TrackBatch`: the same columns as arrays of any one shape, e.g. ``(runs, steps)``; and
+:meth:`Track.states`, :meth:`TrackBatch.states`: ``(..., 4)`` arrays of x, y, v, θ).
 
 References
 ----------
@@ -22,6 +23,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from simcred.errors import SimcredError
 
@@ -31,7 +33,7 @@ __all__ = [
     "RATE_SIGNALS",
     "TIME_TOLERANCE",
     "Track",
-    "stack",
+    "TrackBatch",
 ]
 
 #: Width (m) of a lane where the road does not say otherwise (German motorway lanes: 3.5 to 3.75).
@@ -167,11 +169,82 @@ class Track:
                          for f in ("t", *MOTION_SIGNALS, *RATE_SIGNALS)))
 
 
-def stack(tracks: Sequence[Track]) -> np.ndarray:
-    """Batched view of tracks on one time grid: ``(n, len(tracks), 4)`` (x, y, v, heading)."""
-    if not tracks:
-        raise SimcredError("no tracks to stack")
-    n = len(tracks[0])
-    if any(len(track) != n for track in tracks):
-        raise SimcredError(f"tracks of different lengths: {[len(t) for t in tracks]}")
-    return np.stack([track.states() for track in tracks], axis=1)
+@dataclass(frozen=True, slots=True, eq=False)
+class TrackBatch:
+    """The batched view: the columns of many tracks (or of many scenes) as arrays of one shape.
+
+    Parameters
+    ----------
+    x, y, v, heading : array_like
+        As in :class:`Track`; arrays (and scalars) broadcast to one common shape, e.g.
+        ``(runs, steps)`` for EGOs or ``(runs, steps, objects)`` for traffic objects.
+    acceleration, yaw_rate : array_like, optional
+        The rates where known, same shape.
+
+    Notes
+    -----
+    Fields are stored as read-only float arrays (own copies: broadcast views would share memory
+    with the caller). Which axis is time is the user's convention; :meth:`track` takes the times.
+    """
+
+    x: ArrayLike
+    y: ArrayLike
+    v: ArrayLike
+    heading: ArrayLike
+    acceleration: ArrayLike | None = None
+    yaw_rate: ArrayLike | None = None
+
+    def __post_init__(self) -> None:
+        names = [f for f in (*MOTION_SIGNALS, *RATE_SIGNALS) if getattr(self, f) is not None]
+        try:
+            arrays = np.broadcast_arrays(*(np.asarray(getattr(self, f), dtype=float)
+                                           for f in names))
+        except ValueError:
+            raise SimcredError("track batch: fields do not broadcast to one shape") from None
+        for name, array in zip(names, arrays, strict=True):
+            array = np.array(array)
+            array.setflags(write=False)
+            object.__setattr__(self, name, array)
+
+    @classmethod
+    def of_tracks(cls, tracks: Track | Sequence[Track], **options: object) -> TrackBatch:
+        """The batch of tracks on one time grid: a :class:`Track` gives shape ``(n,)``, a
+        sequence of them ``(n, len(tracks))``. A rate that some tracks lack counts as 0 in
+        those; a rate none has is left to the class's default. ``options`` go to the class."""
+        single = isinstance(tracks, Track)
+        group = [tracks] if single else list(tracks)
+        if not group:
+            raise SimcredError(f"{options.get('name', 'track batch')}: no tracks")
+        if any(len(track) != len(group[0]) for track in group):
+            raise SimcredError(f"tracks of different lengths: {[len(t) for t in group]}")
+        fields = {f: [getattr(track, f) for track in group] for f in MOTION_SIGNALS}
+        for rate in RATE_SIGNALS:
+            if any(getattr(track, rate) is not None for track in group):
+                fields[rate] = [np.zeros_like(track.t) if getattr(track, rate) is None
+                                else getattr(track, rate) for track in group]
+        combine = (lambda columns: columns[0]) if single else (
+            lambda columns: np.stack(columns, axis=1))
+        return cls(**{f: combine(columns) for f, columns in fields.items()}, **options)
+
+    @classmethod
+    def from_states(cls, states: np.ndarray) -> TrackBatch:
+        """The batch of a ``(..., 4)`` array of x, y, v, heading (the last axis)."""
+        states = np.asarray(states, dtype=float)
+        return cls(*(states[..., j] for j in range(len(MOTION_SIGNALS))))
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        """The common shape of the fields."""
+        return self.x.shape
+
+    def states(self) -> np.ndarray:
+        """``(..., 4)``: x, y, v, heading along the last axis."""
+        return np.stack([getattr(self, s) for s in MOTION_SIGNALS], axis=-1)
+
+    def track(self, t: np.ndarray, index: tuple[int | slice, ...] | int) -> Track:
+        """The track at ``index`` (which must leave one axis: time), sampled at ``t``."""
+        return Track(t, *(None if getattr(self, f) is None else getattr(self, f)[index]
+                          for f in (*MOTION_SIGNALS, *RATE_SIGNALS)))
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}(shape={self.shape})"

@@ -105,18 +105,18 @@ def test_recorded_heading_without_offset_drifts(rec):
 
 def test_object_speeds_are_over_ground(rec):
     """Object 6 drives beside the ego: its track speed matches speed_x/y as absolute values."""
-    track = rec.objects[6]
-    t = rec.time[track.rows]
+    track = rec.objects[6].track
+    t = rec.time[rec.objects[6].rows]
     fd = np.hypot(np.diff(track.x), np.diff(track.y)) / np.diff(t)
     reported = 0.5 * (track.v[1:] + track.v[:-1])
     assert np.mean(fd) == pytest.approx(np.mean(reported), abs=1.0)  # 31.0 vs 30.6 m/s
-    ego = rec.ego["v"][track.rows]
+    ego = rec.ego["v"][rec.objects[6].rows]
     assert np.mean(fd) < np.mean(reported + 0.5 * (ego[1:] + ego[:-1])) - 20  # not relative
 
 
 def test_oncoming_objects_point_backwards(rec):
     for k in (3, 7):
-        relative = rec.objects[k].heading - rec.ego["heading"][rec.objects[k].rows]
+        relative = rec.objects[k].track.heading - rec.ego["heading"][rec.objects[k].rows]
         assert np.all(np.cos(relative) < -0.9)
 
 

@@ -18,6 +18,7 @@ from scipy.optimize import brentq
 
 from simcred.errors import SimcredError
 from simcred.io.measurement import Measurement
+from simcred.kinematics import Track
 from simcred.reprocess.errors import STEPS, ErrorStats, decompose, state_errors, wrap
 from simcred.reprocess.pipeline import reprocess
 from simcred.reprocess.reaction import Reaction, ReactionCriteria, reaction, reaction_analysis
@@ -47,8 +48,8 @@ def test_error_stats_are_numpys_statistics(values):
 
 @pytest.mark.parametrize("eps", [1e-6, 0.01, 0.3])
 def test_heading_errors_wrap_across_pi(eps):
-    out = np.array([[0.0, 0.0, 10.0, math.pi - eps]])
-    ref = np.array([[3.0, 4.0, 12.5, -math.pi + eps]])
+    out = Track.from_states([0.0], [[0.0, 0.0, 10.0, math.pi - eps]])
+    ref = Track.from_states([0.0], [[3.0, 4.0, 12.5, -math.pi + eps]])
     errors = state_errors(out, ref)
     assert errors["heading"][0] == pytest.approx(-2 * eps, abs=1e-12)
     assert state_errors(ref, out)["heading"][0] == pytest.approx(2 * eps, abs=1e-12)
@@ -72,7 +73,8 @@ def test_wrap_maps_both_ends_of_the_circle_to_pi():
 def test_decompose_skips_steps_with_missing_inputs_and_uses_state_errors():
     rng = np.random.default_rng(0)
     objects = ("ego", "to")
-    reps = {name: {o: rng.normal(size=(40, 4)) for o in objects}
+    reps = {name: {o: Track.from_states(np.arange(40.0), rng.normal(size=(40, 4)))
+                   for o in objects}
             for name in ("SD", "fit(SD)", "rSD")}
     table = decompose(reps, objects)
     assert set(table) == {"FIT_SD", "SIM_SD"}  # every other step needs GT or a refit
@@ -275,10 +277,10 @@ def test_fitting_gt_costs_far_less_than_fitting_sd(result):
 
 
 def test_the_sd_fit_speed_is_closer_to_gt_than_the_raw_sd_speed(result):
-    gt = result.states["GT"]["to"][:, 2]
+    gt = result.states["GT"]["to"].v
 
     def rmse(name):
-        return float(np.sqrt(np.mean((result.states[name]["to"][:, 2] - gt) ** 2)))
+        return float(np.sqrt(np.mean((result.states[name]["to"].v - gt) ** 2)))
 
     assert rmse("fit(SD)") < rmse("SD")
 

@@ -271,6 +271,13 @@ BATCH = [description(60.0, [24.0, 22.0, 15.0, 12.0]),
 NOISY = OffsetDelaySensor(offset=1.0, delay=0.2, position_sd=0.5)
 
 
+def _ego(record, signal):
+    """The EGO's recorded states (runs, steps, 4), acceleration or steering (runs, steps)."""
+    if signal == "states":
+        return record.ego.states()
+    return record.steering if signal == "steering" else record.ego.acceleration
+
+
 @pytest.mark.parametrize("sensor", [NOISY, TrackerSensor(position_sd=0.3)],
                          ids=["offset-delay", "tracker"])
 def test_a_runs_perception_does_not_depend_on_its_batch(sensor):
@@ -279,11 +286,13 @@ def test_a_runs_perception_does_not_depend_on_its_batch(sensor):
               "ego": "ego"}
     batch = simulate_batch(BATCH, names, t, indices=[0, 1, 2], **common)
     alone = simulate_batch(BATCH[1:2], names, t, indices=[1], **common)
-    np.testing.assert_array_equal(alone.perceived[0], batch.perceived[1])
-    np.testing.assert_array_equal(alone.ego[0], batch.ego[1])
+    np.testing.assert_array_equal(alone.perceived.states()[0], batch.perceived.states()[1])
+    for signal in ("states", "acceleration", "steering"):
+        np.testing.assert_array_equal(_ego(alone, signal)[0], _ego(batch, signal)[1])
     # the noise matters: the same description drawn as run 0 is perceived differently
     other = simulate_batch(BATCH[1:2], names, t, indices=[0], **common)
-    assert not np.array_equal(other.perceived[0, :, :, :2], alone.perceived[0, :, :, :2])
+    assert not np.array_equal(other.perceived.states()[0, :, :, :2],
+                          alone.perceived.states()[0, :, :, :2])
     # the same through resimulate: run ids follow the indices, values do not depend on the batch
     whole = resimulate(BATCH, sensor=sensor, seed=7, indices=[0, 1, 2])
     single = resimulate(BATCH[1], sensor=sensor, seed=7, indices=[1])
@@ -299,14 +308,15 @@ def test_same_seed_same_perception_other_seed_other_perception():
     first = simulate_batch(BATCH, names, t, seed=3, **common)
     again = simulate_batch(BATCH, names, t, seed=3, **common)
     other = simulate_batch(BATCH, names, t, seed=4, **common)
-    np.testing.assert_array_equal(first.perceived, again.perceived)
-    np.testing.assert_array_equal(first.ego, again.ego)
-    assert not np.array_equal(first.perceived[..., :2], other.perceived[..., :2])
+    np.testing.assert_array_equal(first.perceived.states(), again.perceived.states())
+    for signal in ("states", "acceleration", "steering"):
+        np.testing.assert_array_equal(_ego(first, signal), _ego(again, signal))
+    assert not np.array_equal(first.perceived.states()[..., :2], other.perceived.states()[..., :2])
     # the seed moves only the noise: without noise the seed is irrelevant
     quiet = replace(NOISY, position_sd=0.0)
     a = simulate_batch(BATCH, names, t, seed=3, **{**common, "sensor": quiet})
     b = simulate_batch(BATCH, names, t, seed=4, **{**common, "sensor": quiet})
-    np.testing.assert_array_equal(a.perceived, b.perceived)
+    np.testing.assert_array_equal(a.perceived.states(), b.perceived.states())
 
 
 # -- a sensor run over a recording (a model evaluated on another drive) ---------------------------
@@ -333,5 +343,5 @@ def test_perceive_recording_replays_what_the_closed_loop_perceived_without_noise
     record = run_closed_loop(vehicle_model("ks"), np.array([[0.0, 0.0, 27.0, 0.0]]),
                              truth[None, :, None, :], sensor, ADFunction(), DT,
                              np.zeros((1, len(t), 1, 2)))
-    replayed = perceive_recording(sensor, t, record.ego[0, :, :2], truth)
-    np.testing.assert_allclose(replayed, record.perceived[0, :, 0], rtol=0, atol=1e-12)
+    replayed = perceive_recording(sensor, t, record.ego.states()[0, :, :2], truth)
+    np.testing.assert_allclose(replayed, record.perceived.states()[0, :, 0], rtol=0, atol=1e-12)

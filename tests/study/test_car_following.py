@@ -20,8 +20,8 @@ from simcred.study.car_following import (
     repeat_baselines,
     run_study,
     thin,
-    write_study,
 )
+from simcred.study.files import write_study
 from simcred.study.verdict import chain_verdict, fisher
 from simcred.traces import TraceSet
 
@@ -193,3 +193,14 @@ def test_random_human_split_rejected_about_alpha_or_less():
     assert len(cells) == 40
     assert sum(c.verdict.rejected for c in cells) <= 2
     assert sum(c.distance > 0 for c in cells) <= 2  # FWER: P(distance > 0) <= alpha
+
+
+def test_csv_fields_round_trip_through_the_csv_module():
+    import csv
+    import io
+
+    from simcred.study.files import _csv
+
+    texts = ["plain", 'say "hi", twice', "a,b", ""]
+    line = ",".join(_csv(t) for t in texts)
+    assert next(csv.reader(io.StringIO(line))) == texts

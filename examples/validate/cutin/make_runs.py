@@ -58,11 +58,13 @@ def drive(model: str, runs: int, seed: int, noise_seed: int, name: str) -> Trace
                              ADFunction(config.driver), config.dt, noise)
     dgps = DGPSNoise()
     rng = np.random.default_rng(noise_seed + 1)
-    ego, to = record.ego[:, ::THIN], record.objects[:, ::THIN, 0]
-    v = ego[..., 2] + dgps.speed * rng.standard_normal(ego[..., 2].shape)
-    brake = np.repeat([[s.brake_decel] for s in drawn], ego.shape[1], axis=1)
-    columns = {"ego.v": v, "ego.a": ego[..., 4], "ego.y": ego[..., 1],
-               "ego.heading": ego[..., 3], "range": to[..., 0] - ego[..., 0], "to.brake": brake}
+    ego, to = record.ego, record.objects
+    speed = ego.v[:, ::THIN]
+    v = speed + dgps.speed * rng.standard_normal(speed.shape)
+    brake = np.repeat([[s.brake_decel] for s in drawn], speed.shape[1], axis=1)
+    columns = {"ego.v": v, "ego.a": ego.acceleration[:, ::THIN], "ego.y": ego.y[:, ::THIN],
+               "ego.heading": ego.heading[:, ::THIN],
+               "range": to.x[:, ::THIN, 0] - ego.x[:, ::THIN], "to.brake": brake}
     return TraceSet.from_runs([{"t": record.t[::THIN], **{k: c[i] for k, c in columns.items()}}
                                for i in range(runs)],
                               run_ids=[f"{name}{i:03d}" for i in range(runs)],

@@ -92,7 +92,7 @@ def car_following(
     from simcred import data
     from simcred.outputs import output_dir
     from simcred.report.study import study_figures
-    from simcred.study.car_following import StudyOptions, run_study, write_study
+    from simcred.study import StudyOptions, run_study, write_study
 
     options = StudyOptions(models=_names(models), bands=_bands(bands), features=_names(features),
                            bins=bins, sample_step=sample_step, test=test, alpha=alpha,

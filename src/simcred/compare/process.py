@@ -46,6 +46,8 @@ from simcred.traces import TraceSet
 START_KEY = 0  # seed stream of the start test; state s uses 1 + s
 
 
+# compare() is long only in its signature and docstring (21 documented options, the public face
+# of the package); its body is four steps, each a function below.
 def compare(
     a: TraceSet | str | Path,
     b: TraceSet | str | Path,
@@ -160,18 +162,19 @@ def compare(
         chain=chain, one_sided=one_sided, history=history, time_bins=time_bins,
         resample=resample, baseline=baseline, bootstrap=bootstrap,
         continue_on_start_difference=continue_on_start_difference, stop_early=stop_early)
-    result = compare_prepared(Prepared.of(a, options.features, options.resample),
-                              Prepared.of(b, options.features, options.resample),
-                              options, progress)
-    units = feature_units(a, b, options.features)
-    if any(units):
-        result = dataclasses.replace(result, units=units)
+    prepared = [Prepared.of(traces, options.features, options.resample) for traces in (a, b)]
+    result = with_units(compare_prepared(*prepared, options, progress), a, b)
     if relevance:
         from simcred.compare.calibrate import feature_relevance
 
-        result = feature_relevance(result, Prepared.of(a, options.features, options.resample),
-                                   Prepared.of(b, options.features, options.resample))
+        result = feature_relevance(result, *prepared)
     return result
+
+
+def with_units(result: Comparison, a: TraceSet, b: TraceSet) -> Comparison:
+    """``result`` with the features' units of the two sets, where any is known."""
+    units = feature_units(a, b, result.options.features)
+    return dataclasses.replace(result, units=units) if any(units) else result
 
 
 def feature_units(a: TraceSet, b: TraceSet, features: Sequence[str]) -> tuple[str, ...]:

@@ -35,7 +35,7 @@ import numpy as np
 import pyproj
 
 from simcred.errors import TraceSetError
-from simcred.kinematics import MOTION_SIGNALS
+from simcred.kinematics import MOTION_SIGNALS, Track
 from simcred.traces import TIME, TraceSet
 
 EGO_COLUMNS = ("timestamp", "lat", "long", "heading", "speed")
@@ -60,7 +60,7 @@ def _frozen(array: Any, dtype: type = np.float64) -> np.ndarray:
 
 @dataclass(frozen=True, slots=True, eq=False)
 class A9Object:
-    """One detected object over the rows where it is present, in the local frame, SI units.
+    """One detected object over the rows where it is present: its track and what the file adds.
 
     Parameters
     ----------
@@ -68,12 +68,11 @@ class A9Object:
         The object number ``#`` of the columns ``pos_x_#`` etc.
     rows : ndarray of int, shape (n,)
         Rows of the recording (0-based) where the object is present, increasing.
-    x, y : ndarray, shape (n,)
-        Position [m] in the local frame: ego position + ego heading rotation of ``rel_x, rel_y``.
-    v : ndarray, shape (n,)
-        Speed over ground [m/s], the norm of ``speed_x_#, speed_y_#``.
-    heading : ndarray, shape (n,)
-        Direction of the velocity over ground [rad, counter-clockwise from east], unwrapped.
+    track : Track
+        Its motion in the local frame, SI units, at ``timestamp[rows]``: position ``x, y`` [m]
+        (ego position + ego heading rotation of ``rel_x, rel_y``), speed over ground ``v`` [m/s]
+        (the norm of ``speed_x_#, speed_y_#``), ``heading`` [rad, counter-clockwise from east]:
+        the direction of the velocity over ground, unwrapped.
     rel_x, rel_y : ndarray, shape (n,)
         Position relative to the ego as recorded [m, x forward, y left].
     object_class : int or None
@@ -82,18 +81,18 @@ class A9Object:
 
     id: int
     rows: np.ndarray
-    x: np.ndarray
-    y: np.ndarray
-    v: np.ndarray
-    heading: np.ndarray
+    track: Track
     rel_x: np.ndarray
     rel_y: np.ndarray
     object_class: int | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "rows", _frozen(self.rows, np.int64))
-        for name in ("x", "y", "v", "heading", "rel_x", "rel_y"):
+        for name in ("rel_x", "rel_y"):
             object.__setattr__(self, name, _frozen(getattr(self, name)))
+        track = self.track
+        object.__setattr__(self, "track", Track(
+            *(_frozen(getattr(track, s)) for s in ("t", *MOTION_SIGNALS))))
 
     def __len__(self) -> int:
         return len(self.rows)
@@ -190,20 +189,20 @@ class A9Recording:
         if object_id is None:
             run = {TIME: self.time, **{f"ego.{s}": self.ego[s] for s in MOTION_SIGNALS}}
             return TraceSet.from_runs([run], run_ids=[stem], metadata=meta, source=self.source)
-        track = self._track(object_id, name)
-        lo, hi = max(track.segments(), key=lambda seg: seg[1] - seg[0])
+        detected = self._detected(object_id, name)
+        lo, hi = max(detected.segments(), key=lambda seg: seg[1] - seg[0])
         if hi - lo < 2:
             raise TraceSetError(f"{self.source}: object {object_id} is present in 1 row only "
                                 "(at least 2 are needed)")
-        k = np.searchsorted(track.rows, lo)
+        k = np.searchsorted(detected.rows, lo)
         part = slice(k, k + hi - lo)
         run = {TIME: self.time[lo:hi], **{f"ego.{s}": self.ego[s][lo:hi] for s in MOTION_SIGNALS}}
-        run.update({f"{name}.{s}": getattr(track, s)[part] for s in MOTION_SIGNALS})
-        meta.update(object_id=object_id, object_class=track.object_class, rows=[lo, hi])
+        run.update(detected.track[part].to_columns(name))
+        meta.update(object_id=object_id, object_class=detected.object_class, rows=[lo, hi])
         return TraceSet.from_runs([run], run_ids=[f"{stem}:obj{object_id}"], metadata=meta,
                                   source=self.source)
 
-    def _track(self, object_id: int, name: str) -> A9Object:
+    def _detected(self, object_id: int, name: str) -> A9Object:
         if name in ("", "ego") or "." in name:
             raise TraceSetError(f"{self.source}: object prefix {name!r} must be a plain name "
                                 "other than 'ego'")
@@ -267,7 +266,8 @@ def read_a9(path: str | Path) -> A9Recording:
     _check_time(table, columns["timestamp"])
     proj = _projection(columns["lat"][0], columns["long"][0])
     ego, offset, rms = _ego(columns, proj)
-    objects = {k: _object(table, k, ego) for k in _object_ids(str(path), header)}
+    objects = {k: _object(table, k, columns["timestamp"], ego)
+               for k in _object_ids(str(path), header)}
     lanes = {key: table.numbers(col) if col in header else np.full(len(rows), np.nan)
              for key, col in LANE_COLUMNS.items()}
     return A9Recording(
@@ -427,7 +427,8 @@ def _rotate(psi: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, 
     return c * a - s * b, s * a + c * b
 
 
-def _object(table: _Table, k: int, ego: Mapping[str, np.ndarray]) -> A9Object | None:
+def _object(table: _Table, k: int, time: np.ndarray, ego: Mapping[str, np.ndarray]
+            ) -> A9Object | None:
     cells = {f: table.numbers(f"{f}_{k}") for f in OBJECT_FIELDS}
     present = ~np.isnan(cells["pos_x"])
     for f in OBJECT_FIELDS[1:]:
@@ -444,9 +445,10 @@ def _object(table: _Table, k: int, ego: Mapping[str, np.ndarray]) -> A9Object | 
     rel_x, rel_y = cells["pos_x"][rows], cells["pos_y"][rows]
     dx, dy = _rotate(psi, rel_x, rel_y)
     vx, vy = cells["speed_x"][rows] * KMH, cells["speed_y"][rows] * KMH
+    track = Track(time[rows], ego["x"][rows] + dx, ego["y"][rows] + dy, np.hypot(vx, vy),
+                  np.unwrap(psi + np.arctan2(vy, vx)))
     return A9Object(
-        id=k, rows=rows, x=ego["x"][rows] + dx, y=ego["y"][rows] + dy, v=np.hypot(vx, vy),
-        heading=np.unwrap(psi + np.arctan2(vy, vx)), rel_x=rel_x, rel_y=rel_y,
+        id=k, rows=rows, track=track, rel_x=rel_x, rel_y=rel_y,
         object_class=_object_class(table, k, rows),
     )
 

@@ -72,8 +72,8 @@ def section3_claims(result: Reprocessed) -> list[Claim]:
         claims.append(below(f"sensor_{q}_unbiased",
                             f"the sensor's TO {name} is unbiased (|mean| < 0.25 std)",
                             abs(s.mean) / s.std, 0.25, f"mean {s.mean:.4f}, std {s.std:.4f}"))
-    gt_v = result.states["GT"][to][:, 2]
-    fitted, raw = (_rmse(result.states[k][to][:, 2], gt_v) for k in ("fit(SD)", "SD"))
+    gt_v = result.states["GT"][to].v
+    fitted, raw = (_rmse(result.states[k][to].v, gt_v) for k in ("fit(SD)", "SD"))
     claims.append(below("fit_corrects_delay",
                         "the SD fit's TO speed is closer to GT than the raw SD speed (Fig. 5)",
                         fitted, raw, f"RMSE vs GT: fit(SD) {fitted:.3f} m/s, SD {raw:.3f} m/s"))

@@ -47,13 +47,13 @@ def fig3_fit(result: Reprocessed, path: str | Path, source: str = "GT") -> Path:
     xy, speed, heading = fig.add_subplot(grid[0, :]), fig.add_subplot(grid[1, 0]), \
         fig.add_subplot(grid[1, 1])
     for name, color in ((ego, EGO_COLOR), (to, TO_COLOR)):
-        xy.plot(raw[name][:, 0], raw[name][:, 1], color=color, lw=4, alpha=0.35,
+        xy.plot(raw[name].x, raw[name].y, color=color, lw=4, alpha=0.35,
                 label=f"{name} {source}")
-        xy.plot(fit[name][:, 0], fit[name][:, 1], color=color, lw=1, label=f"{name} fit")
-        speed.plot(t, raw[name][:, 2], color=color, lw=4, alpha=0.35)
-        speed.plot(t, fit[name][:, 2], color=color, lw=1)
-        heading.plot(t, np.unwrap(raw[name][:, 3]), color=color, lw=4, alpha=0.35)
-        heading.plot(t, fit[name][:, 3], color=color, lw=1)
+        xy.plot(fit[name].x, fit[name].y, color=color, lw=1, label=f"{name} fit")
+        speed.plot(t, raw[name].v, color=color, lw=4, alpha=0.35)
+        speed.plot(t, fit[name].v, color=color, lw=1)
+        heading.plot(t, np.unwrap(raw[name].heading), color=color, lw=4, alpha=0.35)
+        heading.plot(t, fit[name].heading, color=color, lw=1)
     xy.set(xlabel="x [m]", ylabel="y [m]",
            title=f"scenario description fitted to {source} positions (thin) over {source} "
                  "(thick)")
@@ -106,11 +106,11 @@ def fig5_sd_velocity(result: Reprocessed, path: str | Path) -> Path:
     to = result.config.objects[0]
     t = result.times
     fig, ax = plt.subplots(figsize=(10, 4.5), constrained_layout=True)
-    ax.plot(t, result.states["SD"][to][:, 2], color="#d62728", lw=1, label="SD (object list)")
-    ax.plot(t, result.states["fit(SD)"][to][:, 2], color="#ff7f0e", lw=2, ls="--",
+    ax.plot(t, result.states["SD"][to].v, color="#d62728", lw=1, label="SD (object list)")
+    ax.plot(t, result.states["fit(SD)"][to].v, color="#ff7f0e", lw=2, ls="--",
             label="fit(SD) (from SD positions)")
     if "GT" in result.states:
-        ax.plot(t, result.states["GT"][to][:, 2], color="black", lw=1.2, label="GT")
+        ax.plot(t, result.states["GT"][to].v, color="black", lw=1.2, label="GT")
     ax.set(xlabel="t [s]", ylabel="TO speed [m/s]",
            title="TO speed: the fit of SD positions converges towards GT")
     ax.legend(fontsize=9)
@@ -134,10 +134,10 @@ def fig6_traces(result: Reprocessed, path: str | Path, before: float = 0.5,
     fig, ax = plt.subplots(figsize=(12, 4.5), constrained_layout=True)
     for key, (label, color, style) in _styles(result):
         states = result.states[key.fit()]
-        ax.plot(states[ego][window, 0], states[ego][window, 1], color=color, ls=style, lw=2,
+        ax.plot(states[ego].x[window], states[ego].y[window], color=color, ls=style, lw=2,
                 label=f"EGO {label}")
     truth = result.states[GT.fit() if GT.fit() in result.states else SD.fit()][to]
-    ax.plot(truth[window, 0], truth[window, 1], color=TO_COLOR, lw=6, alpha=0.35, label="TO")
+    ax.plot(truth.x[window], truth.y[window], color=TO_COLOR, lw=6, alpha=0.35, label="TO")
     ax.set(xlabel="x [m]", ylabel="y [m]",
            title=f"paths from {start:.1f} s to {start + before + after:.1f} s: who brakes, "
                  "who evades")
@@ -154,12 +154,12 @@ def fig7_velocity_risk(result: Reprocessed, path: str | Path) -> Path:
     t = result.times
     for key, (label, color, style) in _styles(result):
         source = key.fit() if key.resimulated else key
-        speed.plot(t, result.states[source][ego][:, 2], color=color, ls=style,
+        speed.plot(t, result.states[source][ego].v, color=color, ls=style,
                    label=f"EGO {label}")
         r = result.risk[key]
         risk.plot(r["t"], log_risk(r["risk"]), color=color, ls=style, label=label)
     if "GT" in result.states:
-        speed.plot(t, result.states["GT"][to][:, 2], color=TO_COLOR, lw=0.8, label="TO (GT)")
+        speed.plot(t, result.states["GT"][to].v, color=TO_COLOR, lw=0.8, label="TO (GT)")
     _mark_reactions(speed, result)
     speed.set(ylabel="v [m/s]", title="EGO speed: the measurement and its resimulations"
                                       + _shift_title(result))

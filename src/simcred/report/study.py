@@ -14,7 +14,8 @@ from matplotlib.patches import Patch  # noqa: E402
 
 from simcred.io.openacc import UNITS  # noqa: E402
 from simcred.report.figures import save_figure, state_map  # noqa: E402
-from simcred.study.car_following import StudyResult, band_label, cell_slug  # noqa: E402
+from simcred.study.car_following import StudyResult, band_label, episode_counts  # noqa: E402
+from simcred.study.files import cell_slug  # noqa: E402
 
 # insufficient data, not distinguishable, differs
 VERDICT_COLORS = ["#d9d9d9", "#b7dfb0", "#d7301f"]
@@ -31,10 +32,11 @@ def verdict_matrix(result: StudyResult, path: str | Path) -> Path:
         for j, band in enumerate(bands):
             c = result.cell(row, band)
             if c.verdict is None:
-                text = f"insufficient data\n{_runs(c)}"
+                text = f"insufficient data\n{episode_counts(c)}"
             else:
                 code[i, j] = 2 if c.verdict.rejected else 1
-                text = f"p = {c.verdict.pvalue:.2g}, d = {100 * c.distance:.1f} %\n{_runs(c)}"
+                text = (f"p = {c.verdict.pvalue:.2g}, d = {100 * c.distance:.1f} %\n"
+                        f"{episode_counts(c)}")
                 base = c.comparison.baseline
                 if base is not None:
                     text += f"\nref. halves: d = {100 * base.low:.1f}–{100 * base.high:.1f} %"
@@ -55,11 +57,6 @@ def verdict_matrix(result: StudyResult, path: str | Path) -> Path:
                  wrap=True)
     return save_figure(fig, Path(path))
 
-
-def _runs(c) -> str:
-    a = 0 if c.a is None else c.a.runs
-    b = 0 if c.b is None else c.b.runs
-    return f"{a} vs {b} episodes"
 
 
 def headway_panel(result: StudyResult, path: str | Path) -> Path:

@@ -18,11 +18,13 @@ References
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 
 import numpy as np
 
 from simcred._json import JsonResult
+from simcred.kinematics import Track
 
 QUANTITIES = ("d", "v", "heading")
 
@@ -69,19 +71,19 @@ def wrap(angle: np.ndarray) -> np.ndarray:
     return -np.remainder(-np.asarray(angle) + np.pi, 2 * np.pi) + np.pi
 
 
-def state_errors(output: np.ndarray, reference: np.ndarray) -> dict[str, np.ndarray]:
-    """Δd, Δv, Δθ between two state arrays ``(n, 4)`` (x, y, v, heading) on the same times."""
-    return {"d": np.hypot(*(output[:, :2] - reference[:, :2]).T),
-            "v": output[:, 2] - reference[:, 2],
-            "heading": wrap(output[:, 3] - reference[:, 3])}
+def state_errors(output: Track, reference: Track) -> dict[str, np.ndarray]:
+    """Δd, Δv, Δθ between two tracks on the same times."""
+    return {"d": np.hypot(output.x - reference.x, output.y - reference.y),
+            "v": output.v - reference.v,
+            "heading": wrap(output.heading - reference.heading)}
 
 
-def decompose(representations: dict[str, dict[str, np.ndarray]], objects: tuple[str, ...]
+def decompose(representations: Mapping[str, Mapping[str, Track]], objects: tuple[str, ...]
               ) -> dict[str, dict[str, dict[str, ErrorStats]]]:
     """Fig. 4's table: ``step -> object -> quantity -> ErrorStats``.
 
     ``representations`` maps the names used in :data:`STEPS` (``"GT"``, ``"fit(SD)"``, ...) to
-    ``object -> (n, 4)`` states on common times; steps whose inputs are missing are skipped
+    ``object -> track`` on common times; steps whose inputs are missing are skipped
     (a real recording without GT has only the SD pipeline's fit).
     """
     table: dict[str, dict[str, dict[str, ErrorStats]]] = {}

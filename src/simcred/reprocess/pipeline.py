@@ -75,7 +75,7 @@ class Reprocessed(JsonResult):
 
     config: ReprocessConfig
     times: np.ndarray
-    states: dict[str, dict[str, np.ndarray]]
+    states: dict[Rep, dict[str, Track]]  # representation -> object -> track on ``times``
     descriptions: dict[str, ScenarioDescription]
     fits: dict[str, ScenarioFit]
     resimulations: dict[str, TraceSet]
@@ -122,7 +122,7 @@ def reprocess(measurement: Measurement, config: ReprocessConfig | None = None,
     if GT in raw and not np.array_equal(raw[GT].run(0)[TIME], times):
         raise SimcredError(f"{raw[GT].source}: GT and SD must share their sample times "
                            f"({raw[GT].n_rows} vs {raw[SD].n_rows} samples)")
-    states = {name: _raw_states(traces, objects) for name, traces in raw.items()}
+    states = {name: _tracks(traces, objects) for name, traces in raw.items()}
     fits, resims = {}, {}
     for name, traces in raw.items():
         say(f"fit {name}")
@@ -136,13 +136,13 @@ def reprocess(measurement: Measurement, config: ReprocessConfig | None = None,
             resims[key] = replace(resimulate(
                 fits[name.fit()].description, sensor=sensor, vehicle=c.vehicle,
                 driver=c.driver, dt=c.dt, seed=c.seed, ego=c.ego), run_ids=(key,), source=key)
-            states[key] = _interpolated_states(resims[key], times, objects)
+            states[key] = _interpolated_tracks(resims[key], times, objects)
             say(f"refit {key}")
             fits[key.fit()] = fit_scenario(resims[key], objects=list(objects),
                                            threshold=c.threshold)
     descriptions = {k: f.description for k, f in fits.items()}
     for key, description in descriptions.items():
-        states[key] = _description_states(description, times, objects)
+        states[key] = _description_tracks(description, times, objects)
     say("assess")
     assessed = {k.unfitted: d for k, d in descriptions.items()}
     reactions = {k: _reaction(d, c) for k, d in assessed.items()}
@@ -168,9 +168,10 @@ def _sensors(name: Rep, model: OffsetDelaySensor | None
 
 def _sensor_model(measurement: Measurement, c: ReprocessConfig) -> OffsetDelaySensor:
     """The scenario-based sensor model from the measurement's own GT/SD pair of the first TO."""
-    gt, sd = (_raw_states(m, (c.ego, c.objects[0])) for m in (measurement.gt, measurement.sd))
-    t = measurement.gt.run(0)[TIME]
-    return estimate_sensor(t, gt[c.ego][:, :2], gt[c.objects[0]], sd[c.objects[0]])
+    gt, sd = (_tracks(m, (c.ego, c.objects[0])) for m in (measurement.gt, measurement.sd))
+    to = c.objects[0]
+    return estimate_sensor(gt[to].t, gt[c.ego].states()[:, :2], gt[to].states(),
+                           sd[to].states())
 
 
 def _tracks(traces: TraceSet, objects: tuple[str, ...]) -> dict[str, Track]:
@@ -181,22 +182,19 @@ def _tracks(traces: TraceSet, objects: tuple[str, ...]) -> dict[str, Track]:
     return {o: Track.from_columns(run, o, time=TIME, source=traces.source) for o in objects}
 
 
-def _raw_states(traces: TraceSet, objects: tuple[str, ...]) -> dict[str, np.ndarray]:
-    return {o: track.states() for o, track in _tracks(traces, objects).items()}
+def _interpolated_tracks(traces: TraceSet, times: np.ndarray, objects: tuple[str, ...]
+                         ) -> dict[str, Track]:
+    return {o: track.interpolate(times) for o, track in _tracks(traces, objects).items()}
 
 
-def _interpolated_states(traces: TraceSet, times: np.ndarray, objects: tuple[str, ...]
-                         ) -> dict[str, np.ndarray]:
-    return {o: track.interpolate(times).states() for o, track in _tracks(traces, objects).items()}
-
-
-def _description_states(description: ScenarioDescription, times: np.ndarray,
-                        objects: tuple[str, ...]) -> dict[str, np.ndarray]:
+def _description_tracks(description: ScenarioDescription, times: np.ndarray,
+                        objects: tuple[str, ...]) -> dict[str, Track]:
+    """The description's tracks on ``times`` (held at its ends outside its span)."""
     inside = np.clip(times, description.t0, description.t1)
-    return {o: description.objects[o].states(inside).states() for o in objects}
+    return {o: replace(description.objects[o].states(inside), t=times) for o in objects}
 
 
-def _as_ideal(states: dict[Rep, dict[str, np.ndarray]]) -> dict[Rep, dict[str, np.ndarray]]:
+def _as_ideal(states: dict[Rep, dict[str, Track]]) -> dict[Rep, dict[str, Track]]:
     """Representations renamed so that the scenario-based ones take the place of the ideal."""
     renamed = {k: v for k, v in states.items() if not k.scenario_based}
     renamed.update({k.ideal(): v for k, v in states.items() if k.scenario_based})
@@ -229,16 +227,17 @@ def log_risk_rmse(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> float:
     return float(np.sqrt(np.mean((log_risk(a["risk"][:n]) - log_risk(b["risk"][:n])) ** 2)))
 
 
-def _analysis(states: dict[str, dict[str, np.ndarray]], reactions: dict[str, Reaction],
+def _analysis(states: dict[Rep, dict[str, Track]], reactions: dict[str, Reaction],
               c: ReprocessConfig) -> dict[str, float | None]:
     """Eqs. (4)-(7) for the ideal sensor, and the same for the scenario-based model."""
     if GT not in states:
         return {}
     to = c.objects[0]
-    offset = float(np.mean(np.hypot(*(states[SD][to][:, :2] - states[GT][to][:, :2]).T)))
+    offset = float(np.mean(np.hypot(states[SD][to].x - states[GT][to].x,
+                                    states[SD][to].y - states[GT][to].y)))
     gt = reactions[GT]
     speed = gt.speed_at_reaction if not math.isnan(gt.speed_at_reaction) else float(
-        np.mean(states[GT][c.ego][:, 2]))
+        np.mean(states[GT][c.ego].v))
     result = {"sensor_offset_d": offset, "ego_speed": speed,
               **reaction_analysis(reactions, offset, speed)}
     sb = {k.ideal(): v for k, v in reactions.items() if k.scenario_based}

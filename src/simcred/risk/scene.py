@@ -6,14 +6,13 @@ See :mod:`simcred.risk.ttr` for the method and its references.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from simcred.errors import OptionError, SimcredError
-from simcred.kinematics import LANE_WIDTH, Track
+from simcred.kinematics import LANE_WIDTH, TrackBatch
 
 STATE_FIELDS = ("x", "y", "v", "heading", "acceleration", "yaw_rate", "length", "width")
 # peak |d²p/dτ²| of the quintic smoothstep p(τ) = 10τ³ - 15τ⁴ + 6τ⁵, at τ = (3 ∓ √3)/6
@@ -29,8 +28,10 @@ def require(condition: bool, message: str) -> None:
 
 
 @dataclass(frozen=True, slots=True, eq=False)
-class VehicleStates:
-    """States of vehicles in many scenes: arrays of one common shape, scalars broadcast.
+class VehicleStates(TrackBatch):
+    """States of vehicles in many scenes: the kinematics batched view
+    (:class:`~simcred.kinematics.TrackBatch`, rates 0 where not given) plus the vehicles' size,
+    checked against the risk model's road (traffic drives along +x).
 
     Parameters
     ----------
@@ -56,29 +57,11 @@ class VehicleStates:
     Equality is identity.
     """
 
-    x: ArrayLike
-    y: ArrayLike
-    v: ArrayLike
-    heading: ArrayLike
     acceleration: ArrayLike = 0.0
     yaw_rate: ArrayLike = 0.0
     length: ArrayLike = 4.5
     width: ArrayLike = 1.8
     name: str = "vehicle"
-
-    @classmethod
-    def of_tracks(cls, tracks: Track | Sequence[Track], *, name: str = "vehicle"
-                  ) -> VehicleStates:
-        """States from tracks on one time grid: a :class:`~simcred.kinematics.Track` gives shape
-        ``(n,)`` (an EGO), a sequence of them ``(n, len(tracks))`` (one column per TO). Missing
-        rates count as 0; length and width are the defaults."""
-        if isinstance(tracks, Track):
-            return cls(**_fields(tracks), name=name)
-        fields = [_fields(track) for track in tracks]
-        if not fields:
-            raise SimcredError(f"{name}: no tracks")
-        return cls(**{f: np.stack([x[f] for x in fields], axis=1) for f in fields[0]},
-                   name=name)
 
     def __post_init__(self) -> None:
         arrays = []
@@ -102,20 +85,9 @@ class VehicleStates:
             a.setflags(write=False)
             object.__setattr__(self, f, a)
 
-    @property
-    def shape(self) -> tuple[int, ...]:
-        """The common shape of the fields."""
-        return self.x.shape
-
     def as_dict(self) -> dict[str, np.ndarray]:
         """The fields by name (without ``name``)."""
         return {f: getattr(self, f) for f in STATE_FIELDS}
-
-
-def _fields(track: Track) -> dict[str, np.ndarray]:
-    rates = {f: np.zeros_like(track.t) if getattr(track, f) is None else getattr(track, f)
-             for f in ("acceleration", "yaw_rate")}
-    return {"x": track.x, "y": track.y, "v": track.v, "heading": track.heading, **rates}
 
 
 def _check_values(label: str, a: np.ndarray) -> None:

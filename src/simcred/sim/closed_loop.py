@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from simcred.kinematics import TrackBatch
 from simcred.sim.driver import ADFunction, DriverMemory
 from simcred.sim.sensors import Sensor
 from simcred.sim.vehicles import VehicleModel, initial_state, rk4_step
@@ -45,22 +46,25 @@ def centre_pose(model: VehicleModel, state: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True, slots=True)
 class LoopRecord:
-    """Everything a closed-loop run produced, sampled at every step.
+    """Everything a closed-loop run produced, sampled at every step ``t``.
 
-    ``ego`` (runs, steps, 6) columns :data:`EGO_SIGNALS`; ``objects`` and ``perceived``
-    (runs, steps, n, 4) x, y, v, heading; ``mode`` (runs, steps) the AD function's mode.
+    ``ego`` the EGO's centre, shape (runs, steps), with its acceleration; ``objects`` and
+    ``perceived`` the true and the perceived traffic objects, shape (runs, steps, n) (batched
+    tracks, :class:`~simcred.kinematics.TrackBatch`); ``steering`` (runs, steps) the EGO's
+    steering angle (rad); ``mode`` (runs, steps) the AD function's mode.
     """
 
     t: np.ndarray
-    ego: np.ndarray
-    objects: np.ndarray
-    perceived: np.ndarray
+    ego: TrackBatch
+    steering: np.ndarray
+    objects: TrackBatch
+    perceived: TrackBatch
     mode: np.ndarray
-
 
     def __repr__(self) -> str:
         runs, steps = self.mode.shape
         return f"LoopRecord({runs} runs, {steps} steps, {self.objects.shape[2]} objects)"
+
 
 def run_closed_loop(model: VehicleModel, ego_start: np.ndarray, objects: np.ndarray,
                     sensor: Sensor, driver: ADFunction, dt: float, noise: np.ndarray
@@ -102,4 +106,6 @@ def run_closed_loop(model: VehicleModel, ego_start: np.ndarray, objects: np.ndar
         ego[:, k, :4], ego[:, k, 4], ego[:, k, 5] = pose, inputs[:, 1], state[:, steering_index]
         perceived[:, k], mode[:, k] = seen, memory.mode
         state = rk4_step(model, state, inputs, dt)
-    return LoopRecord(np.arange(steps) * dt, ego, objects, perceived, mode)
+    return LoopRecord(np.arange(steps) * dt, TrackBatch(*np.moveaxis(ego[..., :5], -1, 0)),
+                      ego[..., 5], TrackBatch.from_states(objects),
+                      TrackBatch.from_states(perceived), mode)

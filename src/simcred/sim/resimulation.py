@@ -19,7 +19,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from simcred.errors import SimcredError
-from simcred.kinematics import MOTION_SIGNALS, TIME_TOLERANCE, Track
+from simcred.kinematics import MOTION_SIGNALS, TIME_TOLERANCE
 from simcred.scenario.description import ScenarioDescription
 from simcred.seeds import stream
 from simcred.sim.campaign import run_id
@@ -105,9 +105,9 @@ def _traceset(record: LoopRecord, t: np.ndarray, names: Sequence[str], ego: str,
               run_ids: Sequence[str]) -> TraceSet:
     runs = []
     for r in range(record.ego.shape[0]):
-        run = {TIME: t, **Track.from_states(t, record.ego[r, :, :4]).to_columns(ego)}
+        run = {TIME: t, **record.ego.track(t, r).to_columns(ego)}
         for k, name in enumerate(names):
-            run.update(Track.from_states(t, record.objects[r, :, k]).to_columns(name))
+            run.update(record.objects.track(t, (r, slice(None), k)).to_columns(name))
         run[MODE_SIGNAL] = record.mode[r].astype(float)
         runs.append(run)
     return TraceSet.from_runs(runs, run_ids=run_ids, source="resimulation")

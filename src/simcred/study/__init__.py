@@ -6,7 +6,7 @@ from simcred.study.car_following import (
     StudyResult,
     repeat_baselines,
     run_study,
-    write_study,
 )
+from simcred.study.files import write_study
 
 __all__ = ["StudyOptions", "StudyResult", "repeat_baselines", "run_study", "write_study"]

@@ -222,7 +222,7 @@ class StudyResult:
         for c in self.cells:
             where = f"{c.row}, leader {band_label(c.band)}"
             if c.verdict is None:
-                out.append(f"{where}: insufficient data ({_runs(c)})")
+                out.append(f"{where}: insufficient data ({episode_counts(c)})")
                 continue
             word = "differs from human following" if c.verdict.rejected else \
                 "not distinguishable from human following"
@@ -234,9 +234,9 @@ class StudyResult:
                     if c.verdict.rejected else "the two groups of cars not distinguishable"
             floor = c.comparison.chain is not None and \
                 c.verdict.pvalue <= 1 / (c.comparison.chain.permutations + 1)
-            out.append(f"{where}: {word} (chain p = {_fmt(c.verdict.pvalue)}"
+            out.append(f"{where}: {word} (chain p = {fmt(c.verdict.pvalue)}"
                        f"{' (smallest possible)' if floor else ''}, distance "
-                       f"{_fmt(c.distance)}{_baseline_range(c)}, {_runs(c)})")
+                       f"{fmt(c.distance)}{_baseline_range(c)}, {episode_counts(c)})")
         return out
 
     def to_dict(self) -> dict[str, Any]:
@@ -251,7 +251,8 @@ class StudyResult:
         return dumps(self.to_dict())
 
 
-def _fmt(value: float | None) -> str:
+def fmt(value: float | None) -> str:
+    """A number in three significant digits, ``n/a`` for None."""
     return "n/a" if value is None else f"{value:.3g}"
 
 
@@ -260,10 +261,11 @@ def _baseline_range(c: Cell) -> str:
     base = None if c.comparison is None else c.comparison.baseline
     if base is None:
         return ""
-    return f" where halves of the reference give {_fmt(base.low)}-{_fmt(base.high)}"
+    return f" where halves of the reference give {fmt(base.low)}-{fmt(base.high)}"
 
 
-def _runs(c: Cell) -> str:
+def episode_counts(c: Cell) -> str:
+    """``<reference> vs <candidate> episodes`` of a cell."""
     a = 0 if c.a is None else c.a.runs
     b = 0 if c.b is None else c.b.runs
     return f"{a} vs {b} episodes"
@@ -464,87 +466,5 @@ def repeat_baselines(seeds: Sequence[int], options: StudyOptions | None = None, 
     return cells
 
 
-def write_study(result: StudyResult, out: str | Path) -> list[Path]:
-    """``study.json`` (findings + provenance), ``matrix.csv``, ``bands/<band>.csv`` and
-    ``comparisons/<row>__<band>.json`` under ``out``."""
-    out = Path(out)
-    (out / "bands").mkdir(parents=True, exist_ok=True)
-    (out / "comparisons").mkdir(parents=True, exist_ok=True)
-    written = [out / "study.json", out / "matrix.csv"]
-    written[0].write_text(result.to_json())
-    written[1].write_text(matrix_csv(result))
-    for band in result.options.bands:
-        path = out / "bands" / f"{slug(band_label(band))}.csv"
-        path.write_text(band_csv(result, band))
-        written.append(path)
-    for c in result.cells:
-        if c.comparison is not None:
-            path = out / "comparisons" / f"{cell_slug(c)}.json"
-            path.write_text(c.comparison.to_json())
-            written.append(path)
-    return written
-
-
-def slug(text: str) -> str:
-    return "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in text).strip("_")
-
-
-def cell_slug(c: Cell) -> str:
-    return f"{slug(c.row)}__{slug(band_label(c.band))}"
-
-
-def matrix_csv(result: StudyResult) -> str:
-    """Rows × bands; a cell is ``p=<chain p>;d=<distance>;<verdict>`` or ``insufficient data``."""
-    lines = [",".join(["row", *(band_label(b) for b in result.options.bands)])]
-    for row in result.rows:
-        cells = []
-        for band in result.options.bands:
-            c = result.cell(row, band)
-            if c.verdict is None:
-                cells.append("insufficient data")
-            else:
-                word = "differs" if c.verdict.rejected else "not distinguishable"
-                cells.append(f"p={_fmt(c.verdict.pvalue)};d={_fmt(c.distance)};{word}")
-        lines.append(",".join([_csv(row), *cells]))
-    return "\n".join(lines) + "\n"
-
-
-def band_csv(result: StudyResult, band: tuple[float, float]) -> str:
-    """One band: per row the verdict, distance, start test and descriptive statistics (units in
-    the header)."""
-    header = ["row", "status", "chain_pvalue", "rejected", "distance", "start_pvalue",
-              "n_states", "n_tested", "n_rejected_states", "baseline_distance_low",
-              "baseline_distance_high", "runs_reference", "runs_candidate",
-              "gap_median_m", "gap_median_reference_m", "headway_median_s",
-              "headway_median_reference_s", "a_std_mps2", "a_std_reference_mps2"]
-    lines = [",".join(header)]
-    for row in result.rows:
-        d = result.cell(row, band).to_dict()
-        v, a, b = d["verdict"] or {}, d["reference"] or {}, d["candidate"] or {}
-        base = d["baseline"] or {}
-        values = [_csv(row), d["status"], v.get("pvalue"), v.get("rejected"), d["distance"],
-                  d["start_pvalue"], d["n_states"], d["n_tested"], d["n_rejected_states"],
-                  base.get("low"), base.get("high"), a.get("runs"), b.get("runs"),
-                  b.get("gap_median"), a.get("gap_median"),
-                  b.get("headway_median"), a.get("headway_median"), b.get("a_std"),
-                  a.get("a_std")]
-        lines.append(",".join(_value(x) for x in values))
-    return "\n".join(lines) + "\n"
-
-
-def _value(x: Any) -> str:
-    if x is None:
-        return ""
-    if isinstance(x, str):
-        return _csv(x)
-    if isinstance(x, bool | np.bool_):
-        return str(bool(x))
-    return repr(float(x)) if isinstance(x, float | np.floating) else str(int(x))
-
-
-def _csv(text: str) -> str:
-    return f'"{text}"' if ("," in text or '"' in text) else text
-
-
-__all__ = ["StudyOptions", "StudyResult", "Cell", "run_study", "write_study", "band_index",
-           "thin", "repeat_baselines", "BASELINE", "REAL_ACC"]
+__all__ = ["StudyOptions", "StudyResult", "Cell", "run_study", "band_index",
+           "thin", "repeat_baselines", "BASELINE", "REAL_ACC", "band_label"]

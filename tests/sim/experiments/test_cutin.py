@@ -124,7 +124,7 @@ def test_simulate_is_deterministic_per_seed(measurement):
 
 
 def truth_columns(record):
-    ego, to = record.ego[0, :, :4], record.objects[0, :, 0]
+    ego, to = record.ego.states()[0], record.objects.states()[0, :, 0]
     return {"ego": ego, "to": to}
 
 
@@ -140,15 +140,15 @@ def test_gt_noise_has_the_configured_dgps_levels(measurement, reality):
             assert abs(error.mean()) < 5 * scale[signal] / np.sqrt(n), (name, signal)
             assert abs(error.std() / scale[signal] - 1) < 5 / np.sqrt(2 * (n - 1)), (name, signal)
     # SD's odometry carries its own draws: independent of GT's (|r| < 5/sqrt(n))
-    odometry = sd["ego.x"] - reality.ego[0, :, 0]
+    odometry = sd["ego.x"] - reality.ego.x[0]
     assert abs(odometry.std() / CONFIG.dgps.position - 1) < 5 / np.sqrt(2 * (n - 1))
-    r = np.corrcoef(odometry, gt["ego.x"] - reality.ego[0, :, 0])[0, 1]
+    r = np.corrcoef(odometry, gt["ego.x"] - reality.ego.x[0])[0, 1]
     assert abs(r) < 5 / np.sqrt(n)
 
 
 def test_sd_sees_the_to_farther_by_the_configured_offset(measurement, reality):
     sd = measurement.sd.run(0)
-    ego, to = reality.ego[0, :, :2], reality.objects[0, :, 0, :2]
+    ego, to = reality.ego.states()[0, :, :2], reality.objects.states()[0, :, 0, :2]
     sight = (to - ego) / np.hypot(*(to - ego).T)[:, None]
     error = np.column_stack([sd["to.x"], sd["to.y"]]) - to
     along = np.einsum("nc,nc->n", error, sight)
@@ -163,7 +163,7 @@ def test_sd_sees_the_to_farther_by_the_configured_offset(measurement, reality):
 
 def overlapping_gap(record):
     """Bumper gap |Δx| − length at the samples where EGO and TO overlap laterally."""
-    ego, to = record.ego[0], record.objects[0, :, 0]
+    ego, to = record.ego.states()[0], record.objects.states()[0, :, 0]
     overlap = np.abs(to[:, 1] - ego[:, 1]) < WIDTH
     return np.abs(to[overlap, 0] - ego[overlap, 0]) - DRIVER.vehicle_length
 
@@ -171,8 +171,8 @@ def overlapping_gap(record):
 def test_in_reality_the_ego_brakes_and_never_evades(reality):
     mode = reality.mode[0]
     assert (mode == BRAKE).any() and not (mode == EVADE).any()
-    assert np.abs(reality.ego[0, :, 1]).max() < 0.01  # it keeps its lane
-    assert reality.ego[0, :, 4].min() < -DRIVER.react_decel  # emergency, not comfort braking
+    assert np.abs(reality.ego.y[0]).max() < 0.01  # it keeps its lane
+    assert reality.ego.acceleration[0].min() < -DRIVER.react_decel  # emergency, not comfort braking
     assert overlapping_gap(reality).min() > 0
 
 
@@ -183,14 +183,14 @@ def test_without_the_cut_in_trigger_an_ideal_sensor_evades_to_the_left_lane(idea
     mode = record.mode[0]
     assert (mode == EVADE).any() and not (mode == BRAKE).any()
     left = DRIVER.lane_centres[1]
-    assert abs(record.ego[0, -1, 1] - left) < 0.05
-    assert np.all(record.ego[0, :, 1] < left + 0.1)  # no overshoot out of the road
+    assert abs(record.ego.y[0, -1] - left) < 0.05
+    assert np.all(record.ego.y[0] < left + 0.1)  # no overshoot out of the road
     assert overlapping_gap(record).min() > 0
 
 
 def first_slowing(record, decel=1.0):
     """Time of the first commanded deceleration beyond ``decel`` (m/s²)."""
-    return record.t[np.argmax(record.ego[0, :, 4] < -decel)]
+    return record.t[np.argmax(record.ego.acceleration[0] < -decel)]
 
 
 def test_the_cut_in_trigger_makes_the_reaction_depend_on_the_perceived_lateral_motion(
@@ -216,7 +216,9 @@ def test_a_pure_delay_shifts_the_reaction_monotonically_and_zero_delay_is_the_id
 
     ideal_record = run(IdealSensor())
     zero = run(OffsetDelaySensor())
-    np.testing.assert_allclose(zero.ego, ideal_record.ego, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(zero.ego.states(), ideal_record.ego.states(), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(zero.ego.acceleration, ideal_record.ego.acceleration, rtol=0,
+                               atol=1e-9)
     times = [first_slowing(run(OffsetDelaySensor(delay=d))) for d in (0.0, 0.25, 0.5)]
     assert times[0] < times[1] < times[2]
 
@@ -239,7 +241,7 @@ def test_cutting_in_is_the_literal_lateral_speed_and_tlc_law(y, speed, heading, 
 @pytest.mark.parametrize("which", ["reality", "ideal"])
 def test_the_steering_rate_stays_within_the_vehicle_limit(which, request):
     record = request.getfixturevalue(which)
-    rate = np.diff(record.ego[0, :, 5]) / CONFIG.dt
+    rate = np.diff(record.steering[0]) / CONFIG.dt
     assert np.abs(rate).max() <= DRIVER.max_steer_rate * (1 + 1e-9)
 
 
@@ -273,8 +275,8 @@ def keep_lane(script):
 def test_acc_holds_the_set_speed_with_no_object_in_its_lane():
     record = drive(replace(CONFIG, script=keep_lane(SCRIPT)), 0)
     np.testing.assert_array_equal(record.mode[0], CRUISE)
-    np.testing.assert_allclose(record.ego[0, :, 2], DRIVER.set_speed, rtol=0, atol=1e-9)
-    np.testing.assert_array_equal(record.ego[0, :, 1], 0.0)
+    np.testing.assert_allclose(record.ego.v[0], DRIVER.set_speed, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(record.ego.y[0], 0.0)
 
 
 def test_acc_speeds_up_to_the_set_speed_by_its_literal_law():
@@ -287,8 +289,8 @@ def test_acc_speeds_up_to_the_set_speed_by_its_literal_law():
     for k in range(config.steps - 1):
         accel = min(DRIVER.speed_gain * (DRIVER.set_speed - speed[k]), DRIVER.max_accel)
         speed[k + 1] = speed[k] + config.dt * accel
-    np.testing.assert_allclose(record.ego[0, :, 2], speed, rtol=0, atol=1e-9)
-    assert record.ego[0, :, 2].max() < DRIVER.set_speed  # approaches, never overshoots
+    np.testing.assert_allclose(record.ego.v[0], speed, rtol=0, atol=1e-9)
+    assert record.ego.v[0].max() < DRIVER.set_speed  # approaches, never overshoots
 
 
 def test_the_collision_check_catches_a_blind_ego():

@@ -33,7 +33,7 @@ import numpy as np
 from simcred._json import plain
 from simcred.errors import OptionError
 from simcred.io.measurement import Measurement
-from simcred.kinematics import LANE_WIDTH, MOTION_SIGNALS
+from simcred.kinematics import LANE_WIDTH, Track
 from simcred.seeds import stream
 from simcred.sim.closed_loop import LoopRecord, run_closed_loop
 from simcred.sim.driver import ADFunction, DriverConfig
@@ -138,11 +138,12 @@ def simulate(seed: int = 0, config: CutInConfig | None = None) -> Measurement:
     chosen = CutInConfig() if config is None else config
     record = drive(chosen, seed)
     rng = stream(seed, 1)
-    ego, to = record.ego[0, :, :4], record.objects[0, :, 0]
-    gt = {"t": record.t, **_columns("ego", _dgps(ego, chosen.dgps, rng)),
-          **_columns("to", _dgps(to, chosen.dgps, rng))}
-    sd = {"t": record.t, **_columns("ego", _dgps(ego, chosen.dgps, rng)),
-          **_columns("to", record.perceived[0, :, 0]), "ad.mode": record.mode[0].astype(float)}
+    t, ego, to = record.t, record.ego.states()[0], record.objects.states()[0, :, 0]
+    gt = {"t": t, **Track.from_states(t, _dgps(ego, chosen.dgps, rng)).to_columns("ego"),
+          **Track.from_states(t, _dgps(to, chosen.dgps, rng)).to_columns("to")}
+    sd = {"t": t, **Track.from_states(t, _dgps(ego, chosen.dgps, rng)).to_columns("ego"),
+          **record.perceived.track(t, (0, slice(None), 0)).to_columns("to"),
+          "ad.mode": record.mode[0].astype(float)}
     metadata = {"experiment": "cutin", "seed": seed, "config": plain(asdict(chosen))}
     return Measurement(
         gt=TraceSet.from_runs([gt], run_ids=["gt"], metadata={**metadata, "kind": "GT"},
@@ -157,5 +158,3 @@ def _dgps(states: np.ndarray, noise: DGPSNoise, rng: np.random.Generator) -> np.
     return states + scale * rng.standard_normal(states.shape)
 
 
-def _columns(name: str, states: np.ndarray) -> dict[str, np.ndarray]:
-    return {f"{name}.{signal}": states[:, j] for j, signal in enumerate(MOTION_SIGNALS)}
