@@ -211,7 +211,7 @@ def test_no_object_nearby_means_no_risk():
     far = VehicleStates(x=[[600.0, -300.0], [-100.0, 700.0], [0.0, 500.0]],
                         y=[[0.0, 0.0], [0.0, 3.5], [-7.0, 7.0]], v=27.8, heading=0.0)
     result = risk(ego, far)
-    assert result.ttr.shape == (3, 2, 8)
+    assert result.ttr.shape == (3, 2, 7 + PredictionSet().acceleration_nodes)
     assert np.all(result.ttr == np.inf) and np.all(result.risk == 0)
     assert np.all(result.ttr_min == np.inf) and np.all(result.maneuver == -1)
     assert np.all(result.dominant_object == -1) and np.all(result.dominant_maneuver == -1)
@@ -232,7 +232,9 @@ def test_adjacent_lane_object_keeping_its_lane_does_not_collide():
     assert np.all(result.ttr == np.inf) and np.all(result.risk == 0)
     default = risk(*scenes)
     names = default.prediction_names
-    assert np.all(default.ttr[..., names.index("keep")] == np.inf)
+    keep = [i for i, name in enumerate(names) if name.startswith("keep[")]
+    assert len(keep) == PredictionSet().acceleration_nodes
+    assert np.all(default.ttr[..., keep] == np.inf)
     assert np.all(default.ttr[..., names.index("lane-change-left")] == np.inf)
     assert np.isfinite(default.ttr[..., names.index("lane-change-right")]).any()  # cut-in
 
@@ -278,11 +280,13 @@ def test_steering_avoids_what_braking_cannot():
 def test_keep_prediction_continues_the_current_acceleration():
     ego, _ = lead_scenes([10.0, 30.0], 27.8, 20.0)
     to = VehicleStates(x=[14.5, 34.5], y=0.0, v=20.0, heading=0.0, acceleration=-4.0)
-    result = risk(ego, to)
-    names = result.prediction_names
-    np.testing.assert_array_equal(result.ttr[..., names.index("keep")],
-                                  result.ttr[..., names.index("brake-4")])
-    assert result.maneuver_names[result.dominant_maneuver[1]] in ("brake", "left", "right")
+    for predictions, keep in ((PredictionSet(acceleration_sigma=0.0), "keep"),
+                              (PredictionSet(), "keep[+0.00]")):
+        result = risk(ego, to, predictions=predictions)
+        names = result.prediction_names
+        np.testing.assert_array_equal(result.ttr[..., names.index(keep)],
+                                      result.ttr[..., names.index("brake-4")])
+        assert result.maneuver_names[result.dominant_maneuver[1]] in result.maneuver_names
 
 
 def test_overlap_now_means_ttr_zero_and_risk_from_priors():
@@ -298,7 +302,7 @@ def test_cut_in_scene_and_dominant_prediction():
     to = VehicleStates(x=[29.5], y=2.2, v=v_o, heading=math.asin(-1.0 / v_o), name="to")
     result = risk(ego, to)
     names = result.prediction_names
-    keep = names.index("keep")
+    keep = names.index("keep[+0.00]")
     assert np.isfinite(result.ttr[0, 0, keep])          # keep = complete the cut-in
     assert result.ttr[0, 0, names.index("lane-change-left")] == np.inf   # abort: back left
     assert result.dominant_object[0] == 0
@@ -360,8 +364,8 @@ def test_bad_states_raise_one_line_errors():
     cases = [
         (lambda: VehicleStates(x=[0.0, np.nan], y=0.0, v=1.0, heading=0.0, name="to"),
          r"to\.x\[1\] must be finite"),
-        (lambda: VehicleStates(x=0.0, y=0.0, v=-1.0, heading=0.0, name="ego"), r"ego\.v"),
-        (lambda: VehicleStates(x=0.0, y=0.0, v=1.0, heading=3.0), "heading"),
+        (lambda: VehicleStates(x=0.0, y=0.0, v=np.inf, heading=0.0, name="ego"), r"ego\.v"),
+        (lambda: VehicleStates(x=0.0, y=0.0, v=1.0, heading=0.0, width=0.0), "width"),
         (lambda: VehicleStates(x=[0.0, 1.0], y=[0.0, 1.0, 2.0], v=1.0, heading=0.0),
          "broadcast"),
         (lambda: VehicleStates(x=np.zeros((2, 2, 2)), y=0.0, v=1.0, heading=0.0), "2-D"),
@@ -393,3 +397,14 @@ def test_states_of_tracks_match_the_columns():
     np.testing.assert_array_equal(by_tracks.risk, by_columns.risk)
     np.testing.assert_array_equal(by_tracks.ttr, by_columns.ttr)
     assert VehicleStates.of_tracks([to, to]).x.shape == (5, 2)
+
+
+def test_ttc_and_thw_for_oncoming_reversing_and_backward_traffic():
+    ego = VehicleStates(x=[0.0, 0.0, 0.0], y=0.0, v=[20.0, 20.0, 20.0],
+                        heading=[0.0, 0.0, np.pi])
+    # oncoming lead 44.5 m ahead (gap 40) at 10 m/s; a lead reversing towards the EGO at 5 m/s;
+    # the EGO drives along -x with a lead 44.5 m ahead of it (at x = -44.5) at 10 m/s
+    objects = VehicleStates(x=[44.5, 44.5, -44.5], y=0.0, v=[10.0, -5.0, 10.0],
+                            heading=[np.pi, 0.0, np.pi])
+    np.testing.assert_allclose(time_to_collision(ego, objects), [40 / 30, 40 / 25, 40 / 10])
+    np.testing.assert_allclose(time_headway(ego, objects), [2.0, 2.0, 2.0])

@@ -1,9 +1,12 @@
 """Classic surrogate safety measures, batched over scenes: time headway (THW) and TTC.
 
-Both refer to the *lead*: the nearest TO ahead of the EGO (centre further along +x) whose
-footprint overlaps the EGO's laterally, ``|y_to - y_ego| < (width_ego + width_to) / 2``
-(rectangles taken axis-aligned). The gap is bumper to bumper, ``x_to - x_ego - (length_ego +
-length_to) / 2``, floored at 0; speeds are longitudinal, ``v cos(heading)``.
+Both refer to the *lead*: the nearest TO ahead of the EGO (centre further along the road in
+the EGO's direction of travel: +x, or -x for an EGO driving against +x) whose footprint
+overlaps the EGO's laterally, ``|y_to - y_ego| < (width_ego + width_to) / 2`` (rectangles
+taken axis-aligned). The gap is bumper to bumper, ``|x_to - x_ego| - (length_ego +
+length_to) / 2``, floored at 0; speeds are along the EGO's direction of travel, ``±v
+cos(heading)`` (an oncoming lead has a negative one: the EGO closes in at the sum of both
+speeds).
 """
 
 from __future__ import annotations
@@ -27,14 +30,15 @@ def _lead(ego: VehicleStates, objects: VehicleStates
     if o["x"].shape[0] != e["x"].shape[0]:
         raise SimcredError(f"{objects.name} has {o['x'].shape[0]} scenes, ego has "
                            f"{e['x'].shape[0]}")
-    ahead = o["x"] > e["x"]
+    direction = np.where(e["v"] * np.cos(e["heading"]) < 0, -1.0, 1.0)   # of travel along x
+    ahead = direction * (o["x"] - e["x"]) > 0
     overlap = np.abs(o["y"] - e["y"]) < 0.5 * (e["width"] + o["width"])
-    gap = np.maximum(o["x"] - e["x"] - 0.5 * (e["length"] + o["length"]), 0.0)
+    gap = np.maximum(np.abs(o["x"] - e["x"]) - 0.5 * (e["length"] + o["length"]), 0.0)
     gap = np.where(ahead & overlap, gap, np.inf)
     lead = np.argmin(gap, axis=1)
     rows = np.arange(gap.shape[0])
-    v_ego = (e["v"] * np.cos(e["heading"]))[:, 0]
-    v_lead = (o["v"] * np.cos(o["heading"]))[rows, lead]
+    v_ego = (direction * e["v"] * np.cos(e["heading"]))[:, 0]
+    v_lead = (direction * o["v"] * np.cos(o["heading"]))[rows, lead]
     return gap[rows, lead], v_ego, v_lead, np.isfinite(gap[rows, lead])
 
 

@@ -30,19 +30,21 @@ def require(condition: bool, message: str) -> None:
 @dataclass(frozen=True, slots=True, eq=False)
 class VehicleStates(TrackBatch):
     """States of vehicles in many scenes: the kinematics batched view
-    (:class:`~simcred.kinematics.TrackBatch`, rates 0 where not given) plus the vehicles' size,
-    checked against the risk model's road (traffic drives along +x).
+    (:class:`~simcred.kinematics.TrackBatch`, rates 0 where not given) plus the vehicles' size.
+    Any finite values are accepted (sizes > 0): traffic may drive in any direction.
 
     Parameters
     ----------
     x, y : array_like
         Position of the vehicle's centre (m); the road runs along +x, y points left.
     v : array_like
-        Speed (m/s), >= 0.
+        Signed speed (m/s) along the heading: negative for a reversing vehicle (it moves
+        against its heading), 0 for a standing one.
     heading : array_like
-        Heading (rad) relative to the road, in (-π/2, π/2): all traffic drives along +x.
+        Heading (rad) relative to the road's +x axis, any finite value: oncoming traffic has
+        heading ≈ π, crossing traffic ≈ ±π/2 (see :func:`road_frames`).
     acceleration : array_like, default: 0
-        Longitudinal acceleration (m/s²).
+        Longitudinal acceleration (m/s²), the rate of the signed speed ``v``.
     yaw_rate : array_like, default: 0
         Yaw rate (rad/s); sets the initial curvature of the predicted paths.
     length, width : array_like, default: 4.5, 1.8
@@ -93,9 +95,7 @@ class VehicleStates(TrackBatch):
 def _check_values(label: str, a: np.ndarray) -> None:
     """One-line error naming the first offending element of state field ``label``."""
     field = label.rsplit(".", 1)[1]
-    rules = {"v": (a < 0, "must be >= 0"),
-             "heading": (np.abs(a) >= np.pi / 2, "must lie in (-pi/2, pi/2): traffic drives +x"),
-             "length": (a <= 0, "must be > 0"), "width": (a <= 0, "must be > 0")}
+    rules = {"length": (a <= 0, "must be > 0"), "width": (a <= 0, "must be > 0")}
     bad, message = ~np.isfinite(a), "must be finite"
     if not bad.any() and field in rules:
         bad, message = rules[field]
@@ -125,7 +125,63 @@ class Lanes:
         require(math.isfinite(self.width) and self.width > 0, "lanes.width must be > 0")
         require(math.isfinite(self.centre), "lanes.centre must be finite")
 
-    def centre_of(self, y: ArrayLike) -> np.ndarray:
-        """Centre of the lane that contains lateral position ``y``."""
-        k = np.round((np.asarray(y, dtype=float) - self.centre) / self.width)
-        return self.centre + k * self.width
+
+# -- frames: traffic in any direction ---------------------------------------------------------
+
+
+def forward_states(s: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """States with reversing vehicles (v < 0) written as driving forward.
+
+    A rectangle turned by π is the same rectangle, so a vehicle reversing at speed |v| is one
+    driving forward with heading + π, speed |v| and acceleration -a (the rate of |v|); the
+    yaw rate stays (the path's curvature is ω/|v| either way). Headings are wrapped to [-π, π).
+    """
+    back = s["v"] < 0
+    heading = s["heading"] + np.where(back, np.pi, 0.0)
+    return {**s, "v": np.abs(s["v"]), "heading": np.remainder(heading + np.pi, 2 * np.pi) - np.pi,
+            "acceleration": np.where(back, -s["acceleration"], s["acceleration"])}
+
+
+@dataclass(frozen=True, slots=True)
+class RoadFrames:
+    """Per vehicle, the frame its motion is predicted in: rotation by ``angle`` (cos, sin) from
+    the world, ``x_l = cos·x + sin·y``, ``y_l = -sin·x + cos·y``; ``centre`` is the local y of
+    one lane centre (lane centres lie at ``centre + k·lanes.width``)."""
+
+    cos: np.ndarray
+    sin: np.ndarray
+    centre: np.ndarray
+
+    def to_local(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """World (x, y) to local coordinates."""
+        return self.cos * x + self.sin * y, self.cos * y - self.sin * x
+
+    def to_world(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Local (x, y) to world coordinates (also for direction vectors)."""
+        return self.cos * x - self.sin * y, self.sin * x + self.cos * y
+
+
+def road_frames(s: dict[str, np.ndarray], lanes: Lanes, limit: float
+                ) -> tuple[RoadFrames, dict[str, np.ndarray]]:
+    """The frames of forward-driving vehicles ``s`` (see :func:`forward_states`) and their
+    states in them.
+
+    A vehicle whose heading lies within ``limit`` of the road's +x direction follows the lanes
+    along +x (frame angle 0); within ``limit`` of -x it follows them along -x (angle π: oncoming
+    traffic, with its own left and right); otherwise (crossing, turning) it is predicted in its
+    own frame (angle = heading) with "lanes" centred on its current line. Local headings thus
+    lie in [-limit, limit], and are 0 in an own frame.
+    """
+    h = s["heading"]
+    forward = np.abs(h) <= limit
+    backward = np.abs(h) >= np.pi - limit
+    aligned = forward | backward
+    cos = np.where(forward, 1.0, np.where(backward, -1.0, np.cos(h)))
+    sin = np.where(aligned, 0.0, np.sin(h))
+    frames = RoadFrames(cos, sin, np.zeros_like(h))
+    x, y = frames.to_local(s["x"], s["y"])
+    local_heading = np.where(forward, h, np.where(backward, np.remainder(h, 2 * np.pi) - np.pi,
+                                                  0.0))
+    centre = np.where(aligned, cos * lanes.centre, y)
+    frames = RoadFrames(cos, sin, centre)
+    return frames, {**s, "x": x, "y": y, "heading": local_heading}

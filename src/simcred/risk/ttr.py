@@ -1,11 +1,14 @@
 """Time-To-React (TTR) risk of highway scenes, after Wagner et al. 2018 [1] as used in [2] II-D.
 
 A *scene* is one time instant: the EGO and one or more traffic objects (TOs), each with position,
-speed and heading on a straight road along +x. For every TO a set of predictions (keep lane, brake
-at several levels, change lane, accelerate) with prior probabilities is checked against the EGO's
-plan (keep going in its lane). For every prediction that collides within the horizon, the TTR is
-the latest time at which an evasive EGO maneuver (full braking, steering one lane left or right)
-can still start and avoid that collision. A log-normal reaction-time law maps each TTR to an
+speed and heading on a straight road along +x; vehicles may drive in any direction (oncoming,
+crossing, reversing, standing: each is predicted in its road frame, see
+:func:`~simcred.risk.scene.road_frames`). For every TO a set of predictions (keep lane -- as a
+set over its uncertain acceleration --, brake at several levels, change lane, accelerate) with
+prior probabilities is checked against the EGO's plan (keep going in its lane). For every
+prediction that collides within the horizon, the TTR is the latest time at which an evasive EGO
+maneuver (full braking, steering one lane left or right, kickdown) can still start and avoid
+that collision. A log-normal reaction-time law maps each TTR to an
 accident probability, and the probability-weighted sum over the predictions is the scene's risk.
 Everything is batched over scenes: a whole scenario at 10-100 Hz is one call of :func:`risk` or
 :func:`risk_series`.
@@ -41,15 +44,19 @@ from simcred.risk.prediction import (
     travel_distance,
     unit_vector,
 )
-from simcred.risk.scene import STATE_FIELDS, Lanes, VehicleStates
+from simcred.risk.scene import (
+    STATE_FIELDS,
+    Lanes,
+    RoadFrames,
+    VehicleStates,
+    forward_states,
+    road_frames,
+)
 
-"""The EGO's evasive maneuvers, in the order of :attr:`RiskResult.maneuver` codes."""
-
-
+# work arrays of one chunk of scenes hold at most about this many samples
 _CHUNK_SAMPLES = 1 << 16
-
-
-"""Priors standing in for the euroFOT statistics of [1] (see docs/risk.md): not fitted to data."""
+# the bisection treats rows whose last avoidable grid start lies within this many samples together
+_BISECTION_GROUP = 10
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -77,7 +84,8 @@ class RiskResult(JsonResult):
     dominant_object, dominant_prediction : ndarray of int, shape (scenes,)
         The (object, prediction) with the largest contribution; -1 where the risk is 0.
     prediction_names, maneuver_names : tuple of str
-        Labels of the prediction and maneuver axes.
+        Labels of the prediction and maneuver axes; the prediction axis is the expanded set
+        (:meth:`PredictionSet.expanded`: "keep" as ``keep[<offset>]`` quadrature nodes).
     resolution : float
         Search resolution of the TTR (s): ``dt / 2**bisection_steps``.
     predictions, evasion, lanes, reaction
@@ -150,42 +158,59 @@ def _avoids(r: _Rows, idx: np.ndarray, start: np.ndarray, j0: int, times: np.nda
             evasion: EvasionSet, lanes: Lanes) -> np.ndarray:
     """(rows, maneuvers): maneuver started at ``start`` (rows,) avoids the TO at times[j0:].
 
-    The EGO follows its plan before ``start``; collisions are checked on the samples
-    ``times[j0:]`` only, so ``times[j0 - 1]`` must not be a planned collision.
+    Maneuvers are tried in order, each only on the rows no earlier maneuver avoids: a row's
+    first avoiding maneuver (and whether there is one) is exact, later columns of a row that
+    is already avoided stay False. The EGO follows its plan before ``start``; collisions are
+    checked on the samples ``times[j0:]`` only, so ``times[j0 - 1]`` must not be a planned
+    collision.
     """
+    ok = np.zeros((idx.size, len(evasion.maneuvers)), dtype=bool)
+    pending = np.arange(idx.size)
+    for m, name in enumerate(evasion.maneuvers):
+        ok[pending, m] = ~_hits(r, idx[pending], start[pending], j0, times, name, evasion,
+                                lanes)
+        pending = pending[~ok[pending, m]]
+        if not pending.size:
+            break
+    return ok
+
+
+def _hits(r: _Rows, idx: np.ndarray, start: np.ndarray, j0: int, times: np.ndarray, name: str,
+          evasion: EvasionSet, lanes: Lanes) -> np.ndarray:
+    """(rows,): maneuver ``name`` started at ``start`` still hits the TO at times[j0:]."""
     t = times[j0:]
     s = start[:, None]
     to = tuple(a[idx, j0:] for a in r.to) + tuple(a[idx] for a in r.to_half)
-    ego_x, ego_y = r.ego_x[idx, j0:], r.ego_y[idx, j0:]
+    ego_x = r.ego_x[idx, j0:]
     v0, a0 = r.ego_v0[idx], r.ego_a0[idx]
-    half_l, half_w = r.ego_half[0][idx], r.ego_half[1][idx]
-    hit = np.zeros((idx.size, len(evasion.maneuvers)), dtype=bool)
+    half = (r.ego_half[0][idx], r.ego_half[1][idx])
     xi_s, v_s = travel_distance(v0, a0, s)
-    after = t > s
-    for m, name in enumerate(evasion.maneuvers):
+    unusable = np.zeros(idx.size, dtype=bool)
+    if name in ("brake", "kickdown"):
+        # instantaneous full braking or kickdown from `start` on, lateral path unchanged
+        since = np.maximum(t - s, 0.0)
         if name == "brake":
-            # instantaneous full braking from `start` on, lateral path unchanged
-            xi = np.where(after, xi_s + travel_distance(v_s, evasion.brake_acceleration,
-                                                np.maximum(t - s, 0.0))[0], ego_x)
-            path = PredictedPath(r.ego_path.y0[idx], tuple(b[idx] for b in r.ego_path.b),
-                         r.ego_path.length[idx])
-            y, slope = path.at(xi)
-            cos, sin = heading_vector(slope)
+            travel = travel_distance(v_s, evasion.brake_acceleration, since)[0]
         else:
-            # smoothstep lateral offset of one lane width over `duration`, travel as planned
-            sign = 1.0 if name == "left" else -1.0
-            duration = evasion.steer_duration(lanes.width)
-            u = np.clip((t - s) / duration, 0.0, 1.0)
-            y = ego_y + sign * lanes.width * u * u * u * (10.0 + u * (-15.0 + 6.0 * u))
-            dydt = sign * lanes.width / duration * 30.0 * u * u * (1.0 - u) ** 2
-            speed = r.ego_speed[idx, j0:]
-            cos, sin = unit_vector(speed, r.ego_slope[idx, j0:] * speed + dydt)
-            xi = ego_x
-            v_end = travel_distance(v0, a0, s + duration)[1]
-            usable = np.minimum(v_s, v_end)[:, 0] >= evasion.min_steer_speed
-            hit[~usable, m] = True
-        hit[:, m] |= rectangles_overlap((xi, y, cos, sin, half_l, half_w), to).any(axis=1)
-    return ~hit
+            travel = evasion.kickdown_travel(v_s, since)[0]
+        xi = np.where(t > s, xi_s + travel, ego_x)
+        path = PredictedPath(r.ego_path.y0[idx], tuple(b[idx] for b in r.ego_path.b),
+                             r.ego_path.length[idx])
+        y, slope = path.at(xi)
+        cos, sin = heading_vector(slope)
+    else:
+        # smoothstep lateral offset of one lane width over `duration`, travel as planned
+        sign = 1.0 if name == "left" else -1.0
+        duration = evasion.steer_duration(lanes.width)
+        u = np.clip((t - s) / duration, 0.0, 1.0)
+        y = r.ego_y[idx, j0:] + sign * lanes.width * u * u * u * (10.0 + u * (-15.0 + 6.0 * u))
+        dydt = sign * lanes.width / duration * 30.0 * u * u * (1.0 - u) ** 2
+        speed = r.ego_speed[idx, j0:]
+        cos, sin = unit_vector(speed, r.ego_slope[idx, j0:] * speed + dydt)
+        xi = ego_x
+        v_end = travel_distance(v0, a0, s + duration)[1]
+        unusable = np.minimum(v_s, v_end)[:, 0] < evasion.min_steer_speed
+    return unusable | rectangles_overlap((xi, y, cos, sin, *half), to).any(axis=1)
 
 
 def _search(r: _Rows, first: np.ndarray, times: np.ndarray, evasion: EvasionSet,
@@ -193,80 +218,102 @@ def _search(r: _Rows, first: np.ndarray, times: np.ndarray, evasion: EvasionSet,
     """TTR and maneuver code of every row; ``first`` (rows,) is the index of the first planned
     collision sample, >= 1.
 
-    Grid: start index k = 0, 1, ... while every earlier start was avoidable by some maneuver
-    (monotone-safe: the TTR is the end of the avoidable prefix, not the last avoidable start);
-    the first k that is not (at the latest k = first) ends the prefix, and the TTR lies in
-    [(k - 1) dt, k dt). Bisection on that step then refines it (prefix assumed within the step)
-    and returns its lower end, the latest start known to be avoidable. Starts are evaluated in
-    blocks (several k per numpy call) when few rows are active; results do not depend on that.
+    Scan: start indices k = 0, q, 2q, ... (q = ``evasion.scan_step``) while every earlier
+    start was avoidable by some maneuver (monotone-safe: the TTR is the end of the avoidable
+    prefix, not the last avoidable start); the first start that is not (a start at the planned
+    collision, index ``first``, never is) ends the prefix, and the TTR lies between the last
+    avoidable start and min(that start, first). Bisection on that interval then refines it
+    (prefix assumed within it) to ``dt / 2**bisection_steps`` and returns its lower end, the
+    latest start known to be avoidable. Starts are evaluated in blocks (several per numpy call)
+    when few rows are active; results do not depend on that.
     """
-    rows = first.size
-    fail = np.full(rows, -1)
-    code = np.full(rows, -1)
-    active = np.arange(rows)
+    q = evasion.scan_step
+    lo_idx = np.full(first.size, -1)              # last avoidable start; -1: none (TTR 0)
+    hi_idx = first.copy()
+    code = np.full(first.size, -1)
+    active = np.arange(first.size)
     k = 0
     while active.size:
-        # a block of start times k .. k + block - 1 at once: fewer, larger numpy calls
+        # a block of start indices k, k + q, ... at once: fewer, larger numpy calls
         work = active.size * (times.size - k) * len(evasion.maneuvers)
-        block = int(np.clip(_CHUNK_SAMPLES // max(work, 1), 1, times.size - 1 - k))
-        starts = np.tile(times[k:k + block], active.size)
-        ok = _avoids(r, np.repeat(active, block), starts, k + 1, times, evasion, lanes)
+        block = int(np.clip(_CHUNK_SAMPLES // max(work, 1), 1, (times.size - 2 - k) // q + 1))
+        index = k + q * np.arange(block)
+        ok = _avoids(r, np.repeat(active, block), np.tile(times[index], active.size), k + 1,
+                     times, evasion, lanes)
         can = ok.any(axis=1).reshape(active.size, block)
         codes = np.argmax(ok, axis=1).reshape(active.size, block)
         ends = np.where(can.all(axis=1), block, np.argmin(can, axis=1))  # first failing start
-        last = np.maximum(ends - 1, 0)
         has = ends > 0
+        last = np.maximum(ends - 1, 0)
         code[active[has]] = codes[has, last[has]]
+        lo_idx[active[has]] = index[last[has]]
         stopped = ends < block
-        fail[active[stopped]] = k + ends[stopped]
+        hi_idx[active[stopped]] = np.minimum(index[ends[stopped]], first[active[stopped]])
         active = active[~stopped]
-        k += block
-        done = first[active] == k                # the next start is the planned collision
-        fail[active[done]] = k
-        active = active[~done]
-    lo = np.where(fail > 0, times[np.maximum(fail - 1, 0)], 0.0)
-    hi = times[np.maximum(fail, 0)]
-    refine = np.flatnonzero(fail > 0)
-    if refine.size:
-        j0 = int(fail[refine].min())              # the sample after the earliest lo
-        for _ in range(evasion.bisection_steps):
+        k += q * block
+        active = active[first[active] > k]       # the next start is at or after the collision
+    lo = np.where(lo_idx >= 0, times[np.maximum(lo_idx, 0)], 0.0)
+    hi = times[hi_idx]
+    # rows grouped by their lo (about a second each): a group checks from its earliest lo on
+    valid = lo_idx >= 0
+    for group in np.unique(lo_idx[valid] // _BISECTION_GROUP):
+        refine = np.flatnonzero(valid & (lo_idx // _BISECTION_GROUP == group))
+        j0 = int(lo_idx[refine].min()) + 1        # the sample after the earliest lo
+        for _ in range(evasion.bisection_steps + (q - 1).bit_length()):
             mid = 0.5 * (lo[refine] + hi[refine])
             ok = _avoids(r, refine, mid, j0, times, evasion, lanes)
             can = ok.any(axis=1)
             lo[refine[can]] = mid[can]
             hi[refine[~can]] = mid[~can]
             code[refine[can]] = np.argmax(ok[can], axis=1)
-    code[fail == 0] = -1
+    code[~valid] = -1
     return lo, code
 
 
 def _plan(e: dict[str, np.ndarray], predictions: PredictionSet, lanes: Lanes
           ) -> dict[str, Any]:
-    """The EGO's plan (scenes, T): its current acceleration along its reference lane ([1])."""
+    """The EGO's plan (scenes, T) in its road frame: its current acceleration along its
+    reference lane ([1]). ``x0`` is its local x, ``frame`` its road frame."""
+    frame, e = road_frames(forward_states(e), lanes, predictions.lane_heading_limit)
     e = {k: v[:, None] for k, v in e.items()}                           # (S, 1)
     v0 = e["v"] * np.cos(e["heading"])
     xi, speed = travel_distance(v0, e["acceleration"], predictions.times)       # (S, T)
-    path = lateral_plan(e, np.zeros(1), predictions, lanes)
+    path = lateral_plan(e, frame.centre[:, None], np.zeros(1), predictions, lanes)
     y, slope = path.at(xi)
     return dict(xi=xi, speed=speed, y=y, slope=slope, path=path, v0=v0, a0=e["acceleration"],
-                half=(0.5 * e["length"], 0.5 * e["width"]))
+                half=(0.5 * e["length"], 0.5 * e["width"]), x0=e["x"][:, 0], frame=frame)
 
 
-def _predict(o: dict[str, np.ndarray], x0: np.ndarray, predictions: PredictionSet,
-             lanes: Lanes) -> tuple[np.ndarray, ...]:
-    """TO rectangles (x - x0, y, cos, sin) of every prediction, (S, O, P, T) ([1] predictions)."""
+def _predict(o: dict[str, np.ndarray], plan: dict[str, Any],
+             predictions: PredictionSet, lanes: Lanes) -> tuple[np.ndarray, ...]:
+    """TO rectangles of every prediction in the EGO's road frame, (S, O, P, T): x relative to
+    the EGO's local x at the scene, y, and the heading's cos and sin ([1] predictions).
+
+    ``o`` holds world states with x relative to the EGO's; each TO moves in its own road
+    frame, and its rectangles are turned into the EGO's.
+    """
     levels = np.array([np.nan if p.acceleration is None else p.acceleration
                        for p in predictions.predictions])
+    offsets = np.array([p.acceleration_offset for p in predictions.predictions])
     shift = np.array([p.lane_change for p in predictions.predictions], dtype=float)
+    frame, o = road_frames(forward_states(o), lanes, predictions.lane_heading_limit)
     o = {k: v[:, :, None] for k, v in o.items()}                       # (S, O, 1)
-    accel = np.where(np.isnan(levels), o["acceleration"], levels)      # (S, O, P)
+    current = np.clip(o["acceleration"], *predictions.acceleration_bounds)
+    accel = np.where(np.isnan(levels), current + offsets, levels)      # (S, O, P)
     xi = travel_distance((o["v"] * np.cos(o["heading"]))[..., None], accel[..., None],
                  predictions.times)[0]                                  # (S, O, P, T)
-    path = lateral_plan(o, shift, predictions, lanes)
+    path = lateral_plan(o, frame.centre[:, :, None], shift, predictions, lanes)
     path = PredictedPath(path.y0[..., None], tuple(b[..., None] for b in path.b),
                          path.length[..., None])
     y, slope = path.at(xi)
-    return (o["x"][..., None] - x0[:, :, None, None] + xi, y, *heading_vector(slope))
+    to_world = RoadFrames(*(a[:, :, None, None] for a in (frame.cos, frame.sin, frame.centre)))
+    x, y = to_world.to_world(o["x"][..., None] + xi, y)
+    cos, sin = to_world.to_world(*heading_vector(slope))
+    ego: RoadFrames = plan["frame"]
+    to_ego = RoadFrames(*(a[:, None, None, None] for a in (ego.cos, ego.sin, ego.centre)))
+    x, y = to_ego.to_local(x, y)
+    cos, sin = to_ego.to_local(cos, sin)
+    return (x - plan["x0"][:, None, None, None], y, cos, sin)
 
 
 def _take(a: np.ndarray, shape: tuple[int, ...], sel: np.ndarray) -> np.ndarray:
@@ -278,8 +325,9 @@ def _chunk(ego: dict[str, np.ndarray], obj: dict[str, np.ndarray], predictions: 
            evasion: EvasionSet, lanes: Lanes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """TTR, maneuver code and planned collision time (scenes, objects, predictions)."""
     times = predictions.times
-    plan = _plan(ego, predictions, lanes)
-    to = _predict(obj, ego["x"][:, None], predictions, lanes)
+    x_ego = ego["x"]                       # lanes run along x: work relative to the EGO's x
+    plan = _plan({**ego, "x": np.zeros_like(x_ego)}, predictions, lanes)
+    to = _predict({**obj, "x": obj["x"] - x_ego[:, None]}, plan, predictions, lanes)
     to_half = (0.5 * obj["length"][..., None, None], 0.5 * obj["width"][..., None, None])
     ego_rect = tuple(a[:, None, None, :] for a in (plan["xi"], plan["y"],
                                                    *heading_vector(plan["slope"])))
@@ -350,32 +398,37 @@ def risk(ego: VehicleStates, objects: VehicleStates, *,
     - collisions are sampled every ``dt`` within the horizon only: a maneuver that merely
       postpones a collision past the horizon counts as avoiding it;
     - an evasive maneuver is checked against the one predicted TO trajectory it evades (not
-      against other TOs or road edges); braking is instantaneous, steering does not brake;
+      against other TOs or road edges); braking and kickdown are instantaneous, steering does
+      not brake;
+    - crossing and turning traffic is predicted straight on in its own frame (no junctions);
     - TOs are combined as independent: risk = 1 - Π_o (1 - risk_o).
 
-    Cost: about 0.6 ms per scene for one TO with the defaults (docs/risk.md); it grows with
-    ``(horizon / dt)²`` for every prediction that collides.
+    Cost: about 1.5 ms per scene for one TO with the defaults on a cut-in (docs/risk.md); it
+    grows with ``(horizon / dt)²`` for every prediction that collides.
 
     Examples
     --------
     >>> ego = VehicleStates(x=[0.0, 0.0], y=0.0, v=27.8, heading=0.0, name="ego")
     >>> lead = VehicleStates(x=[30.0, 150.0], y=0.0, v=20.0, heading=0.0, name="to")
     >>> result = risk(ego, lead)
-    >>> result.ttr[0, 0].round(2)
-    array([2.78, 4.47, 1.62, 1.21, 0.95, 0.8 ,  inf,  inf])
+    >>> result.prediction_names[4:7]
+    ('keep[-0.93]', 'keep[+0.00]', 'keep[+0.93]')
+    >>> result.ttr[0, 0, 4:7].round(2)    # keep: the lead's acceleration 0 ± quadrature nodes
+    array([2.13, 2.78, 4.22])
     >>> result.risk.round(4), result.prediction_names[result.dominant_prediction[0]]
-    (array([0.0507, 0.    ]), 'brake-2')
+    (array([0.0614, 0.    ]), 'brake-2')
     """
     predictions, evasion, lanes, reaction, e, o = _risk_iv(ego, objects, predictions, evasion,
                                                            lanes, reaction)
+    nodes = predictions.expanded()
     n_scenes, n_obj = o["x"].shape
-    n_pred = len(predictions.predictions)
-    per_chunk = max(1, _CHUNK_SAMPLES // (n_obj * n_pred * predictions.times.size))
+    n_pred = len(nodes.predictions)
+    per_chunk = max(1, _CHUNK_SAMPLES // (n_obj * n_pred * nodes.times.size))
     parts = [_chunk({k: v[i:i + per_chunk] for k, v in e.items()},
-                    {k: v[i:i + per_chunk] for k, v in o.items()}, predictions, evasion, lanes)
+                    {k: v[i:i + per_chunk] for k, v in o.items()}, nodes, evasion, lanes)
              for i in range(0, n_scenes, per_chunk)]
     ttr, code, collision_time = (np.concatenate(a) for a in zip(*parts, strict=True))
-    contribution = predictions.probabilities * reaction.accident_probability(ttr)
+    contribution = nodes.probabilities * reaction.accident_probability(ttr)
     per_object = contribution.sum(axis=-1)
     with np.errstate(divide="ignore"):                  # log1p(-1) = -inf: a certain accident
         total = 0.0 - np.expm1(np.log1p(-np.minimum(per_object, 1.0)).sum(axis=-1))  # no -0.0
@@ -388,7 +441,7 @@ def risk(ego: VehicleStates, objects: VehicleStates, *,
         ttr_min=ttr.reshape(n_scenes, -1).min(axis=1),
         dominant_object=np.where(none, -1, best // n_pred),
         dominant_prediction=np.where(none, -1, best % n_pred),
-        prediction_names=predictions.names, maneuver_names=evasion.maneuvers,
+        prediction_names=nodes.names, maneuver_names=evasion.maneuvers,
         resolution=predictions.dt / 2 ** evasion.bisection_steps,
         predictions=predictions, evasion=evasion, lanes=lanes, reaction=reaction,
     )
@@ -453,7 +506,7 @@ def risk_series(samples: Mapping[str, ArrayLike], *, ego: str = "ego",
     ...         "to.x": 60 + 20 * t, "to.y": 0 * t, "to.v": 20 + 0 * t, "to.heading": 0 * t}
     >>> series = risk_series(cols)
     >>> series.ttr_min.round(2), series.risk.round(4)
-    (array([1.95, 1.81, 1.67, 1.53]), array([0.002 , 0.0028, 0.0038, 0.0055]))
+    (array([1.95, 1.81, 1.67, 1.53]), array([0.0023, 0.0032, 0.0048, 0.0072]))
     """
     if isinstance(objects, str) or len(objects) == 0:
         raise OptionError("objects must be a non-empty sequence of column prefixes")
