@@ -53,6 +53,11 @@ def _max_risk(result: Reprocessed, name: str) -> float:
     return max(float(result.risk[name]["risk"].max()), LOG_RISK_FLOOR)
 
 
+def _ratio(a: float, b: float) -> float:
+    """a / b, with 0 / 0 = 0 and a / 0 = inf (a claim on a ratio then fails, never raises)."""
+    return a / b if b > 0 else (0.0 if a == 0 else math.inf)
+
+
 def _said(reaction: Reaction) -> str:
     return f"{reaction.manoeuvre} at {reaction.time:.2f} s"
 
@@ -71,7 +76,8 @@ def section3_claims(result: Reprocessed) -> list[Claim]:
         s = table["S"][to][q]
         claims.append(below(f"sensor_{q}_unbiased",
                             f"the sensor's TO {name} is unbiased (|mean| < 0.25 std)",
-                            abs(s.mean) / s.std, 0.25, f"mean {s.mean:.4f}, std {s.std:.4f}"))
+                            _ratio(abs(s.mean), s.std), 0.25,
+                            f"mean {s.mean:.4f}, std {s.std:.4f}"))
     gt_v = result.states["GT"][to].v
     fitted, raw = (_rmse(result.states[k][to].v, gt_v) for k in ("fit(SD)", "SD"))
     claims.append(below("fit_corrects_delay",
@@ -81,7 +87,7 @@ def section3_claims(result: Reprocessed) -> list[Claim]:
     sim = _rms(table["SIM_GT"][ego]["d"])
     claims.append(below("sim_dominates_rp_gt",
                         "ΔRP_GT ≈ ΔSIM_GT (eq. 3): the fits' EGO Δd is below a tenth of the "
-                        "simulation's", fits / sim, 0.1,
+                        "simulation's", _ratio(fits, sim), 0.1,
                         f"RMS EGO Δd: ΔFIT_GT + ΔFIT_rGT {fits:.3f} m, ΔSIM_GT {sim:.3f} m"))
     rp_gt, rp_sd = _rms(table["RP_GT"][ego]["d"]), _rms(table["RP_SD"][ego]["d"])
     claims.append(below("rp_sd_below_rp_gt",
