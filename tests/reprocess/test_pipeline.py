@@ -16,7 +16,6 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 from scipy.optimize import brentq
 
-from simcred.errors import SimcredError
 from simcred.io.measurement import Measurement
 from simcred.kinematics import Track
 from simcred.reprocess.errors import STEPS, ErrorStats, decompose, state_errors, wrap
@@ -24,7 +23,6 @@ from simcred.reprocess.pipeline import reprocess
 from simcred.reprocess.reaction import Reaction, ReactionCriteria, reaction, reaction_analysis
 from simcred.scenario.frenet import path_coordinates
 from simcred.sim.experiments.cutin import CutInConfig, simulate
-from simcred.traces import TraceSet
 
 SEEDED = settings(derandomize=True, database=None, deadline=None, max_examples=50)
 CONFIG = CutInConfig()
@@ -301,11 +299,3 @@ def test_without_gt_only_the_sd_side_is_reprocessed(measurement):
     assert set(only_sd.reactions) == {"SD", "rSD"}
     assert only_sd.sensor_model is None and only_sd.analysis == {}
     assert not any("GT" in name for name in only_sd.names)
-
-
-def test_gt_and_sd_on_different_times_is_a_one_line_error():
-    m = simulate(0, CutInConfig(duration=2.0))
-    half = {k: v[::2] for k, v in m.gt.run(0).items()}
-    gt = TraceSet.from_runs([half], run_ids=["gt"], source="half-rate GT")
-    with pytest.raises(SimcredError, match="half-rate GT: GT and SD must share their sample"):
-        reprocess(Measurement(sd=m.sd, gt=gt))

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import sys
+from dataclasses import replace
+from enum import StrEnum
 from pathlib import Path
 from typing import Annotated
 
@@ -23,18 +25,49 @@ from simcred.cli._app import (
     progress,
     say,
 )
+from simcred.errors import SimcredError
 from simcred.limits import check_count, check_finite
+
+
+class CrossingSide(StrEnum):
+    left = "left"
+    right = "right"
+
+
+class LongGaps(StrEnum):
+    error = "error"
+    longest = "longest"
 
 
 @app.command()
 @one_line_errors
 def reprocess(
-    measurement: Annotated[Path, typer.Argument(help="A measurement directory (simcred simulate "
-                                                     "cutin) or an A9 sensor-data CSV file.")],
+    measurement: Annotated[Path, typer.Argument(help=(
+        "A measurement directory (simcred simulate cutin), an A9 sensor-data CSV, a CommonRoad "
+        "XML scenario or a long-format CSV/Parquet table (with --time-column etc.)."))],
     out: Annotated[Path, typer.Option(help="Directory for the results.")],
     vehicle: ResimVehicle = "ks",
-    object_id: Annotated[int | None, typer.Option(
-        "--object", help="A9 CSV: the object to reprocess (default: the lane changer).")] = None,
+    object_id: Annotated[str | None, typer.Option(
+        "--object", help="The traffic object: A9 object number (default: the lane changer); "
+                         "CommonRoad obstacle id, or 'all' (one reprocessing per obstacle); "
+                         "long format: object label (default 'to').")] = None,
+    ego: Annotated[str | None, typer.Option(
+        help="The EGO: CommonRoad obstacle id (default: the object's follower); long format: "
+             "object label (default 'ego').")] = None,
+    time_column: Annotated[str | None, typer.Option(
+        help="Long format: the time column [s] (default t).")] = None,
+    run_column: Annotated[str | None, typer.Option(help="Long format: the run column.")] = None,
+    object_column: Annotated[str | None, typer.Option(
+        help="Long format: the object column (else columns ego.x, to.x, ...).")] = None,
+    run: Annotated[str | None, typer.Option(
+        help="Long format: the run to reprocess when the table has several.")] = None,
+    gt: Annotated[Path | None, typer.Option(
+        help="Long format: a second table with the ground truth (same columns).")] = None,
+    max_gap: Annotated[float, typer.Option(
+        help="Longest gap [s] in an object's samples that is reprocessed (gaps are reported, "
+             "never bridged silently).")] = 0.5,
+    long_gaps: Annotated[LongGaps, typer.Option(
+        help="A longer gap: error, or reprocess the longest stretch without one.")] = "error",
     seed: Annotated[int, typer.Option(help="Seed of the resimulations' sensor noise.")] = 0,
     threshold: Annotated[float, typer.Option(help="Position RMSE [m] at which the fit stops "
                                                   "adding sections.")] = 0.02,
@@ -44,25 +77,83 @@ def reprocess(
 ) -> None:
     """Reprocess a drive: fit, resimulate, refit, assess; errors per step (Wagner, Groh et al.)."""
     from simcred.report.seed002 import write_reprocessed
-    from simcred.reprocess.inputs import read_measurement
+    from simcred.reprocess.inputs import LongColumns, read_measurement
     from simcred.reprocess.pipeline import ReprocessConfig
     from simcred.reprocess.pipeline import reprocess as run_pipeline
     from simcred.sim.vehicles import vehicle_model
 
     vehicle_model(vehicle)  # validates the name before any work
     check_finite(threshold, "--threshold", minimum=0, open_minimum=True)
-    check_output(out, measurement)
+    check_finite(max_gap, "--max-gap", minimum=0, open_minimum=True)
+    check_output(out, measurement, *([gt] if gt is not None else []))
     config = ReprocessConfig(vehicle=vehicle, seed=seed, threshold=threshold,
-                             scenario_based=scenario_based)
-    result = run_pipeline(read_measurement(measurement, object_id), config,
-                          _steps("reprocessing"))
+                             scenario_based=scenario_based, max_gap=max_gap,
+                             long_gaps=long_gaps.value)
+    if object_id is not None and object_id.lower() == "all":
+        _reprocess_all(measurement, ego, config, out, as_json)
+        return
+    columns = (None if all(v is None for v in (time_column, run_column, object_column, run))
+               else LongColumns(time_column or "t", run_column, object_column, run))
+    drive = read_measurement(measurement, object_id, ego=ego, long=columns, gt=gt)
+    try:
+        result = run_pipeline(drive, config, _steps("reprocessing"))
+    except SimcredError as exc:  # a step's message names the object, not the input
+        raise SimcredError(f"{_where(measurement, drive.metadata)}: {exc}") from None
     files = write_reprocessed(result, out)
     if as_json:
         sys.stdout.write(files["summary"].read_text())
     elif not State.quiet:
+        _print_input(result.input_report)
         _print_reactions(result)
         say(f"wrote errors.json, reaction.json, descriptions, scenario.xosc and "
             f"figures to {out}")
+
+
+def _reprocess_all(path: Path, ego: str | None, config, out: Path, as_json: bool) -> None:
+    """``--object all``: every CommonRoad obstacle; exit 1 if any could not be reprocessed."""
+    from simcred._json import dumps, envelope
+    from simcred.errors import OptionError
+    from simcred.report.seed002 import write_reprocessed
+    from simcred.reprocess.obstacles import reprocess_obstacles
+
+    if path.suffix.lower() != ".xml" or ego is not None:
+        raise OptionError("--object all is for a CommonRoad scenario (.xml), without --ego "
+                          "(each obstacle gets its follower)")
+    batch = reprocess_obstacles(path, config, out, write_reprocessed, _steps("reprocessing"))
+    out.mkdir(parents=True, exist_ok=True)
+    summary = out / "reprocess_all.json"
+    summary.write_text(dumps(envelope("reprocess_all", batch.to_dict())))
+    if as_json:
+        sys.stdout.write(summary.read_text())
+    elif not State.quiet:
+        rows = [(str(o.obstacle), o.status, str(o.summary.get("ego", "—")),
+                 o.reason or ", ".join(f"{k}: {v}" for k, v in o.summary["reactions"].items()))
+                for o in batch.outcomes]
+        out_console.print(plain_table("obstacles", ("obstacle", "status", "EGO",
+                                                    "reactions / reason"), rows))
+        say(f"{len(batch.outcomes) - len(batch.failed)} of {len(batch.outcomes)} obstacles "
+            f"reprocessed; wrote reprocess_all.json and obj<ID>/ to {out}")
+    if batch.failed:
+        raise typer.Exit(1)
+
+
+def _where(path: Path, metadata) -> str:
+    """The input and the chosen objects, for a message of a pipeline step."""
+    chosen = [f"{role} {metadata[key]}" for role, key in (("TO", "object"), ("EGO", "ego"))
+              if key in metadata]
+    return f"{path}" + (f" ({', '.join(chosen)})" if chosen else "")
+
+
+def _print_input(report: dict) -> None:
+    """The time base and every gap of the input, so that none goes unnoticed."""
+    say(f"input: {report['samples']} samples on the {report['time_base']} time base, "
+        f"{report['span'][0]:.2f}-{report['span'][1]:.2f} s, {len(report['gaps'])} gap(s)")
+    for g in report["gaps"]:
+        say(f"  gap: {g['recording']} object '{g['object']}' {g['start']:.3f}-{g['end']:.3f} s "
+            f"({g['duration']:.3f} s, {g['missing_samples']} sample(s) missing)")
+    if report.get("cut_to_longest_stretch"):
+        lo, hi = report["cut_to_longest_stretch"]
+        say(f"  cut to the longest stretch without a gap over the limit: {lo:.3f}-{hi:.3f} s")
 
 
 @app.command()
@@ -76,11 +167,23 @@ def vary(
                                            "spawn_key=(i,)); paper 002 varies with its seed "
                                            "+ 1.")] = 0,
     vehicle: ResimVehicle = "ks",
+    crossing_side: Annotated[CrossingSide | None, typer.Option(
+        help="Boundary of the EGO's lane the TO crosses: left (e.g. a cut-in from the left) or "
+             "right (a cut-in from the right). Default: whichever it crosses first.")] = None,
+    crossing_time: Annotated[float | None, typer.Option(
+        help="Time [s] of the lane crossing (instead of detecting it).")] = None,
+    boundary_y: Annotated[float | None, typer.Option(
+        help="Lateral position [m] of the boundary the TO crosses (instead of the EGO's lane "
+             "± lane width / 2).")] = None,
+    lane_width: Annotated[float, typer.Option(
+        help="Width [m] of the EGO's lane when the boundary is detected.")] = 3.5,
     workers: Workers = None,
     scheduler: Scheduler = None,
     as_json: Json = False,
 ) -> None:
-    """Local variations of the TO's cut-in (Wagner, Groh et al. sec. V): vary, resimulate, risk."""
+    """Local variations of the TO's lane change (Wagner, Groh et al. sec. V): vary, resimulate,
+    risk. The crossing is detected from the description (the first crossing of a boundary of
+    the EGO's lane) unless given."""
     from simcred.engine import engine
     from simcred.report.seed002 import write_variations
     from simcred.reprocess.vary import VaryConfig, run_campaign
@@ -89,10 +192,14 @@ def vary(
 
     vehicle_model(vehicle)
     check_count(n, "variations", "-n")
+    options = replace(VaryConfig().options, crossing_time=crossing_time, boundary_y=boundary_y,
+                      crossing_side=None if crossing_side is None else crossing_side.value,
+                      lane_width=lane_width)
     check_output(out, description)
     original = ScenarioDescription.read(description)
     with engine(workers, scheduler) as runner:
-        campaign = run_campaign(original, VaryConfig(n=n, seed=seed, vehicle=vehicle),
+        campaign = run_campaign(original, VaryConfig(n=n, seed=seed, vehicle=vehicle,
+                                                     options=options),
                                 runner=runner, progress_for=progress)
     files = write_variations(campaign, out)
     if as_json:

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import math
 import warnings
 from pathlib import Path
 
@@ -28,6 +29,7 @@ import numpy as np
 from simcred.errors import OptionError, TraceSetError
 from simcred.io._xml import xml_root
 from simcred.io.longformat import Records, to_traceset
+from simcred.kinematics import LANE_WIDTH
 from simcred.traces import TraceSet
 
 LAYOUTS = ("obstacles", "scenario")
@@ -150,3 +152,83 @@ def read(path: str | Path, *, layout: str = "obstacles", missing: str = "error")
         metadata["partial_quantities"] = partial
     return to_traceset(records, objects_as="runs" if layout == "obstacles" else "signals",
                        missing=missing, metadata=metadata, source=str(path))
+
+
+# -- choosing the EGO for reprocessing one obstacle ------------------------------------------------
+
+#: A vehicle drives "in the same direction" when its heading is within this of the obstacle's.
+SAME_DIRECTION = math.pi / 4
+
+
+def follower(traces: TraceSet, obstacle: str, *, lane_width: float = LANE_WIDTH
+             ) -> tuple[str, str] | None:
+    """The EGO for reprocessing ``obstacle`` as the traffic object: its follower.
+
+    At every time step both are recorded, another run is *behind* the obstacle when, in the
+    obstacle's frame (x along its heading), it lies at x < 0 and drives in the same direction
+    (headings within 45°); of those, the one with the smallest |x| is the obstacle's nearest
+    follower at that step. The EGO is the run that is the nearest follower at the most steps
+    (ties: the one listed first), counting first only runs within half a lane laterally
+    (|y| < ``lane_width`` / 2: the follower in the obstacle's lane, e.g. the vehicle a cut-in
+    pulls in front of), and, if there is none, runs in any lane. If no run is ever behind the
+    obstacle in its direction (the last vehicle of a platoon, an oncoming or parked car), the
+    EGO is the run nearest to it on average over the time steps both have (at least 2).
+
+    Parameters
+    ----------
+    traces : TraceSet
+        :func:`read` with ``layout="obstacles"`` (runs ``obj<id>``, signals x, y, heading).
+    obstacle : str
+        The traffic object's run id.
+    lane_width : float, default: 3.5
+
+    Returns
+    -------
+    (run id, rule) or None
+        ``rule`` is ``"follower in its lane"``, ``"nearest vehicle behind (another lane)"`` or
+        ``"nearest vehicle (none behind it in its direction)"``; None if no other run shares
+        two time steps with the obstacle.
+    """
+    runs = {r: traces.run(i) for i, r in enumerate(traces.run_ids)}
+    to = runs[obstacle]
+    for rule, lane in (("follower in its lane", lane_width / 2),
+                       ("nearest vehicle behind (another lane)", math.inf)):
+        nearest = _nearest_behind(to, {r: c for r, c in runs.items() if r != obstacle}, lane)
+        if nearest:
+            counts = {r: nearest.count(r) for r in dict.fromkeys(nearest)}
+            best = max(counts.values())
+            return next(r for r in runs if counts.get(r) == best), rule
+    return _nearest(to, {r: c for r, c in runs.items() if r != obstacle})
+
+
+def _nearest(to: dict[str, np.ndarray], others: dict[str, dict[str, np.ndarray]]
+             ) -> tuple[str, str] | None:
+    """The run with the smallest mean distance to ``to`` over at least 2 shared time steps."""
+    best = None
+    for name, run in others.items():
+        _, i, j = np.intersect1d(to["t"], run["t"], return_indices=True)
+        if len(i) >= 2:
+            distance = float(np.mean(np.hypot(run["x"][j] - to["x"][i],
+                                              run["y"][j] - to["y"][i])))
+            if best is None or distance < best[0]:
+                best = (distance, name)
+    return None if best is None else (best[1], "nearest vehicle (none behind it in its "
+                                                "direction)")
+
+
+def _nearest_behind(to: dict[str, np.ndarray], others: dict[str, dict[str, np.ndarray]],
+                    half_width: float) -> list[str]:
+    """Per time step of ``to``, the run behind it with the smallest gap (absent if none)."""
+    t = to["t"]
+    gap = np.full((len(others), len(t)), np.inf)
+    names = list(others)
+    c, s = np.cos(to["heading"]), np.sin(to["heading"])
+    for k, run in enumerate(others.values()):
+        _, i, j = np.intersect1d(t, run["t"], return_indices=True)
+        dx, dy = run["x"][j] - to["x"][i], run["y"][j] - to["y"][i]
+        lon, lat = dx * c[i] + dy * s[i], -dx * s[i] + dy * c[i]
+        same = np.cos(run["heading"][j] - to["heading"][i]) > math.cos(SAME_DIRECTION)
+        behind = same & (lon < 0) & (np.abs(lat) < half_width)
+        gap[k, i[behind]] = -lon[behind]
+    found = np.isfinite(gap).any(axis=0)
+    return [names[k] for k in np.argmin(gap[:, found], axis=0)]

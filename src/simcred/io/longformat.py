@@ -13,7 +13,9 @@ Rules (also in ``docs/formats.md``)
   With ``objects_as="runs"`` every (run, object) is a run of its own (id ``<run>.<object>``, or
   ``<object>`` without a run column) with plain signal names.
 * **Missing values**: a column that is missing (empty) in *every* row of an object is not a signal
-  of that object (objects may carry different columns); missing in *some* rows is an error.
+  of that object (objects may carry different columns); missing in *some* rows is an error, or,
+  with ``dropouts="drop"``, the row is a dropout: removed, and counted per (run, object) label in
+  the metadata (``dropouts``). NaN and infinite values count as missing then.
 * **Missing rows**: with ``missing="error"`` (default) every object of a run must have a row at
   every time step of that run; ``missing="intersect"`` keeps the time steps where all objects of
   the run have a row (documented data loss, counted in the metadata).
@@ -45,6 +47,7 @@ from simcred.io._columns import float_column
 from simcred.traces import TIME, TraceSet
 
 OBJECTS_AS = ("signals", "runs")
+DROPOUTS = ("error", "drop")
 MISSING = ("error", "intersect")
 PARQUET_SUFFIXES = (".parquet", ".pq")
 METADATA_KEY = b"simcred"
@@ -357,7 +360,8 @@ def _value_columns(table: pa.Table, keys: Sequence[str], signals: Sequence[str] 
 def read(path: str | Path, *, run_column: str | None = None, time_column: str = TIME,
          object_column: str | None = None, signals: Sequence[str] | None = None,
          objects_as: str = "signals", missing: str = "error",
-         object_prefix: str | None = None, time_scale: float = 1.0) -> TraceSet:
+         object_prefix: str | None = None, time_scale: float = 1.0,
+         dropouts: str = "error") -> TraceSet:
     """Read one long-format CSV or Parquet file (see the module docstring for the rules).
 
     Parameters
@@ -379,11 +383,20 @@ def read(path: str | Path, *, run_column: str | None = None, time_column: str = 
     time_scale : float, default: 1
         Seconds per unit of the time column: 0.04 for frame numbers at 25 Hz (highD), 0.001
         for milliseconds.
+    dropouts : {"error", "drop"}
+        What a missing or non-finite value in some rows means: an error naming the row, or a
+        dropout: the row is removed and counted in ``metadata["dropouts"]`` (``{label: rows}``,
+        label ``<run>.<object>``, ``<object>`` or ``<run>``). Needs ``signals``, so that only the
+        named columns decide.
     """
     path = Path(path)
     if not (isinstance(time_scale, int | float) and np.isfinite(time_scale) and time_scale > 0):
         raise OptionError(f"time_scale must be a finite number > 0 (seconds per unit of the "
                           f"time column), got {time_scale!r}")
+    _check_choice("dropouts", dropouts, DROPOUTS)
+    if dropouts == "drop" and signals is None:
+        raise OptionError("dropouts='drop' needs signals: the columns whose missing values "
+                          "make a row a dropout")
     keys = [k for k in (run_column, object_column) if k is not None]
     if len({*keys, time_column}) != len(keys) + 1:
         raise OptionError("run, time and object columns must be different columns")
@@ -403,8 +416,39 @@ def read(path: str | Path, *, run_column: str | None = None, time_column: str = 
     metadata = _stored_metadata(table, path)
     if skipped:
         metadata["skipped_columns"] = skipped
+    if dropouts == "drop":
+        records, dropped = _without_dropouts(records)
+        if dropped:
+            metadata["dropouts"] = dropped
     return to_traceset(records, objects_as=objects_as, missing=missing,
                        object_prefix=object_prefix, metadata=metadata, source=where)
+
+
+def _without_dropouts(records: Records) -> tuple[Records, dict[str, int]]:
+    """The records without rows that miss a value (or hold a non-finite one), and the rows
+    removed per label."""
+    bad = np.zeros(len(records.time), dtype=bool)
+    for values, present in records.fields.values():
+        bad |= ~present | ~np.isfinite(values)
+    if not bad.any():
+        return records, {}
+    keep = ~bad
+    parts = [_as_text(lab) for lab in (records.runs, records.objects) if lab is not None]
+    labels = (np.array([".".join(p) for p in zip(*parts, strict=True)], dtype=object)
+              if parts else np.full(len(bad), records.default_run, dtype=object))
+    names, counts = np.unique(labels[bad].astype(str), return_counts=True)
+    kept = Records(
+        where=records.where, time=records.time[keep],
+        runs=None if records.runs is None else _as_text(records.runs)[keep],
+        objects=None if records.objects is None else _as_text(records.objects)[keep],
+        fields={n: (v[keep], p[keep]) for n, (v, p) in records.fields.items()},
+        default_run=records.default_run, row_name=records.row_name)
+    return kept, {str(n): int(c) for n, c in zip(names, counts, strict=True)}
+
+
+def _as_text(labels) -> np.ndarray:
+    values = labels.to_pylist() if isinstance(labels, pa.Array) else list(labels)
+    return np.array([str(v) for v in values], dtype=object)
 
 
 def _stored_metadata(table: pa.Table, path: Path) -> dict:

@@ -3,24 +3,32 @@ resimulation → refit → risk, reaction and the error of every step; and the v
 
 Modules: ``representation`` (typed names GT, SD, rGT, rSD, [sb], fit(…)), ``pipeline``
 (:func:`reprocess`), ``errors`` (Fig. 4), ``reaction`` (eqs. 4-7), ``inputs`` (what ``simcred
-reprocess`` reads), ``output`` (what it writes, figures aside), ``vary`` (sec. V campaign).
+reprocess`` reads), ``timebase`` (a drive's recordings, gaps and common time base),
+``obstacles`` (every CommonRoad obstacle as the TO), ``output`` (what it writes, figures aside),
+``vary`` (sec. V campaign).
 """
 
 from simcred.reprocess.errors import ErrorStats, decompose
-from simcred.reprocess.inputs import read_measurement
+from simcred.reprocess.inputs import LongColumns, read_measurement
+from simcred.reprocess.obstacles import reprocess_obstacles
 from simcred.reprocess.output import write
 from simcred.reprocess.pipeline import ReprocessConfig, Reprocessed, reprocess
 from simcred.reprocess.reaction import Reaction, ReactionCriteria, reaction
 from simcred.reprocess.representation import GT, SD, Rep, Sensor, Source
+from simcred.reprocess.timebase import Drive, Gap, Recording, align
 from simcred.reprocess.vary import Campaign, Outcome, VaryConfig, run_campaign, write_campaign
 
 __all__ = [
     "GT",
     "SD",
     "Campaign",
+    "Drive",
     "ErrorStats",
+    "Gap",
+    "LongColumns",
     "Outcome",
     "Reaction",
+    "Recording",
     "ReactionCriteria",
     "Rep",
     "ReprocessConfig",
@@ -28,10 +36,12 @@ __all__ = [
     "Sensor",
     "Source",
     "VaryConfig",
+    "align",
     "decompose",
     "read_measurement",
     "reaction",
     "reprocess",
+    "reprocess_obstacles",
     "run_campaign",
     "write",
     "write_campaign",

@@ -1,30 +1,294 @@
-"""What ``simcred reprocess`` accepts: a measurement directory or a real A9 recording."""
+"""What ``simcred reprocess`` reads, as a :class:`~simcred.reprocess.timebase.Drive`.
+
+* a **measurement directory** (``simcred simulate cutin``): GT and SD as recorded, at any rates;
+* an **A9 sensor-data CSV** (OSC-Generator): SD only; the chosen object (default: the lane
+  changer) is the TO over its longest contiguous presence, straightened onto the EGO's path
+  (:mod:`simcred.scenario.frenet`);
+* a **CommonRoad XML** scenario: one obstacle is the TO, the EGO is another recorded obstacle
+  (given, or the TO's follower, :func:`simcred.io.commonroad.follower`); both over the time steps
+  they share, in a road frame (:func:`road_frame`); the recording enters the pipeline as SD;
+* a **long-format CSV/Parquet** table (:mod:`simcred.io.longformat`): the EGO's and the TO's
+  ``x, y, v, heading`` per time (by object column, or as ``<name>.x`` columns); rows with a
+  missing or NaN value are dropouts (removed, counted, and their gaps reported by
+  :func:`~simcred.reprocess.timebase.align`); the table is SD, an optional second table GT.
+
+A single recording (A9, CommonRoad, long format without GT) runs the SD half of the pipeline:
+"SD" then means "the one recording there is"; there is no sensor error, sensor model or
+eqs. (4)-(7).
+"""
 
 from __future__ import annotations
 
+import hashlib
+import math
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
-from simcred.errors import TraceSetError
+import numpy as np
+
+from simcred.errors import OptionError, TraceSetError
+from simcred.io import commonroad, longformat
 from simcred.io.a9 import read_a9
 from simcred.io.a9_lanes import lane_changer
 from simcred.io.measurement import INDEX, Measurement
+from simcred.kinematics import MOTION_SIGNALS, TIME_TOLERANCE, Track
+from simcred.reprocess.timebase import Drive, Recording, tracks_digest
+from simcred.scenario.fit import MIN_SAMPLES
 from simcred.scenario.frenet import to_path_frame
+from simcred.traces import TIME, TraceSet
+
+EGO, TO = "ego", "to"
+MIN_CHORD = 5.0  # m: an EGO that moves less than this gives the road direction by its heading
+LONG_SUFFIXES = (".parquet", ".pq")
 
 
-def read_measurement(path: str | Path, object_id: int | None = None) -> Measurement:
-    """A measurement directory as is; an A9 CSV as SD only, the chosen object (default: the
-    lane changer) as ``to``, straightened onto the EGO's path (the AD function's road is
-    straight, see :mod:`simcred.scenario.frenet`)."""
+@dataclass(frozen=True, slots=True)
+class LongColumns:
+    """How a long-format table names things (``simcred reprocess --time-column ...``)."""
+
+    time_column: str = TIME
+    run_column: str | None = None
+    object_column: str | None = None
+    run: str | None = None  # the run to reprocess when the table has several
+
+
+def read_measurement(path: str | Path, object_id: int | str | None = None, *,
+                     ego: str | None = None, long: LongColumns | None = None,
+                     gt: str | Path | None = None) -> Drive:
+    """The drive in ``path`` (see the module docstring for what each kind gives).
+
+    Parameters
+    ----------
+    path : path
+        Measurement directory, A9 ``.csv``, CommonRoad ``.xml``, or long-format ``.csv`` /
+        ``.parquet`` (a ``.csv`` is long format when ``long`` is given, else A9).
+    object_id : int or str, optional
+        The TO: A9 object number (default the lane changer), CommonRoad obstacle id (required),
+        long-format object label or signal prefix (default ``to``).
+    ego : str, optional
+        The EGO: CommonRoad obstacle id (default the TO's follower), long-format object label
+        or signal prefix (default ``ego``).
+    long : LongColumns, optional
+        Column names of a long-format table.
+    gt : path, optional
+        Long format: a second table with the GT (same columns and labels).
+    """
     path = Path(path)
-    if path.is_dir():
-        return Measurement.read(path)
-    if path.suffix.lower() == ".csv" and path.is_file():
-        recording = read_a9(path)
-        chosen = lane_changer(recording) if object_id is None else object_id
-        sd = to_path_frame(recording.to_traceset(chosen, name="to"))
-        return Measurement(sd=sd, metadata={"source": str(path), "object": chosen,
-                                            "kind": "A9 sensor data", **recording.metadata()})
     if not path.exists():
         raise TraceSetError(f"{path}: no such file or directory")
-    raise TraceSetError(f"{path}: not a measurement (expected a directory with {INDEX} or an "
-                        f"A9 .csv file)")
+    suffix = path.suffix.lower()
+    if gt is not None and not (long is not None or suffix in LONG_SUFFIXES):
+        raise OptionError("--gt is for long-format tables (a measurement directory has its own "
+                          "gt.parquet)")
+    if path.is_dir():
+        _no_choice(path, object_id, ego, "a measurement directory")
+        return Drive.of_measurement(Measurement.read(path))
+    if suffix == ".xml":
+        if object_id is None:
+            raise OptionError(f"{path}: a CommonRoad scenario needs --object ID (an obstacle "
+                              "id, or 'all')")
+        return commonroad_drive(path, object_id, ego)
+    if long is not None or suffix in LONG_SUFFIXES:
+        return long_drive(path, long or LongColumns(), to=object_id, ego=ego, gt=gt)
+    if suffix == ".csv":
+        if ego is not None:
+            raise OptionError(f"{path}: an A9 recording's EGO is the recording car (--ego is "
+                              "for CommonRoad and long-format input)")
+        return a9_drive(path, None if object_id is None else _integer(object_id, "--object"))
+    raise TraceSetError(f"{path}: not a measurement (expected a directory with {INDEX}, an A9 "
+                        ".csv, a CommonRoad .xml or a long-format .csv/.parquet file)")
+
+
+def _no_choice(path: Path, object_id, ego, what: str) -> None:
+    if object_id is not None or ego is not None:
+        raise OptionError(f"{path}: {what} names its EGO and TO itself (--object and --ego are "
+                          "for A9, CommonRoad and long-format input)")
+
+
+def _integer(value: int | str, option: str) -> int:
+    try:
+        return int(value)
+    except (TypeError, ValueError):
+        raise OptionError(f"{option} must be an integer id, got {value!r}") from None
+
+
+# -- A9 ------------------------------------------------------------------------------------------
+
+
+def a9_drive(path: Path, object_id: int | None = None) -> Drive:
+    """An A9 recording: SD only, the chosen object straightened onto the EGO's path."""
+    recording = read_a9(path)
+    chosen = lane_changer(recording) if object_id is None else object_id
+    sd = to_path_frame(recording.to_traceset(chosen, name=TO))
+    metadata = {"source": str(path), "object": chosen, "kind": "A9 sensor data",
+                **recording.metadata(), "rows": sd.metadata.get("rows")}
+    return Drive(Recording.of_traceset(sd), None, metadata)
+
+
+# -- CommonRoad ----------------------------------------------------------------------------------
+
+
+def commonroad_obstacles(path: str | Path) -> tuple[TraceSet, list[int]]:
+    """The scenario's obstacles with a trajectory (runs ``obj<id>``) and their ids."""
+    traces = commonroad.read(path)
+    return traces, [int(r[3:]) for r in traces.run_ids]
+
+
+def commonroad_drive(path: str | Path, obstacle: int | str, ego: int | str | None = None, *,
+                     traces: TraceSet | None = None) -> Drive:
+    """Obstacle ``obstacle`` as the TO of a CommonRoad scenario, with its EGO.
+
+    The EGO is obstacle ``ego`` if given, else the TO's follower
+    (:func:`simcred.io.commonroad.follower`). Both are cut to the time steps both have, and put
+    into the road frame of :func:`road_frame`. A CommonRoad planning problem's initial state is
+    not an EGO here: it is no recorded vehicle (in the NGSIM scenarios it replaces one), so
+    there would be nothing to compare its resimulation with.
+    """
+    path = Path(path)
+    traces = commonroad.read(path) if traces is None else traces
+    to_run = _obstacle_run(path, traces, obstacle, "--object")
+    if ego is None:
+        chosen = commonroad.follower(traces, to_run)
+        if chosen is None:
+            raise TraceSetError(f"{path}: obstacle {obstacle} shares fewer than 2 time steps "
+                                "with every other obstacle: no EGO for it")
+        ego_run, rule = chosen
+    else:
+        ego_run, rule = _obstacle_run(path, traces, ego, "--ego"), "given (--ego)"
+        if ego_run == to_run:
+            raise OptionError(f"{path}: --ego and --object are both obstacle {obstacle}")
+    tracks = _shared_steps(path, {EGO: _obstacle_track(traces, ego_run),
+                                  TO: _obstacle_track(traces, to_run)}, ego_run, to_run)
+    tracks, frame = road_frame(tracks)
+    selection = f"to={to_run[3:]} ego={ego_run[3:]}"
+    metadata = {"source": str(path), "format": "commonroad",
+                "scenario_id": traces.metadata.get("scenario_id"), "object": int(to_run[3:]),
+                "ego": int(ego_run[3:]), "ego_choice": rule, "frame": frame}
+    digest = tracks_digest(tracks, _file_sha256(path), selection)
+    return Drive(Recording(str(path), tracks, digest), None, metadata)
+
+
+def _obstacle_run(path: Path, traces: TraceSet, obstacle: int | str, option: str) -> str:
+    run = f"obj{_integer(obstacle, option)}"
+    if run not in traces.run_ids:
+        still = traces.metadata.get("obstacles_without_trajectory") or []
+        extra = f"; without a trajectory: {', '.join(map(str, still))}" if still else ""
+        raise TraceSetError(f"{path}: no obstacle {obstacle} with a trajectory (obstacles: "
+                            f"{', '.join(r[3:] for r in traces.run_ids)}{extra})")
+    return run
+
+
+def _obstacle_track(traces: TraceSet, run: str) -> Track:
+    columns = traces.run(traces.run_ids.index(run))
+    return Track(columns[TIME], columns["x"], columns["y"], columns["v"],
+                 np.unwrap(columns["heading"]))
+
+
+def _shared_steps(path: Path, tracks: dict[str, Track], ego: str, to: str) -> dict[str, Track]:
+    common = np.intersect1d(tracks[EGO].t, tracks[TO].t)
+    if len(common) < MIN_SAMPLES:
+        raise TraceSetError(f"{path}: obstacles {to[3:]} (TO) and {ego[3:]} (EGO) share "
+                            f"{len(common)} time step(s); a fit needs at least {MIN_SAMPLES}")
+    lo, hi = common[0] - TIME_TOLERANCE, common[-1] + TIME_TOLERANCE
+    return {k: t[(t.t >= lo) & (t.t <= hi)] for k, t in tracks.items()}
+
+
+def road_frame(tracks: dict[str, Track]) -> tuple[dict[str, Track], dict[str, Any]]:
+    """A rigid road frame for a straight-road AD function: origin at the EGO's first position,
+    x along the EGO's direction of travel (its first-to-last chord if it moves at least
+    :data:`MIN_CHORD`, else its mean heading), y to the left. Distances, speeds and relative
+    headings are unchanged; the EGO's lane centre is taken to be y = 0."""
+    ego = tracks[EGO]
+    chord = np.array([ego.x[-1] - ego.x[0], ego.y[-1] - ego.y[0]])
+    if math.hypot(*chord) >= MIN_CHORD:
+        angle, rule = math.atan2(chord[1], chord[0]), "EGO chord"
+    else:
+        angle = math.atan2(np.mean(np.sin(ego.heading)), np.mean(np.cos(ego.heading)))
+        rule = "EGO mean heading"
+    c, s = math.cos(angle), math.sin(angle)
+    x0, y0 = float(ego.x[0]), float(ego.y[0])
+    moved = {k: Track(t.t, c * (t.x - x0) + s * (t.y - y0), -s * (t.x - x0) + c * (t.y - y0),
+                      t.v, t.heading - angle) for k, t in tracks.items()}
+    return moved, {"origin": [x0, y0], "angle": angle, "direction": rule}
+
+
+def _file_sha256(path: Path) -> str:
+    return "sha256:" + hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+# -- long format ---------------------------------------------------------------------------------
+
+
+def long_drive(path: str | Path, columns: LongColumns = LongColumns(), *,
+               to: int | str | None = None, ego: str | None = None,
+               gt: str | Path | None = None) -> Drive:
+    """A long-format table (and optionally its GT twin) with the EGO and the TO."""
+    if columns.run is not None and columns.run_column is None:
+        raise OptionError("--run needs --run-column (the column that names the runs)")
+    names = (str(ego) if ego is not None else EGO, str(to) if to is not None else TO)
+    if names[0] == names[1]:
+        raise OptionError(f"--ego and --object are both {names[0]!r}")
+    sd = _long_recording(Path(path), columns, names)
+    gt_recording = None if gt is None else _long_recording(Path(gt), columns, names)
+    metadata = {"source": str(path), "format": "long", "ego": names[0], "object": names[1],
+                **({"gt": str(gt)} if gt is not None else {}),
+                **({"run": columns.run} if columns.run is not None else {})}
+    return Drive(sd, gt_recording, metadata)
+
+
+def _long_recording(path: Path, columns: LongColumns, names: tuple[str, str]) -> Recording:
+    by_object = columns.object_column is not None
+    signals = list(MOTION_SIGNALS) if by_object else [f"{n}.{s}" for n in names
+                                                      for s in MOTION_SIGNALS]
+    traces = longformat.read(path, run_column=columns.run_column,
+                             time_column=columns.time_column,
+                             object_column=columns.object_column, signals=signals,
+                             objects_as="runs" if by_object else "signals", dropouts="drop")
+    dropped = traces.metadata.get("dropouts", {})
+    tracks, dropouts = {}, {}
+    for role, name in zip((EGO, TO), names, strict=True):
+        label = longformat.object_name(name, None) if by_object else name
+        run_id = _long_run(path, traces, columns, label if by_object else None)
+        run = traces.run(traces.run_ids.index(run_id))
+        if by_object:
+            run = {TIME: run[TIME], **{f"{role}.{s}": run[s] for s in MOTION_SIGNALS}}
+            raw = name[3:] if name.startswith("obj") and name[3:].isdigit() else name
+            key = raw if columns.run_column is None else f"{_run_label(run_id)}.{raw}"
+        else:
+            missing = [f"{name}.{s}" for s in MOTION_SIGNALS if f"{name}.{s}" not in run]
+            if missing:
+                raise TraceSetError(f"{path}: no column {missing[0]!r}")
+            run = {TIME: run[TIME], **{f"{role}.{s}": run[f"{name}.{s}"] for s in MOTION_SIGNALS}}
+            key = _run_label(run_id) if columns.run_column is not None else path.stem
+        tracks[role] = Track.from_columns(run, role, time=TIME, source=str(path))
+        dropouts[role] = int(dropped.get(key, 0))
+    return Recording(str(path), tracks, tracks_digest(tracks, _file_sha256(path)), dropouts)
+
+
+def _run_label(run_id: str) -> str:
+    return run_id.rsplit(".", 1)[0] if "." in run_id else run_id
+
+
+def _long_run(path: Path, traces: TraceSet, columns: LongColumns, label: str | None) -> str:
+    """The run id holding ``label`` (objects as runs) or the one run (signals) to reprocess."""
+    if label is None:
+        candidates = list(traces.run_ids)
+    else:
+        candidates = [r for r in traces.run_ids
+                      if r == label or r.endswith(f".{label}")]
+        if not candidates:
+            objects = sorted({r.rsplit(".", 1)[-1] for r in traces.run_ids})
+            raise TraceSetError(f"{path}: no object {label!r} in column "
+                                f"'{columns.object_column}' (objects: {', '.join(objects)})")
+    if columns.run is not None:
+        chosen = [r for r in candidates if _run_label(r) == columns.run or r == columns.run]
+        if not chosen:
+            runs = sorted({_run_label(r) for r in candidates})
+            raise TraceSetError(f"{path}: no run {columns.run!r} (runs: {', '.join(runs)})")
+        return chosen[0]
+    if len(candidates) > 1:
+        runs = sorted({_run_label(r) for r in candidates})
+        raise OptionError(f"{path}: {len(runs)} runs ({', '.join(runs[:5])}"
+                          f"{', ...' if len(runs) > 5 else ''}); choose one with --run")
+    return candidates[0]

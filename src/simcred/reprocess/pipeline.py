@@ -8,8 +8,10 @@ sensor model ([1] §IV, estimated from the measurement's GT/SD pair) the resimul
 ``rGT[sb]`` (full model: the GT description lacks the sensor's offset) and ``rSD[sb]`` (dynamic
 part only: the SD description already holds the offset) and their fits ``fit(rGT[sb])``, ...
 
-All representations are compared on the measurement's sample times; resimulated traces (100 Hz)
-are interpolated linearly onto them, headings unwrapped first.
+All representations are compared on the drive's common time base
+(:mod:`simcred.reprocess.timebase`: the coarser recording's samples outside gaps; GT and SD may
+come at different rates); resimulated traces (100 Hz) are interpolated linearly onto them,
+headings unwrapped first. Each recording is fitted on its own samples.
 
 References
 ----------
@@ -34,6 +36,7 @@ from simcred.reprocess.errors import ErrorStats, decompose
 from simcred.reprocess.reaction import Reaction, ReactionCriteria, reaction, reaction_analysis
 from simcred.reprocess.representation import GT, SD, Rep, Source
 from simcred.reprocess.representation import Sensor as SensorKind
+from simcred.reprocess.timebase import MAX_GAP, Aligned, Drive, align
 from simcred.risk import VehicleStates, risk, time_headway, time_to_collision
 from simcred.scenario.description import ScenarioDescription
 from simcred.scenario.fit import ScenarioFit, fit_scenario
@@ -64,6 +67,8 @@ class ReprocessConfig:
     driver: DriverConfig = field(default_factory=DriverConfig)
     scenario_based: bool = True
     criteria: ReactionCriteria = field(default_factory=ReactionCriteria)
+    max_gap: float = MAX_GAP  # s: longer gaps are refused or cut away (long_gaps)
+    long_gaps: str = "error"  # or "longest": reprocess the longest stretch without one
     # a scenario-based sensor model estimated on other drives ([1] §IV: "a set of drives");
     # None: estimated from this measurement's own GT/SD pair
     sensor_model: OffsetDelaySensor | None = None
@@ -85,6 +90,7 @@ class Reprocessed(JsonResult):
     risk: dict[str, dict[str, np.ndarray]]
     sensor_model: OffsetDelaySensor | None
     inputs: dict[str, str] = field(default_factory=dict)  # GT / SD -> content hash
+    input_report: dict[str, Any] = field(default_factory=dict)  # time base, gaps, provenance
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -100,7 +106,9 @@ class Reprocessed(JsonResult):
         return {
             "options": {"vehicle": c.vehicle, "dt": c.dt, "risk_dt": c.risk_dt, "seed": c.seed,
                         "ego": c.ego, "objects": list(c.objects), "threshold": c.threshold,
-                        "scenario_based": c.scenario_based},
+                        "scenario_based": c.scenario_based, "max_gap": c.max_gap,
+                        "long_gaps": c.long_gaps},
+            "input": self.input_report,
             "fits": {name: {obj: {"sections": f.sections, "rmse": f.rmse,
                                   "stop_reason": str(f.stop_reason)}
                             for obj, f in fit.fits.items()} for name, fit in self.fits.items()},
@@ -111,24 +119,25 @@ class Reprocessed(JsonResult):
         }
 
 
-def reprocess(measurement: Measurement, config: ReprocessConfig | None = None,
+def reprocess(measurement: Measurement | Drive, config: ReprocessConfig | None = None,
               progress: Progress | None = None) -> Reprocessed:
     """Run the whole pipeline on ``measurement`` (GT optional: without it only SD's part)."""
     c = ReprocessConfig() if config is None else config
     say = progress or (lambda _: None)
     objects = (c.ego, *c.objects)
-    raw = {SD: measurement.sd} | ({GT: measurement.gt} if measurement.gt else {})
-    times = raw[SD].run(0)[TIME]
-    if GT in raw and not np.array_equal(raw[GT].run(0)[TIME], times):
-        raise SimcredError(f"{raw[GT].source}: GT and SD must share their sample times "
-                           f"({raw[GT].n_rows} vs {raw[SD].n_rows} samples)")
-    states = {name: _tracks(traces, objects) for name, traces in raw.items()}
+    drive = measurement if isinstance(measurement, Drive) else Drive.of_measurement(measurement)
+    aligned = align(drive, objects, max_gap=c.max_gap, long_gaps=c.long_gaps)
+    times = aligned.times
+    raw = {name: aligned.tracks[str(name)] for name in (SD, GT) if str(name) in aligned.tracks}
+    states = {name: {o: t.interpolate(times) for o, t in tracks.items()}
+              for name, tracks in raw.items()}
     fits, resims = {}, {}
-    for name, traces in raw.items():
+    for name, tracks in raw.items():
         say(f"fit {name}")
-        fits[name.fit()] = fit_scenario(traces, objects=list(objects), threshold=c.threshold)
+        fits[name.fit()] = fit_scenario({o: (t.t, t.x, t.y) for o, t in tracks.items()},
+                                        objects=list(objects), threshold=c.threshold)
     sensor_model = c.sensor_model if c.sensor_model is not None else (
-        _sensor_model(measurement, c) if c.scenario_based and GT in raw else None)
+        _sensor_model(times, states, c) if c.scenario_based and GT in raw else None)
     for name in raw:
         for kind, sensor in _sensors(name, sensor_model):
             say(f"resimulate {name} ({sensor.name} sensor)")
@@ -152,7 +161,13 @@ def reprocess(measurement: Measurement, config: ReprocessConfig | None = None,
         errors[SensorKind.SCENARIO_BASED] = decompose(_as_ideal(states), objects)
     return Reprocessed(c, times, states, descriptions, fits, resims, errors, reactions,
                        _analysis(states, reactions, c), risk, sensor_model,
-                       {str(name): traces.digest() for name, traces in raw.items()})
+                       {name: r.digest for name, r in drive.recordings().items()},
+                       _input_report(drive, aligned))
+
+
+def _input_report(drive: Drive, aligned: Aligned) -> dict[str, Any]:
+    """``reprocess.json``'s ``input``: the drive's provenance, time base and every gap."""
+    return {"drive": dict(drive.metadata), **aligned.to_dict()}
 
 
 def _sensors(name: Rep, model: OffsetDelaySensor | None
@@ -166,12 +181,13 @@ def _sensors(name: Rep, model: OffsetDelaySensor | None
     return chosen
 
 
-def _sensor_model(measurement: Measurement, c: ReprocessConfig) -> OffsetDelaySensor:
-    """The scenario-based sensor model from the measurement's own GT/SD pair of the first TO."""
-    gt, sd = (_tracks(m, (c.ego, c.objects[0])) for m in (measurement.gt, measurement.sd))
+def _sensor_model(times: np.ndarray, states: dict[Rep, dict[str, Track]],
+                  c: ReprocessConfig) -> OffsetDelaySensor:
+    """The scenario-based sensor model from the measurement's own GT/SD pair of the first TO,
+    on the common time base."""
     to = c.objects[0]
-    return estimate_sensor(gt[to].t, gt[c.ego].states()[:, :2], gt[to].states(),
-                           sd[to].states())
+    return estimate_sensor(times, states[GT][c.ego].states()[:, :2], states[GT][to].states(),
+                           states[SD][to].states())
 
 
 def _tracks(traces: TraceSet, objects: tuple[str, ...]) -> dict[str, Track]:

@@ -31,6 +31,7 @@ from simcred._json import JsonResult
 from simcred.compare import compare
 from simcred.compare.result import Comparison
 from simcred.engine import Engine, shared
+from simcred.errors import SimcredError
 from simcred.kinematics import LANE_WIDTH, MOTION_SIGNALS, Track
 from simcred.reprocess.reaction import Reaction, ReactionCriteria, reaction
 from simcred.risk import VehicleStates
@@ -156,6 +157,11 @@ def run_campaign(description: ScenarioDescription, config: VaryConfig | None = N
                                      options=c.options, limits=c.limits, runner=runner,
                                      chunk_size=c.chunk_size,
                                      progress=progress_for("generating variations"))
+    if not variations.variations:
+        reasons = ", ".join(f"{k}: {v}" for k, v in variations.rejections.items())
+        raise SimcredError(f"all {variations.generated} variations of object '{c.to}' were "
+                           f"rejected ({reasons}); nothing to resimulate (the original itself: "
+                           f"{', '.join(variations.original_reasons) or 'plausible'})")
     jobs = [(-1, [description])] + [
         (k, [v.description for v in variations.variations[k:k + c.chunk_size]])
         for k in range(0, len(variations.variations), c.chunk_size)]

@@ -67,10 +67,6 @@ from simcred.scenario.variation_set import (
 )
 from simcred.seeds import stream
 
-BOUNDARY_Y = LANE_WIDTH / 2
-"""Default lateral position (m) of the EGO's lane boundary: half a 3.5 m lane left of y = 0."""
-
-
 # -- variation ------------------------------------------------------------------------------------
 
 
@@ -113,37 +109,66 @@ def _plan(description: ScenarioDescription, to: str, ego: str, options: Variatio
     x, y = track.positions(t)
     ends = track.states(np.array([track.t0, track.t1]))
     velocity = np.column_stack([ends.v * np.cos(ends.heading), ends.v * np.sin(ends.heading)])
-    crossing, boundary = _crossing(track, description, options, to)
+    crossing, boundary = _crossing(track, description, options, to, ego)
     return _Plan(description, to, options, limits, tau, np.column_stack(track.positions(tau)),
                  velocity[0], velocity[1], _varied(tau, crossing, options.window, to),
                  crossing, boundary, _threshold(description, options), t, x, y)
 
 
 def _crossing(track: ObjectTrack, description: ScenarioDescription, options: VariationOptions,
-              to: str) -> tuple[float, float | None]:
-    """The first time the TO's y crosses the boundary (linear between samples 0.01 s apart)."""
+              to: str, ego: str) -> tuple[float, float | None]:
+    """The first time the TO's y crosses a lane boundary (linear between samples 0.01 s apart):
+    the given ``boundary_y``, the description's ``metadata["road"]["boundary_y"]``, or either
+    boundary of the EGO's lane (:func:`_ego_lane_boundaries`), whichever is crossed first."""
     if options.crossing_time is not None:
         c = float(options.crossing_time)
         if not track.t0 <= c <= track.t1:
             raise OptionError(f"crossing_time {c!r} is outside the span of object '{to}' "
                               f"[{track.t0!r}, {track.t1!r}]")
         return c, None
-    boundary = options.boundary_y
-    if boundary is None:
-        road = description.metadata.get("road")
-        given = road.get("boundary_y") if isinstance(road, Mapping) else None
-        boundary = float(given) if is_real(given) and math.isfinite(given) else BOUNDARY_Y
+    candidates = _boundaries(description, options, track.t0, ego)
     t = sample_times(track.t0, track.t1, PLAUSIBILITY_DT)
     y = track.positions(t)[1]
+    found = [c for c in (_first_crossing(t, y, b) for b in candidates) if c is not None]
+    if not found:
+        where = " or ".join(f"y = {b!r} m" for b in candidates)
+        raise SimcredError(f"object '{to}' never crosses the lane boundary {where} (y from "
+                           f"{y.min():.3f} to {y.max():.3f} m); pass crossing_time, boundary_y "
+                           "or crossing_side (--crossing-time, --boundary-y, --crossing-side)")
+    return min(found)
+
+
+def _boundaries(description: ScenarioDescription, options: VariationOptions, t0: float,
+                ego: str) -> list[float]:
+    """Lane boundaries to look for: the given one, the road's, else the EGO's lane's."""
+    if options.boundary_y is not None:
+        return [float(options.boundary_y)]
+    road = description.metadata.get("road")
+    given = road.get("boundary_y") if isinstance(road, Mapping) else None
+    if options.crossing_side is None and is_real(given) and math.isfinite(given):
+        return [float(given)]
+    left, right = ego_lane_boundaries(description, ego, t0, options.lane_width)
+    return {"left": [left], "right": [right]}.get(options.crossing_side, [left, right])
+
+
+def ego_lane_boundaries(description: ScenarioDescription, ego: str, t: float,
+                        lane_width: float = LANE_WIDTH) -> tuple[float, float]:
+    """(left, right) boundary y (m) of the EGO's lane: the EGO's y at ``t`` (clipped to its
+    span) ± ``lane_width`` / 2. The road runs along +x and the EGO is taken to be centred in
+    its lane, as in simcred's scenarios and in recordings mapped onto the EGO's path."""
+    track = description.objects[ego]
+    centre = float(track.positions(np.array([min(max(t, track.t0), track.t1)]))[1][0])
+    return centre + lane_width / 2, centre - lane_width / 2
+
+
+def _first_crossing(t: np.ndarray, y: np.ndarray, boundary: float
+                    ) -> tuple[float, float] | None:
     s = y - boundary
     change = np.flatnonzero((s[:-1] * s[1:] <= 0) & (s[:-1] != s[1:]))
     if change.size == 0:
-        raise SimcredError(f"object '{to}' never crosses the lane boundary y = {boundary!r} m "
-                           f"(y from {y.min():.3f} to {y.max():.3f} m); pass crossing_time or "
-                           "boundary_y")
+        return None
     i = int(change[0])
-    c = t[i] + (t[i + 1] - t[i]) * s[i] / (s[i] - s[i + 1])
-    return float(c), float(boundary)
+    return float(t[i] + (t[i + 1] - t[i]) * s[i] / (s[i] - s[i + 1])), float(boundary)
 
 
 def _varied(tau: np.ndarray, crossing: float, window: int, to: str) -> tuple[int, ...]:

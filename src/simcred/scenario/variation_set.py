@@ -21,6 +21,7 @@ import numpy as np
 
 from simcred._json import JsonResult, envelope, read_json
 from simcred.errors import OptionError, SimcredError
+from simcred.kinematics import LANE_WIDTH
 from simcred.scenario.bezier import BezierPath
 from simcred.scenario.description import (
     ScenarioDescription,
@@ -28,6 +29,7 @@ from simcred.scenario.description import (
 from simcred.scenario.plausibility import PlausibilityLimits, Reason
 
 KIND = "variation_set"
+CROSSING_SIDES = (None, "left", "right")
 METHOD = ("clamped C2 cubic Bezier path through equitemporal fix points, displaced around the "
           "lane crossing and refitted by fit_track; [1] sec. V")
 
@@ -284,10 +286,17 @@ class VariationOptions:
         Offsets are normal, truncated at ± truncation · σ (None: not truncated). Truncation keeps
         single draws from dominating the rejections.
     boundary_y : float, optional
-        Lateral position (m) of the EGO's lane boundary; default ``metadata["road"]["boundary_y"]``
-        of the description, else 1.75 m.
+        Lateral position (m) of the lane boundary the TO crosses; default
+        ``metadata["road"]["boundary_y"]`` of the description, else detected: the boundaries of
+        the EGO's lane (the EGO's y at the TO's start ± ``lane_width`` / 2), the one the TO
+        crosses first (restricted to ``crossing_side`` if given).
+    crossing_side : {"left", "right"}, optional
+        Which boundary of the EGO's lane to look for when ``boundary_y`` is detected: "left"
+        (y above the EGO's, a cut-in from the left or a cut-out to the left) or "right".
+    lane_width : float, default: 3.5
+        Width (m) of the EGO's lane for the detection.
     crossing_time : float, optional
-        Time (s) of the lane crossing; default the first time the TO's y crosses ``boundary_y``
+        Time (s) of the lane crossing; default the first time the TO's y crosses the boundary
         (sampled every 0.01 s, interpolated linearly).
     sample_dt : float, optional
         Step (s) at which the varied path is sampled and refitted; default the description's
@@ -309,6 +318,8 @@ class VariationOptions:
     sigma_lat: float = 0.3
     truncation: float | None = 2.0
     boundary_y: float | None = None
+    crossing_side: str | None = None
+    lane_width: float = LANE_WIDTH
     crossing_time: float | None = None
     sample_dt: float | None = None
     threshold: float | None = None
@@ -324,6 +335,10 @@ class VariationOptions:
             value = getattr(self, name)
             if not (is_real(value) and math.isfinite(value) and value >= 0):
                 raise OptionError(f"{name} must be a finite number >= 0, got {value!r}")
+        if self.crossing_side not in CROSSING_SIDES:
+            raise OptionError(f"crossing_side must be one of left, right (or None), got "
+                              f"{self.crossing_side!r}")
+        check_positive("lane_width", self.lane_width)
         for name in ("truncation", "sample_dt", "threshold"):
             if getattr(self, name) is not None:
                 check_positive(name, getattr(self, name))
