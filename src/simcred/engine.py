@@ -48,11 +48,17 @@ class Engine:
 
     def map(self, task: Callable[[T], R], items: Sequence[T], *,
             shared_values: dict[str, Any] | None = None,
-            progress: Progress | None = None) -> list[R]:
-        """``[task(item) for item in items]``; ``shared_values`` are read with :func:`shared`."""
+            progress: Progress | None = None,
+            on_result: Callable[[int, R], None] | None = None) -> list[R]:
+        """``[task(item) for item in items]``; ``shared_values`` are read with :func:`shared`;
+        ``on_result(index, result)`` is called as each task finishes (in any order)."""
         values = shared_values or {}
-        results = (_run_task(item, task, values) for item in items)
-        return list(progress(results, len(items)) if progress else results)
+        results = []
+        for index in (progress(range(len(items)), len(items)) if progress else range(len(items))):
+            results.append(_run_task(items[index], task, values))
+            if on_result is not None:
+                on_result(index, results[-1])
+        return results
 
     def close(self) -> None:
         pass
@@ -82,15 +88,17 @@ class DaskEngine(Engine):
                                              processes=True, dashboard_address=None)
             self.client = Client(self._cluster)
 
-    def map(self, task, items, *, shared_values=None, progress=None):
+    def map(self, task, items, *, shared_values=None, progress=None, on_result=None):
         from dask.distributed import as_completed
 
         [values] = self.client.scatter([shared_values or {}], broadcast=True, hash=False)
         futures = self.client.map(_run_task, items, task=task, values=values, pure=False)
+        position = {future.key: index for index, future in enumerate(futures)}
         done = as_completed(futures)
         try:
-            for _ in (progress(done, len(futures)) if progress else done):
-                pass
+            for future in (progress(done, len(futures)) if progress else done):
+                if on_result is not None:
+                    on_result(position[future.key], future.result())
             return self.client.gather(futures)
         except Exception as exc:
             if type(exc).__name__ != "KilledWorker":
@@ -103,6 +111,47 @@ class DaskEngine(Engine):
         self.client.close()
         if self._cluster is not None:
             self._cluster.close()
+
+
+class Checkpointed(Engine):
+    """Another engine whose finished tasks are kept in a store, so a rerun recomputes only the
+    missing ones (``simcred ... --resume``).
+
+    The ``k``-th :meth:`map` call of a job keeps task ``i``'s result (pickled) under the key
+    ``map<k>-<i>``: a job that makes the same calls in the same order (the same command with the
+    same options and inputs, which the store's manifest enforces) finds its finished tasks again.
+    Results are the same objects an uninterrupted run computes, so the outputs are byte for byte
+    the same. The store is a :class:`simcred.outputs.Checkpoint` in the job's own partial output
+    (pickles: resume only outputs you made).
+    """
+
+    def __init__(self, runner: Engine, store: Any) -> None:
+        self.runner, self.store = runner, store
+        self.calls = self.done = self.total = 0
+
+    def map(self, task, items, *, shared_values=None, progress=None, on_result=None):
+        import pickle
+
+        keys = [f"map{self.calls:03d}-{i:06d}" for i in range(len(items))]
+        self.calls += 1
+        results = {i: pickle.loads(self.store.load(key))  # noqa: S301 (our own checkpoint)
+                   for i, key in enumerate(keys) if key in self.store}
+        missing = [i for i in range(len(items)) if i not in results]
+        self.total, self.done = len(items), len(results)
+
+        def keep(j: int, result: Any) -> None:
+            self.store.save(keys[missing[j]], pickle.dumps(result, protocol=5))
+            self.done += 1
+            if on_result is not None:
+                on_result(missing[j], result)
+
+        computed = self.runner.map(task, [items[i] for i in missing], shared_values=shared_values,
+                                   progress=progress, on_result=keep)
+        results.update(zip(missing, computed, strict=True))
+        return [results[i] for i in range(len(items))]
+
+    def close(self) -> None:
+        self.runner.close()
 
 
 class EngineError(SimcredError):

@@ -12,7 +12,7 @@ from __future__ import annotations
 import os
 import shutil
 import tempfile
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -20,6 +20,7 @@ from simcred.errors import OptionError
 
 PARTIAL_SUFFIX = ".partial"
 CHECKPOINTS = "checkpoints"
+MANIFEST = "job.json"
 
 
 def partial_path(out: Path) -> Path:
@@ -47,6 +48,8 @@ def check_out(out: Path, inputs: Sequence[Path] = (), *, overwrite: bool = False
         if not overwrite and (target.is_file() or any(target.iterdir())):
             raise OptionError(f"--out {out} exists and is not empty: choose another path or "
                               "pass --overwrite to replace it")
+    if overwrite and target.is_dir():
+        _refuse_replacing_a_home(out, target)
     for parent in target.parents:
         if parent.exists():
             if not parent.is_dir():
@@ -54,41 +57,114 @@ def check_out(out: Path, inputs: Sequence[Path] = (), *, overwrite: bool = False
             break
 
 
+def _refuse_replacing_a_home(out: Path, target: Path) -> None:
+    """``--overwrite`` replaces a folder whole: never the working directory, a folder holding
+    it, or the home directory."""
+    cwd = Path(os.path.abspath(Path.cwd()))
+    if cwd.is_relative_to(target) or target == Path(os.path.abspath(Path.home())):
+        raise OptionError(f"--out {out} holds the working or home directory: --overwrite would "
+                          "delete it; choose a folder of its own")
+
+
 @contextmanager
-def output_dir(out: Path, inputs: Sequence[Path] = (), *, overwrite: bool = False,
-               resume: bool = False, keep_partial: bool = False) -> Iterator[Path]:
-    """Yield the partial directory to write into; on success it becomes ``out`` atomically.
+def output_path(out: Path, inputs: Sequence[Path] = (), *, kind: str = "directory",
+                overwrite: bool = False, resume: bool = False,
+                keep_partial: bool | Callable[[BaseException], bool] = False) -> Iterator[Path]:
+    """Yield where to write ``out``; on success it appears at ``out`` atomically, complete.
+
+    The output is assembled in the partial directory ``OUT.partial``: a directory output *is*
+    that directory, a file output is ``OUT.partial/<name of OUT>`` (so its suffix, which may pick
+    the format, is kept). On success the partial directory (or the file in it) is renamed to
+    ``out``, replacing an existing ``out`` only with ``overwrite`` (never merging into it).
 
     Parameters
     ----------
     out : Path
-        The output directory.
+        The output directory or file.
     inputs : sequence of Path, default: ()
         Files and directories the command reads; ``out`` may not be, contain or be inside one.
+    kind : {"directory", "file"}, default: "directory"
+        What ``out`` is; an existing path of the other kind is refused.
     overwrite : bool, default: False
         Replace an existing non-empty ``out`` (never merge into it).
     resume : bool, default: False
         Continue in the partial directory a previous, interrupted run left behind.
-    keep_partial : bool, default: False
+    keep_partial : bool or callable, default: False
         Keep the partial directory when the body fails or is interrupted (commands that can
-        resume); otherwise it is removed, so nothing half-written remains.
+        resume; a callable decides from the exception); otherwise it is removed, so nothing
+        half-written remains.
     """
-    check_out(out, inputs, overwrite=overwrite)
+    check_out(out, inputs, overwrite=overwrite, kind=kind)
     partial = partial_path(out)
-    if partial.exists() and not resume:
-        if not overwrite:
-            raise OptionError(f"{partial} holds the output of an interrupted run: continue it "
-                              "with --resume or start over with --overwrite")
-        shutil.rmtree(partial)
+    if partial.exists() and not partial.is_dir():
+        raise OptionError(f"{partial} is not a directory: remove it or choose another --out")
+    lock = None
+    if partial.exists() or partial.is_symlink():
+        lock = _lock(partial)  # refuses a partial output another command is writing now
+        if not resume:
+            if not overwrite:
+                _unlock(lock)
+                raise OptionError(f"{partial} holds the output of an interrupted run: continue "
+                                  "it with --resume or start over with --overwrite")
+            _remove(partial)
+            lock = _unlock(lock)
     partial.mkdir(parents=True, exist_ok=True)
+    lock = lock if lock is not None else _lock(partial)
     try:
-        yield partial
-    except BaseException:
-        if not keep_partial:
+        yield partial if kind == "directory" else partial / out.name
+    except BaseException as exc:
+        keep = keep_partial(exc) if callable(keep_partial) else keep_partial
+        if not keep:
             shutil.rmtree(partial, ignore_errors=True)
         raise
-    shutil.rmtree(partial / CHECKPOINTS, ignore_errors=True)
-    _replace_dir(partial, out)
+    else:
+        if kind == "directory":
+            shutil.rmtree(partial / CHECKPOINTS, ignore_errors=True)
+            _replace_dir(partial, out)
+        else:
+            os.replace(partial / out.name, out)
+            shutil.rmtree(partial, ignore_errors=True)
+    finally:
+        _unlock(lock)
+
+
+def _lock(directory: Path) -> int | None:
+    """An exclusive lock on ``directory`` for this process (released when it ends, even by
+    SIGKILL); one line if another process holds it."""
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover (not POSIX: no locking)
+        return None
+    handle = os.open(directory, os.O_RDONLY)
+    try:
+        fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        os.close(handle)
+        raise OptionError(f"{directory} is being written by another running command: wait for "
+                          "it to finish, or choose another --out") from None
+    return handle
+
+
+def _unlock(handle: int | None) -> None:
+    if handle is not None:
+        os.close(handle)
+
+
+@contextmanager
+def output_dir(out: Path, inputs: Sequence[Path] = (), *, overwrite: bool = False,
+               resume: bool = False, keep_partial: bool = False) -> Iterator[Path]:
+    """Yield the partial directory to write into; on success it becomes ``out`` atomically
+    (:func:`output_path` for a directory)."""
+    with output_path(out, inputs, overwrite=overwrite, resume=resume,
+                     keep_partial=keep_partial) as partial:
+        yield partial
+
+
+def _remove(path: Path) -> None:
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path)
+    else:
+        path.unlink()
 
 
 def _replace_dir(partial: Path, out: Path) -> None:
@@ -128,7 +204,7 @@ class Checkpoint:
         self.directory.mkdir(parents=True, exist_ok=True)
 
     def _file(self, key: str) -> Path:
-        if not key or "/" in key or key.startswith("."):
+        if not key or "/" in key or key.startswith(".") or key == MANIFEST:
             raise ValueError(f"checkpoint key must be a plain file name, got {key!r}")
         return self.directory / key
 
@@ -142,4 +218,21 @@ class Checkpoint:
         return self._file(key).read_bytes()
 
     def keys(self) -> list[str]:
-        return sorted(p.name for p in self.directory.iterdir() if not p.name.startswith("."))
+        if not self.directory.is_dir():  # the partial output was removed
+            return []
+        return sorted(p.name for p in self.directory.iterdir()
+                      if not p.name.startswith(".") and p.name != MANIFEST)
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self.keys())
+
+    def claim(self, manifest: str) -> None:
+        """Tie the checkpoints to the job that made them: the first call stores ``manifest``
+        (the command, its options and its inputs' fingerprints); a resumed job with another
+        manifest is refused, so stale pieces are never mixed into a different job."""
+        path = self.directory / MANIFEST
+        if path.is_file() and path.read_text(encoding="utf-8") != manifest:
+            raise OptionError(f"{self.directory.parent} was started with other options or "
+                              "inputs: rerun that command with --resume, or start over with "
+                              "--overwrite")
+        write_atomic(path, manifest)

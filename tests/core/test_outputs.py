@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from simcred.errors import OptionError
@@ -91,3 +93,30 @@ def test_write_atomic_leaves_no_temporary_on_failure(tmp_path):
 def test_checkpoint_keys_are_plain_names(tmp_path, key):
     with pytest.raises(ValueError, match="plain file name"):
         Checkpoint(tmp_path).save(key, b"")
+
+
+def test_a_partial_output_being_written_is_refused(tmp_path):
+    """Two commands writing one output: the second stops with one line, the first goes on."""
+    out = tmp_path / "out"
+    with output_dir(out, keep_partial=True) as partial:
+        (partial / "a.json").write_text("1")
+        for options in ({"resume": True}, {"overwrite": True}, {}):
+            with pytest.raises(OptionError, match="being written by another"), \
+                    output_dir(out, **options):
+                pass
+        assert (partial / "a.json").read_text() == "1"
+    assert (out / "a.json").read_text() == "1"
+
+
+def test_overwrite_never_replaces_the_working_or_home_directory(tmp_path, monkeypatch):
+    work = tmp_path / "work"
+    (work / "sub").mkdir(parents=True)
+    (work / "sub" / "data.csv").write_text("t,x\n")
+    monkeypatch.chdir(work / "sub")
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    (tmp_path / "home").mkdir()
+    (tmp_path / "home" / "notes").write_text("mine")
+    for out in (Path("."), work, tmp_path / "home"):
+        with pytest.raises(OptionError, match="--overwrite would delete it"):
+            check_out(out, overwrite=True)
+    assert (work / "sub" / "data.csv").exists() and (tmp_path / "home" / "notes").exists()

@@ -265,7 +265,35 @@ def _output_cases() -> list[tuple[str, Builder]]:
             "reprocess", str(v["measurement"]), "--out", str(v["measurement"])]),
         ("vary --out contains the description", lambda r, v: [
             "vary", str(v["description"]), "--out", str(v["description"].parent)]),
+        ("example --out exists, not empty, no --overwrite", lambda r, v: [
+            "example", "--out", str(existing_file(r).parent)]),
+        ("simulate --out a directory where a .parquet file goes", lambda r, v: [
+            "simulate", "simplecar", "--runs", "3", "--out", str(_dir(r / "x.parquet"))]),
+        ("simulate: a leftover OUT.partial, neither --resume nor --overwrite", lambda r, v: [
+            "simulate", "simplecar", "--runs", "3", "--out", str(_leftover(r) / "sc")]),
+        ("simulate --resume of a partial made with other options", lambda r, v: [
+            "simulate", "simplecar", "--runs", "3", "--resume", "--out",
+            str(_leftover(r, manifest="{}") / "sc")]),
+        ("matrix --resume without --out", lambda r, v: [
+            "matrix", str(v["a"]), str(v["b"]), "--resume"]),
+        ("report --out an existing file, no --overwrite", lambda r, v: [
+            "report", str(v["paper"]), "--out", str(existing_file(r))]),
     ]
+
+
+def _dir(path: Path) -> Path:
+    path.mkdir(parents=True)
+    (path / "keep.txt").write_text("keep me")
+    return path
+
+
+def _leftover(root: Path, manifest: str | None = None) -> Path:
+    """``root/sc.partial``: what an interrupted run left (with a checkpoint manifest)."""
+    checkpoints = root / "sc.partial" / "checkpoints"
+    checkpoints.mkdir(parents=True)
+    if manifest is not None:
+        (checkpoints / "job.json").write_text(manifest)
+    return root
 
 
 def _deep_json(r: Path) -> Path:

@@ -286,7 +286,9 @@ def test_cli_prints_the_written_path(full_dir, tmp_path, capsys):
     assert run(["report", str(full_dir), "--out", str(out)]) == 0
     assert capsys.readouterr().out.strip() == str(out)
     assert out.read_bytes() == (full_dir / "index.html").read_bytes()
-    assert run(["--quiet", "report", str(full_dir), "--out", str(out)]) == 0
+    assert run(["--quiet", "report", str(full_dir), "--out", str(out)]) == 2  # exists
+    assert "--overwrite" in capsys.readouterr().err
+    assert run(["--quiet", "report", str(full_dir), "--out", str(out), "--overwrite"]) == 0
     assert capsys.readouterr().out == ""
 
 

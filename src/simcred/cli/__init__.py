@@ -22,7 +22,15 @@ from simcred.cli import (  # noqa: F401  (importing registers the commands)
     study,
     validate,
 )
-from simcred.cli._app import EXIT_BAD_INPUT, State, app, error_line, plain_help
+from simcred.cli._app import (
+    EXIT_BAD_INPUT,
+    EXIT_INTERRUPTED,
+    State,
+    app,
+    error_line,
+    plain_help,
+)
+from simcred.cli._writing import Interrupted
 from simcred.errors import SimcredError
 
 plain_help(app)  # after every command group is registered
@@ -30,7 +38,6 @@ plain_help(app)  # after every command group is registered
 __all__ = ["app", "entry", "run"]
 
 
-EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report it
 EXIT_INTERNAL = 70  # EX_SOFTWARE: a defect of simcred, not of the input
 
 
@@ -47,8 +54,8 @@ def run(argv: Sequence[str] | None = None) -> int:
     except typer.TyperException as exc:
         error_line(exc.format_message())
         return exc.exit_code
-    except (typer.Abort, KeyboardInterrupt):
-        error_line("interrupted (Ctrl-C); no output was completed")
+    except (typer.Abort, KeyboardInterrupt) as exc:
+        error_line(_interruption(exc))
         return EXIT_INTERRUPTED
     except SimcredError as exc:  # raised outside a command body, e.g. in an option callback
         error_line(str(exc))
@@ -60,6 +67,14 @@ def run(argv: Sequence[str] | None = None) -> int:
                    "please report it; --debug shows the traceback")
         return EXIT_INTERNAL
     return code if isinstance(code, int) else 0
+
+
+def _interruption(exc: BaseException) -> str:
+    """What an interrupted command kept (click wraps Ctrl-C in an Abort)."""
+    for cause in (exc, exc.__cause__, exc.__context__):
+        if isinstance(cause, Interrupted):
+            return str(cause)
+    return "interrupted (Ctrl-C); no output was completed"
 
 
 def entry() -> None:

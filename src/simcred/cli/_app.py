@@ -6,8 +6,9 @@ Exit codes: 0 done, 1 negative verdict, 2 bad input or usage (one red line, no t
 
 from __future__ import annotations
 
+import json
 import sys
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from functools import wraps
 from pathlib import Path
 from typing import Annotated
@@ -90,8 +91,12 @@ def error_line(message: str) -> None:
     err_console.print(f"[red]error:[/red] {escape(message)}", highlight=False, soft_wrap=True)
 
 
+EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report it
+
+
 def one_line_errors(command: Callable) -> Callable:
-    """Turn a SimcredError into one red line on stderr and exit code 2."""
+    """Turn a SimcredError into one red line on stderr and exit code 2, and Ctrl-C into one
+    line saying what was kept and exit code 130."""
 
     @wraps(command)
     def wrapper(*args, **kwargs):
@@ -102,16 +107,39 @@ def one_line_errors(command: Callable) -> Callable:
                 raise
             error_line(str(exc))
             raise typer.Exit(EXIT_BAD_INPUT) from None
+        except KeyboardInterrupt as exc:
+            from simcred.cli._writing import Interrupted
+
+            error_line(str(exc) if isinstance(exc, Interrupted)
+                       else "interrupted (Ctrl-C); no output was completed")
+            raise typer.Exit(EXIT_INTERRUPTED) from None
 
     return wrapper
 
 
 def progress(description: str) -> Progress | None:
-    """A rich progress bar on stderr, only on a terminal and without --quiet."""
-    if State.quiet or not sys.stderr.isatty():
+    """Progress on stderr without --quiet: a rich bar on a terminal, else a plain log of one
+    line per step (``description: 3/40``; at most about 100 lines), never on stdout."""
+    if State.quiet:
         return None
+    if not sys.stderr.isatty():
+        return lambda items, total: _logged(items, total, description)
     return lambda items, total: track(items, total=total, description=escape(description),
                                       console=err_console, transient=True)
+
+
+def _logged(items: Iterable, total: int, description: str) -> Iterator:
+    every = max(1, total // 100)
+    for done, item in enumerate(items, 1):
+        yield item
+        if done % every == 0 or done == total:
+            _log(f"{description}: {done}/{total}")
+
+
+def _log(line: str) -> None:
+    """One plain line on stderr, flushed (a log file or pipe sees it at once)."""
+    sys.stderr.write(line + "\n")
+    sys.stderr.flush()
 
 
 
@@ -125,16 +153,16 @@ Json = Annotated[bool, typer.Option("--json", help="Print the result JSON to std
 
 
 def _steps(description: str) -> Callable[[str], None] | None:
-    """Prints each pipeline step on stderr (on a terminal, without --quiet)."""
-    if State.quiet or not sys.stderr.isatty():
+    """Prints each pipeline step on stderr without --quiet (dim on a terminal, else plain)."""
+    if State.quiet:
         return None
+    if not sys.stderr.isatty():
+        return lambda step: _log(f"{description}: {step}")
     return lambda step: err_console.print(f"[dim]{escape(f'{description}: {step}')}[/dim]")
 
 
 
 def _emit(document: dict, as_json: bool, summary: str) -> None:
-    import json
-
     if as_json:
         sys.stdout.write(json.dumps(document, indent=1, ensure_ascii=False) + "\n")
     elif not State.quiet:
@@ -146,13 +174,12 @@ def _emit(document: dict, as_json: bool, summary: str) -> None:
 ResimVehicle = Annotated[str, typer.Option(help="EGO vehicle model of the resimulation: ks or st.")]
 
 
-def check_output(out: Path, *inputs: Path, kind: str = "directory") -> Path:
-    """Refuse an ``--out`` that is, contains or lies inside an input, or has the wrong kind.
-
-    Existing outputs of the right kind are still replaced (``--overwrite`` semantics for every
-    command: docs/reliability.md).
-    """
+def check_output(out: Path, *inputs: Path, kind: str = "directory",
+                 overwrite: bool = False) -> Path:
+    """Refuse an ``--out`` that is, contains or lies inside an input, has the wrong kind, or
+    exists non-empty without ``overwrite`` (for a command that writes one file atomically
+    itself; the others use :func:`writing`)."""
     from simcred.outputs import check_out
 
-    check_out(out, inputs, overwrite=True, kind=kind)
+    check_out(out, inputs, overwrite=overwrite, kind=kind)
     return out

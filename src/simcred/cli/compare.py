@@ -16,11 +16,11 @@ from simcred.cli._app import (
     State,
     Workers,
     app,
-    check_output,
     one_line_errors,
     out_console,
     progress,
 )
+from simcred.cli._writing import Overwrite, Resume, writing
 from simcred.compare import compare as compare_sets
 from simcred.compare import matrix as matrix_of_sets
 from simcred.compare.kernels import Kernel
@@ -28,6 +28,7 @@ from simcred.compare.mmd import Estimator, Test
 from simcred.compare.runs import ChainStatistic, Multiplicity, OneSided
 from simcred.errors import OptionError
 from simcred.limits import check_count, check_finite
+from simcred.seeds import resolve_seed
 
 
 def _split(text: str | None) -> list[str] | None:
@@ -136,25 +137,25 @@ def compare(
     stop_early: StopEarly = True,
     out: Annotated[Path | None, typer.Option(help="Directory for comparison.json and "
                                                   "state_map.png.")] = None,
+    overwrite: Overwrite = False,
     as_json: Json = False,
 ) -> None:
     """Compare two trace sets: a chain verdict and the fraction of distinguishable transitions
     (Neurohr et al.)."""
-    if out is not None:
-        check_output(out, a, b)
     extra = dict(baseline=baseline, bootstrap=bootstrap, relevance=relevance) \
         if test is Test.RUNS else {}
-    result = compare_sets(a, b, progress=progress("testing states"), **extra,
-                          **_options(features, bins, kernel, estimator, test, alpha,
-                                     permutations, seed, continue_on_start_difference,
-                                     stop_early, multiplicity, chain, one_sided, history,
-                                     time_bins, resample))
-    if out is not None:
+    options = _options(features, bins, kernel, estimator, test, alpha, permutations, seed,
+                       continue_on_start_difference, stop_early, multiplicity, chain, one_sided,
+                       history, time_bins, resample)
+    if out is None:
+        result = compare_sets(a, b, progress=progress("testing states"), **extra, **options)
+    else:
         from simcred.report.figures import state_map
 
-        out.mkdir(parents=True, exist_ok=True)
-        (out / "comparison.json").write_text(result.to_json())
-        state_map(result, out / "state_map.png")
+        with writing(out, a, b, overwrite=overwrite) as target:
+            result = compare_sets(a, b, progress=progress("testing states"), **extra, **options)
+            (target.path / "comparison.json").write_text(result.to_json())
+            state_map(result, target.path / "state_map.png")
     if as_json:
         sys.stdout.write(result.to_json())
     elif not State.quiet:
@@ -242,24 +243,33 @@ def matrix(
     scheduler: Scheduler = None,
     out: Annotated[Path | None, typer.Option(help="Directory for matrix.json, matrix.csv and "
                                                   "matrix.png.")] = None,
+    overwrite: Overwrite = False,
+    resume: Resume = False,
     as_json: Json = False,
 ) -> None:
-    """Distance matrix of N trace sets (as Table 3 of Neurohr et al.)."""
-    if out is not None:
-        check_output(out, *sets)
-    result = matrix_of_sets(sets, names=_split(names), workers=workers, scheduler=scheduler,
-                            progress=progress("comparing pairs"),
-                            **_options(features, bins, kernel, estimator, test, alpha,
-                                       permutations, seed, continue_on_start_difference,
-                                       stop_early, multiplicity, chain, one_sided, history,
-                                       time_bins, resample))
-    if out is not None:
+    """Distance matrix of N trace sets (as Table 3 of Neurohr et al.); with --out, finished
+    pairs are checkpointed and --resume continues an interrupted run."""
+    if resume and out is None:
+        raise OptionError("--resume continues an interrupted run with --out: give --out")
+    options = _options(features, bins, kernel, estimator, test, alpha, permutations, seed,
+                       continue_on_start_difference, stop_early, multiplicity, chain, one_sided,
+                       history, time_bins, resample)
+    if out is None:
+        result = matrix_of_sets(sets, names=_split(names), workers=workers,
+                                scheduler=scheduler, progress=progress("comparing pairs"),
+                                **options)
+    else:
         from simcred.report.figures import distance_heatmap
 
-        out.mkdir(parents=True, exist_ok=True)
-        (out / "matrix.json").write_text(result.to_json())
-        (out / "matrix.csv").write_text(result.to_csv())
-        distance_heatmap(result, out / "matrix.png")
+        with writing(out, *sets, overwrite=overwrite, resume=resume) as target, \
+                target.engine(workers, scheduler) as runner:
+            if options["seed"] is None:  # fresh entropy, kept for a resumed run
+                options["seed"] = target.value("seed", lambda: resolve_seed(None))
+            result = matrix_of_sets(sets, names=_split(names), runner=runner,
+                                    progress=progress("comparing pairs"), **options)
+            (target.path / "matrix.json").write_text(result.to_json())
+            (target.path / "matrix.csv").write_text(result.to_csv())
+            distance_heatmap(result, target.path / "matrix.png")
     if as_json:
         sys.stdout.write(result.to_json())
     elif not State.quiet:
@@ -285,17 +295,19 @@ def example(
                                                        "relative to the baseline.")] = 0.8,
     parquet: Annotated[bool, typer.Option(help="Write Parquet files instead of CSV "
                                                "directories.")] = False,
+    overwrite: Overwrite = False,
 ) -> None:
     """Write the built-in example trace sets (seeded lane changes: baseline and variant)."""
     from simcred.examples import lane_change_sets
 
-    check_output(out)
     suffix = ".parquet" if parquet else ""
-    for traces, name in zip(lane_change_sets(runs, steps, seed=seed,
-                                             duration_scale=duration_scale),
-                            ("baseline", "variant"), strict=True):
-        path = traces.write(out / f"{name}{suffix}")
-        if not State.quiet:
-            out_console.print(f"wrote {path} ({traces.n_runs} runs)")
+    with writing(out, overwrite=overwrite) as target:
+        sets = lane_change_sets(runs, steps, seed=seed, duration_scale=duration_scale)
+        for traces, name in zip(sets, ("baseline", "variant"), strict=True):
+            traces.write(target.path / f"{name}{suffix}")
+    if not State.quiet:
+        for traces, name in zip(sets, ("baseline", "variant"), strict=True):
+            out_console.print(f"wrote {out / f'{name}{suffix}'} ({traces.n_runs} runs)",
+                              highlight=False)
 
 

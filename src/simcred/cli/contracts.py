@@ -20,6 +20,7 @@ from simcred.cli._app import (
     one_line_errors,
     out_console,
 )
+from simcred.cli._writing import Overwrite
 from simcred.errors import OptionError
 
 contracts_app = typer.Typer(help="Contracts of simulation models (Braun et al.): check, refine, "
@@ -240,7 +241,8 @@ def monitor_runs(
     setup: Annotated[str | None, typer.Option(help="COMPONENT=MODEL,... to monitor.")] = None,
     test_case: Annotated[str | None, typer.Option(help="Configure the cheapest valid setup for "
                                                        "this test case and monitor it.")] = None,
-    out: Annotated[Path | None, typer.Option(help="Write the report JSON here.")] = None,
+    out: Annotated[Path | None, typer.Option(help="Write the report JSON to this file.")] = None,
+    overwrite: Overwrite = False,
     as_json: Json = False,
 ) -> None:
     """Check recorded runs against the validity domains of a setup's models (exit 1 on a
@@ -251,7 +253,7 @@ def monitor_runs(
     from simcred.traces import TraceSet
 
     if out is not None:  # before any work: the report may not replace an input
-        check_output(out, library, runs, kind="file")
+        check_output(out, library, runs, kind="file", overwrite=overwrite)
     lib = Library.read(library)
     if (setup is None) == (test_case is None):
         raise OptionError("give either --setup COMPONENT=MODEL,... or --test-case NAME")
@@ -265,7 +267,9 @@ def monitor_runs(
     contracts = {m: lib.contract(m) for m in models}
     report = monitor(TraceSet.read(runs), contracts)
     if out is not None:
-        out.write_text(report.to_json())
+        from simcred.outputs import write_atomic
+
+        write_atomic(out, report.to_json())
     if as_json:
         sys.stdout.write(report.to_json())
     elif not State.quiet:

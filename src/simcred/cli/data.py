@@ -9,6 +9,7 @@ from typing import Annotated
 import typer
 
 from simcred.cli._app import app, one_line_errors, out_console
+from simcred.cli._writing import Overwrite, trace_set_kind, writing
 
 data_app = typer.Typer(help="Real data shipped with simcred (with licences and attribution).")
 app.add_typer(data_app, name="data")
@@ -48,34 +49,26 @@ def data_openacc(
                                                          "this [m/s].")] = 2.0,
     min_gap: Annotated[float, typer.Option(help="Smallest plausible gap [m].")] = 0.5,
     max_gap: Annotated[float, typer.Option(help="Largest plausible gap [m].")] = 120.0,
-    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing OUT (never "
-                                                                "the input).")] = False,
+    overwrite: Overwrite = False,
 ) -> None:
     """Cut OpenACC leader–follower episodes (gap [m], dv [m/s], v [m/s], a [m/s²],
     v_leader [m/s]) into a trace set; prints what each episode rule removed."""
     from simcred import data
     from simcred.io.openacc import EpisodeRules, read_openacc
-    from simcred.outputs import check_out, output_dir
 
     inputs = [source if source is not None else data.path("openacc")]
-    is_file = out.suffix.lower() in (".parquet", ".pq")
-    check_out(out, inputs, overwrite=overwrite, kind="file" if is_file else "directory")
-
     rules = EpisodeRules(duration=duration, min_leader_speed=min_leader_speed,
                          gap_range=(min_gap, max_gap))
-    traces = read_openacc(source, rules, follower=follower)
-    traces = dataclasses.replace(traces, metadata={**traces.metadata, "provenance": _provenance(
-        inputs[0], {"follower": follower, "duration": duration, "min_leader_speed":
-                    min_leader_speed, "min_gap": min_gap, "max_gap": max_gap})})
-    if is_file:
-        path = traces.write(out)
-    else:
-        with output_dir(out, inputs, overwrite=overwrite) as partial:
-            traces.write(partial)
-        path = out
+    with writing(out, *inputs, kind=trace_set_kind(out), overwrite=overwrite) as target:
+        traces = read_openacc(source, rules, follower=follower)
+        traces = dataclasses.replace(traces, metadata={
+            **traces.metadata, "provenance": _provenance(inputs[0], {
+                "follower": follower, "duration": duration, "min_leader_speed":
+                min_leader_speed, "min_gap": min_gap, "max_gap": max_gap})})
+        traces.write(target.path)
     cut = traces.metadata["cut"]
     out_console.print(
-        f"wrote {path}: {traces.n_runs} episodes of {duration} s from {cut['files']} files, "
+        f"wrote {out}: {traces.n_runs} episodes of {duration} s from {cut['files']} files, "
         f"{cut['pairs']} pairs; of {cut['possible']} possible: {cut['removed_incomplete']} "
         f"incomplete, {cut['removed_leader_stopped']} leader stopped, {cut['removed_gap']} gap "
         f"out of range, {cut['kept']} kept", highlight=False)

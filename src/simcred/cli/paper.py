@@ -20,6 +20,7 @@ from simcred.cli._app import (
     progress,
     say,
 )
+from simcred.cli._writing import Overwrite, Resume, writing
 from simcred.limits import check_count
 
 paper_app = typer.Typer(help="Regenerate the papers' experiments and check their claims.")
@@ -35,16 +36,17 @@ def paper_000(
     seed: Annotated[int, typer.Option(help="Seed of every campaign and test.")] = 0,
     workers: Workers = None,
     scheduler: Scheduler = None,
+    overwrite: Overwrite = False,
+    resume: Resume = False,
 ) -> None:
     """Neurohr et al. sec. VI: SimpleCar λ sweep (Figs. 5-7) and T-junction (Table 3)."""
-    from simcred.engine import engine
     from simcred.paper import seed000
 
     if runs is not None:
         check_count(runs, "runs", "--runs", minimum=2)
-    check_output(out)
-    with engine(workers, scheduler) as runner:
-        claims = seed000.run_all(out, runs=runs, seed=seed, runner=runner,
+    with writing(out, overwrite=overwrite, resume=resume) as target, \
+            target.engine(workers, scheduler) as runner:
+        claims = seed000.run_all(target.path, runs=runs, seed=seed, runner=runner,
                                  progress_for=progress)
     if not State.quiet:
         out_console.print(claims_table(claims, "seed 000: the paper's claims"))
@@ -61,16 +63,17 @@ def paper_002(
     variations: Annotated[int, typer.Option(help="Variations of the cut-in (sec. V).")] = 300,
     workers: Workers = None,
     scheduler: Scheduler = None,
+    overwrite: Overwrite = False,
+    resume: Resume = False,
 ) -> None:
     """Wagner, Groh et al.: reprocessing the cut-in (Figs. 3-8, eqs. 2-7) and its claims."""
-    from simcred.engine import engine
     from simcred.paper import seed002
 
     check_count(variations, "variations", "--variations (for the 5th/95th percentiles)",
                 minimum=20)
-    check_output(out)
-    with engine(workers, scheduler) as runner:
-        run = seed002.run_all(out, seed=seed, variations=variations, runner=runner,
+    with writing(out, overwrite=overwrite, resume=resume) as target, \
+            target.engine(workers, scheduler) as runner:
+        run = seed002.run_all(target.path, seed=seed, variations=variations, runner=runner,
                               progress=_steps("paper 002"), progress_for=progress)
     if not State.quiet:
         out_console.print(claims_table(run.claims, "seed 002: the paper's claims"))
@@ -90,17 +93,18 @@ def paper_all(
     seed: Annotated[int, typer.Option(help="Seed of every experiment.")] = 0,
     workers: Workers = None,
     scheduler: Scheduler = None,
+    overwrite: Overwrite = False,
+    resume: Resume = False,
 ) -> None:
     """All three seeds: paper 000, paper 002, and seed 003's contracts on the cut-in."""
-    from simcred.engine import engine
     from simcred.paper.all import AllOptions, run_all
 
     if runs is not None:
         check_count(runs, "runs", "--runs", minimum=2)
     check_count(variations, "variations", "--variations", minimum=20)
-    check_output(out)
-    with engine(workers, scheduler) as runner:
-        claims = run_all(out, AllOptions(runs=runs, variations=variations, seed=seed),
+    with writing(out, overwrite=overwrite, resume=resume) as target, \
+            target.engine(workers, scheduler) as runner:
+        claims = run_all(target.path, AllOptions(runs=runs, variations=variations, seed=seed),
                          runner=runner, progress=_steps("paper 002"), progress_for=progress)
     if not State.quiet:
         for key, found in claims.items():
@@ -117,13 +121,14 @@ def report(
                                                                   "paper all.")],
     out: Annotated[Path | None, typer.Option(help="HTML file to write (default: "
                                                   "DIR/index.html).")] = None,
+    overwrite: Overwrite = False,
 ) -> None:
     """Write a self-contained HTML report of the papers' claims, figures and provenance."""
     from simcred.report.html import write_report
 
-    if out is not None:
-        check_output(out, directory, kind="file")
-    path = write_report(directory, out=out)
+    if out is not None:  # the default DIR/index.html is the report's own place: replaced
+        check_output(out, directory, kind="file", overwrite=overwrite)
+    path = write_report(directory, out=out)  # atomically: complete or not at all
     if not State.quiet:
         say(str(path))
 

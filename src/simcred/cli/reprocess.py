@@ -18,13 +18,13 @@ from simcred.cli._app import (
     Workers,
     _steps,
     app,
-    check_output,
     one_line_errors,
     out_console,
     plain_table,
     progress,
     say,
 )
+from simcred.cli._writing import Overwrite, Resume, writing
 from simcred.errors import SimcredError
 from simcred.limits import check_count, check_finite
 
@@ -73,6 +73,7 @@ def reprocess(
                                                   "adding sections.")] = 0.02,
     scenario_based: Annotated[bool, typer.Option(
         help="Also resimulate with the scenario-based sensor model (needs GT).")] = True,
+    overwrite: Overwrite = False,
     as_json: Json = False,
 ) -> None:
     """Reprocess a drive: fit, resimulate, refit, assess; errors per step (Wagner, Groh et al.)."""
@@ -85,23 +86,24 @@ def reprocess(
     vehicle_model(vehicle)  # validates the name before any work
     check_finite(threshold, "--threshold", minimum=0, open_minimum=True)
     check_finite(max_gap, "--max-gap", minimum=0, open_minimum=True)
-    check_output(out, measurement, *([gt] if gt is not None else []))
+    inputs = (measurement, *([gt] if gt is not None else []))
     config = ReprocessConfig(vehicle=vehicle, seed=seed, threshold=threshold,
                              scenario_based=scenario_based, max_gap=max_gap,
                              long_gaps=long_gaps.value)
     if object_id is not None and object_id.lower() == "all":
-        _reprocess_all(measurement, ego, config, out, as_json)
+        _reprocess_all(measurement, ego, config, out, as_json, overwrite)
         return
     columns = (None if all(v is None for v in (time_column, run_column, object_column, run))
                else LongColumns(time_column or "t", run_column, object_column, run))
-    drive = read_measurement(measurement, object_id, ego=ego, long=columns, gt=gt)
-    try:
-        result = run_pipeline(drive, config, _steps("reprocessing"))
-    except SimcredError as exc:  # a step's message names the object, not the input
-        raise SimcredError(f"{_where(measurement, drive.metadata)}: {exc}") from None
-    files = write_reprocessed(result, out)
+    with writing(out, *inputs, overwrite=overwrite) as target:
+        drive = read_measurement(measurement, object_id, ego=ego, long=columns, gt=gt)
+        try:
+            result = run_pipeline(drive, config, _steps("reprocessing"))
+        except SimcredError as exc:  # a step's message names the object, not the input
+            raise SimcredError(f"{_where(measurement, drive.metadata)}: {exc}") from None
+        summary = write_reprocessed(result, target.path)["summary"].read_text()
     if as_json:
-        sys.stdout.write(files["summary"].read_text())
+        sys.stdout.write(summary)
     elif not State.quiet:
         _print_input(result.input_report)
         _print_reactions(result)
@@ -109,7 +111,8 @@ def reprocess(
             f"figures to {out}")
 
 
-def _reprocess_all(path: Path, ego: str | None, config, out: Path, as_json: bool) -> None:
+def _reprocess_all(path: Path, ego: str | None, config, out: Path, as_json: bool,
+                   overwrite: bool) -> None:
     """``--object all``: every CommonRoad obstacle; exit 1 if any could not be reprocessed."""
     from simcred._json import dumps, envelope
     from simcred.errors import OptionError
@@ -119,12 +122,13 @@ def _reprocess_all(path: Path, ego: str | None, config, out: Path, as_json: bool
     if path.suffix.lower() != ".xml" or ego is not None:
         raise OptionError("--object all is for a CommonRoad scenario (.xml), without --ego "
                           "(each obstacle gets its follower)")
-    batch = reprocess_obstacles(path, config, out, write_reprocessed, _steps("reprocessing"))
-    out.mkdir(parents=True, exist_ok=True)
-    summary = out / "reprocess_all.json"
-    summary.write_text(dumps(envelope("reprocess_all", batch.to_dict())))
+    with writing(out, path, overwrite=overwrite) as target:
+        batch = reprocess_obstacles(path, config, target.path, write_reprocessed,
+                                    _steps("reprocessing"))
+        summary = dumps(envelope("reprocess_all", batch.to_dict()))
+        (target.path / "reprocess_all.json").write_text(summary)
     if as_json:
-        sys.stdout.write(summary.read_text())
+        sys.stdout.write(summary)
     elif not State.quiet:
         rows = [(str(o.obstacle), o.status, str(o.summary.get("ego", "—")),
                  o.reason or ", ".join(f"{k}: {v}" for k, v in o.summary["reactions"].items()))
@@ -179,12 +183,13 @@ def vary(
         help="Width [m] of the EGO's lane when the boundary is detected.")] = 3.5,
     workers: Workers = None,
     scheduler: Scheduler = None,
+    overwrite: Overwrite = False,
+    resume: Resume = False,
     as_json: Json = False,
 ) -> None:
     """Local variations of the TO's lane change (Wagner, Groh et al. sec. V): vary, resimulate,
     risk. The crossing is detected from the description (the first crossing of a boundary of
     the EGO's lane) unless given."""
-    from simcred.engine import engine
     from simcred.report.seed002 import write_variations
     from simcred.reprocess.vary import VaryConfig, run_campaign
     from simcred.scenario.description import ScenarioDescription
@@ -195,15 +200,15 @@ def vary(
     options = replace(VaryConfig().options, crossing_time=crossing_time, boundary_y=boundary_y,
                       crossing_side=None if crossing_side is None else crossing_side.value,
                       lane_width=lane_width)
-    check_output(out, description)
-    original = ScenarioDescription.read(description)
-    with engine(workers, scheduler) as runner:
-        campaign = run_campaign(original, VaryConfig(n=n, seed=seed, vehicle=vehicle,
-                                                     options=options),
-                                runner=runner, progress_for=progress)
-    files = write_variations(campaign, out)
+    with writing(out, description, overwrite=overwrite, resume=resume) as target:
+        original = ScenarioDescription.read(description)
+        with target.engine(workers, scheduler) as runner:
+            campaign = run_campaign(original, VaryConfig(n=n, seed=seed, vehicle=vehicle,
+                                                         options=options),
+                                    runner=runner, progress_for=progress)
+        summary = write_variations(campaign, target.path)["summary"].read_text()
     if as_json:
-        sys.stdout.write(files["summary"].read_text())
+        sys.stdout.write(summary)
     elif not State.quiet:
         _print_campaign(campaign.summary())
         say(f"wrote variations.json, variation_set.json, runs.parquet and "

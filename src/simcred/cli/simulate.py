@@ -12,11 +12,11 @@ from simcred.cli._app import (
     State,
     Workers,
     app,
-    check_output,
     one_line_errors,
     progress,
     say,
 )
+from simcred.cli._writing import Overwrite, Resume, trace_set_kind, writing
 from simcred.errors import OptionError
 from simcred.limits import check_count, check_finite
 
@@ -31,17 +31,16 @@ ChunkSize = Annotated[int, typer.Option(help="Runs per task.")]
 
 
 def _simulate(experiment, params: dict, runs: int, seed: int, out: Path, chunk_size: int,
-              workers: int | None, scheduler: str | None) -> None:
+              workers: int | None, scheduler: str | None, overwrite: bool, resume: bool) -> None:
     from simcred.sim.campaign import Campaign
 
-    check_output(out, kind="directory" if out.suffix.lower() not in (".parquet", ".pq", ".csv",
-                                                                     ".osi", ".mcap") else "file")
     campaign = Campaign(experiment, runs, seed, params, chunk_size)
-    traces = campaign.run(workers=workers, scheduler=scheduler,
-                          progress=progress("simulating chunks"))
-    path = traces.write(out)
+    with writing(out, kind=trace_set_kind(out), overwrite=overwrite, resume=resume) as target, \
+            target.engine(workers, scheduler) as runner:
+        traces = campaign.run(runner=runner, progress=progress("simulating chunks"))
+        traces.write(target.path)
     if not State.quiet:
-        say(f"wrote {path}: {traces.n_runs} runs, {traces.n_rows} rows, "
+        say(f"wrote {out}: {traces.n_runs} runs, {traces.n_rows} rows, "
             f"signals {', '.join(traces.signals)}")
 
 
@@ -58,6 +57,8 @@ def simulate_simplecar(
     chunk_size: ChunkSize = 250,
     workers: Workers = None,
     scheduler: Scheduler = None,
+    overwrite: Overwrite = False,
+    resume: Resume = False,
 ) -> None:
     """SimpleCar runs of the λ sweep (Neurohr et al. sec. VI-A, eq. 8)."""
     from simcred.sim.experiments import simplecar_sweep
@@ -68,7 +69,7 @@ def simulate_simplecar(
     steps = check_count(round(duration / dt) + 1, "steps", "--duration / --dt + 1")
     check_count(check_count(runs, "runs", "--runs") * steps, "rows", "--runs × steps")
     _simulate(simplecar_sweep.simulate, {"lam": lam, "dt": dt, "duration": duration}, runs,
-              seed, out, chunk_size, workers, scheduler)
+              seed, out, chunk_size, workers, scheduler, overwrite, resume)
 
 
 @simulate_app.command("tjunction")
@@ -82,6 +83,8 @@ def simulate_tjunction(
     chunk_size: ChunkSize = 250,
     workers: Workers = None,
     scheduler: Scheduler = None,
+    overwrite: Overwrite = False,
+    resume: Resume = False,
 ) -> None:
     """T-junction runs with static occlusion (Neurohr et al. sec. VI-B)."""
     from simcred.sim.experiments import tjunction
@@ -90,7 +93,7 @@ def simulate_tjunction(
         raise OptionError(f"category must be one of {', '.join(tjunction.CATEGORIES)}; "
                           f"got {category!r}")
     _simulate(tjunction.simulate, {"category": category}, runs, seed, out, chunk_size,
-              workers, scheduler)
+              workers, scheduler, overwrite, resume)
 
 
 @simulate_app.command("cutin")
@@ -101,12 +104,14 @@ def simulate_cutin(
     seed: Annotated[int, typer.Option(help="Seed of the sensor and DGPS noise.")] = 0,
     ego_model: Annotated[str, typer.Option(help="EGO vehicle model of 'reality': st or ks.")
                          ] = "st",
+    overwrite: Overwrite = False,
 ) -> None:
     """Cut-in and brake, the manufactured universe of Wagner, Groh et al. (GT and SD)."""
     from simcred.sim.experiments import cutin
 
-    measurement = cutin.simulate(seed, cutin.CutInConfig(ego_model=ego_model))
-    measurement.write(out)
+    with writing(out, overwrite=overwrite) as target:
+        measurement = cutin.simulate(seed, cutin.CutInConfig(ego_model=ego_model))
+        measurement.write(target.path)
     if not State.quiet:
         say(f"wrote {out}: GT and SD, {measurement.sd.n_rows} samples each")
 
@@ -137,8 +142,8 @@ def simulate_sumo_following(
     chunk_size: Annotated[int, typer.Option(help="Episodes per task.")] = 50,
     workers: Workers = None,
     scheduler: Scheduler = None,
-    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing OUT (never "
-                                                                "the input).")] = False,
+    overwrite: Overwrite = False,
+    resume: Resume = False,
 ) -> None:
     """Replay the recorded leaders in SUMO; each model drives the follower (lane changes off).
 
@@ -146,16 +151,15 @@ def simulate_sumo_following(
     recorded gap [m] and speed [m/s]. Outputs: gap [m], dv [m/s] (leader −
     follower), v [m/s], a [m/s²], v_leader [m/s] on the input's time stamps [s].
     """
-    from simcred.outputs import output_dir
     from simcred.sim.sumo import replay, write_replays
     from simcred.traces import TraceSet
 
-    with output_dir(out, [traces], overwrite=overwrite) as partial:
+    with writing(out, traces, overwrite=overwrite, resume=resume) as target, \
+            target.engine(workers, scheduler) as runner:
         source = TraceSet.read(traces)
-        results = replay(source, _sumo_models(models), seed=seed, workers=workers,
-                         scheduler=scheduler, chunk_size=chunk_size,
-                         progress=progress("SUMO episodes (chunks)"))
-        written = write_replays(results, partial, options={"models": models, "seed": seed,
+        results = replay(source, _sumo_models(models), seed=seed, runner=runner,
+                         chunk_size=chunk_size, progress=progress("SUMO episodes (chunks)"))
+        written = write_replays(results, target.path, options={"models": models, "seed": seed,
                                                            "chunk_size": chunk_size})
     if not State.quiet:
         say(f"wrote {out}/: {', '.join(p.name for p in written)}: "

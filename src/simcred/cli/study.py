@@ -19,6 +19,7 @@ from simcred.cli._app import (
     out_console,
     progress,
 )
+from simcred.cli._writing import Overwrite, Resume, writing
 from simcred.errors import OptionError
 
 study_app = typer.Typer(help="Validity studies on real data (data → simulation → comparison).")
@@ -84,13 +85,12 @@ def car_following(
                                                      "the copy shipped with simcred).")] = None,
     workers: Workers = None,
     scheduler: Scheduler = None,
-    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing OUT (never "
-                                                                "the input).")] = False,
+    overwrite: Overwrite = False,
+    resume: Resume = False,
     as_json: Json = False,
 ) -> None:
     """Real human car following (OpenACC) vs SUMO models and real ACC, per speed band."""
     from simcred import data
-    from simcred.outputs import output_dir
     from simcred.report.study import study_figures
     from simcred.study import StudyOptions, run_study, write_study
 
@@ -101,11 +101,12 @@ def car_following(
                            min_runs=min_runs,
                            max_episodes=max_episodes)
     inputs = [source if source is not None else data.path("openacc")]
-    with output_dir(out, inputs, overwrite=overwrite) as partial:
-        result = run_study(options, source=source, workers=workers, scheduler=scheduler,
+    with writing(out, *inputs, overwrite=overwrite, resume=resume) as target, \
+            target.engine(workers, scheduler) as runner:
+        result = run_study(options, source=source, runner=runner,
                            progress=progress("SUMO replays (chunks)"))
-        write_study(result, partial)
-        study_figures(result, partial)
+        write_study(result, target.path)
+        study_figures(result, target.path)
     if not as_json and not State.quiet:
         _print(result, out)
     _emit(result.to_dict(), as_json, "")

@@ -2,20 +2,26 @@
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
 from simcred._json import dumps
-from simcred.cli._app import State, app, one_line_errors, out_console
+from simcred.cli._app import (
+    State,
+    app,
+    one_line_errors,
+    out_console,
+)
+from simcred.cli._writing import Overwrite, Resume, writing
 from simcred.errors import SimcredError
+from simcred.outputs import Checkpoint, partial_path
 from simcred.report.validate import write_validation_report
 from simcred.validate import read_inputs, read_validation, validate
 from simcred.validate.spec import RunsSpec, ValidationSpec
 from simcred.validate.verdict import verdict_document
-
-OUTPUTS = ("verdict.json", "contracts.yaml", "report.html")
 
 
 @app.command("validate")
@@ -27,20 +33,23 @@ def validate_command(
     date: Annotated[str | None, typer.Option(help="Date to record in the provenance (none by "
                                              "default, so reruns are byte-identical).")] = None,
     no_report: Annotated[bool, typer.Option("--no-report", help="Skip the HTML report.")] = False,
+    overwrite: Overwrite = False,
+    resume: Resume = False,
 ) -> None:
     """Learn each candidate's validity domain, configure and monitor on it, and decide whether a
     candidate is valid for the test case. Exit 0 valid, 1 not valid, 3 inconclusive, 2 bad
-    input."""
+    input. Candidates' simulations are checkpointed: --resume reuses those that finished."""
     spec, base = read_validation(validation)
-    _check_out(out, validation, spec, base)
-    inputs = read_inputs(spec, base, simulate_candidates(spec, base, out))
-    result = validate(spec, inputs, source=str(validation))
-    document = verdict_document(result, inputs, validation_file=validation, date=date)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "verdict.json").write_text(dumps(document), encoding="utf-8")
-    (out / "contracts.yaml").write_text(result.library_yaml(), encoding="utf-8")
-    if not no_report:
-        write_validation_report(result, document, out)
+    with writing(out, *_inputs(validation, spec, base), overwrite=overwrite,
+                 resume=resume) as target:
+        inputs = read_inputs(spec, base, simulate_candidates(spec, base, target.path,
+                                                               target.checkpoint))
+        result = validate(spec, inputs, source=str(validation))
+        document = verdict_document(result, inputs, validation_file=validation, date=date)
+        (target.path / "verdict.json").write_text(dumps(document), encoding="utf-8")
+        (target.path / "contracts.yaml").write_text(result.library_yaml(), encoding="utf-8")
+        if not no_report:
+            write_validation_report(result, document, target.path)
     if not State.quiet:
         out_console.print(result.summary, highlight=False, soft_wrap=True)
         for verdict in result.candidates.values():
@@ -51,40 +60,47 @@ def validate_command(
     raise typer.Exit(result.exit_code)
 
 
-def simulate_candidates(spec: ValidationSpec, base: Path, out: Path) -> dict[str, RunsSpec]:
+def simulate_candidates(spec: ValidationSpec, base: Path, out: Path,
+                        checkpoint: Checkpoint | None = None) -> dict[str, RunsSpec]:
     """Run each candidate's simulator command (in-process, ``simcred simulate ...``) into
-    ``out/runs/<candidate>/``; the runs it wrote, per candidate."""
+    ``out/runs/<candidate>/``; the runs it wrote, per candidate.
+
+    Each finished simulation is marked in ``checkpoint``: a resumed validation does not run it
+    again (its output was written atomically, so it is complete).
+    """
     made = {}
-    for name, candidate in spec.candidates.items():
+    for index, (name, candidate) in enumerate(spec.candidates.items()):
         if candidate.simulate is None:
             continue
         folder = (out / "runs" / name).resolve()
-        folder.mkdir(parents=True, exist_ok=True)
+        made[name] = RunsSpec(path=str(folder / candidate.simulate.output),
+                              options=candidate.simulate.options)
+        done = f"simulated-{index:04d}"
+        if checkpoint is not None and done in checkpoint:
+            continue
+        for left in (folder, partial_path(folder)):  # an interrupted simulation: start over
+            shutil.rmtree(left, ignore_errors=True)
+        folder.mkdir(parents=True)
         args = [a.replace("{base}", str(base)).replace("{out}", str(folder))
                 for a in candidate.simulate.command]
-        from simcred.cli import run
+        from simcred.cli import EXIT_INTERRUPTED, run
 
         quiet, debug = State.quiet, State.debug
         try:
             code = run(["--quiet", *args])
         finally:
             State.quiet, State.debug = quiet, debug
+        if code == EXIT_INTERRUPTED:
+            raise KeyboardInterrupt
         if code != 0:
             raise SimcredError(f"candidates.{name}.simulate: 'simcred {' '.join(args)}' exited "
                                f"with {code}")
-        made[name] = RunsSpec(path=str(folder / candidate.simulate.output),
-                              options=candidate.simulate.options)
+        if checkpoint is not None:
+            checkpoint.save(done, b"")
     return made
 
 
-def _check_out(out: Path, validation: Path, spec: ValidationSpec, base: Path) -> None:
-    """Outputs never overwrite inputs."""
-    if out.exists() and not out.is_dir():
-        raise SimcredError(f"{out}: --out must be a folder")
+def _inputs(validation: Path, spec: ValidationSpec, base: Path) -> list[Path]:
+    """Every file the validation reads: --out may not be, contain or lie inside one."""
     runs = [c.runs for c in spec.candidates.values() if c.runs is not None]
-    inputs = {validation.resolve(), *((base / r.path).resolve() for r in
-                                      [spec.reference, *runs, *spec.monitor])}
-    for name in OUTPUTS:
-        if (out / name).resolve() in inputs:
-            raise SimcredError(f"{out / name}: is an input of the validation; choose another "
-                               "--out")
+    return [validation, *(base / r.path for r in [spec.reference, *runs, *spec.monitor])]

@@ -30,6 +30,7 @@ from typing import Any
 
 from simcred.errors import OptionError, TraceSetError
 from simcred.io._xml import xml_root
+from simcred.outputs import output_path
 from simcred.traces import TraceSet
 
 LONG_READ = ("run_column", "time_column", "object_column", "signals", "objects_as", "missing",
@@ -196,15 +197,6 @@ def content_sha256(path: Path) -> str:
     return "sha256:" + h.hexdigest()
 
 
-def _refuse_overwrite(source: Path, target: Path, overwrite: bool) -> None:
-    src, dst = source.resolve(), target.resolve()
-    if src == dst or dst in src.parents or src in dst.parents:
-        raise OptionError(f"{target}: the output would overwrite the input {source}")
-    if target.exists() and not overwrite:
-        raise OptionError(f"{target}: exists; choose another output or allow overwriting "
-                          "(--overwrite)")
-
-
 def convert(source: str | Path, target: str | Path, *, source_format: str | None = None,
             target_format: str | None = None, overwrite: bool = False,
             **options: Any) -> Conversion:
@@ -214,7 +206,9 @@ def convert(source: str | Path, target: str | Path, *, source_format: str | None
     its format takes them (column names of a long-format output), and so do the reader's when
     ``target_format`` is named (long CSV -> long Parquet with the same columns); an option
     neither side takes is an error. The
-    output never replaces the input, and replaces an existing file only with ``overwrite=True``.
+    output never replaces the input, and replaces an existing one only with ``overwrite=True``;
+    it is written atomically (:func:`simcred.outputs.output_path`), so it exists complete or not
+    at all.
     The written trace set's metadata records where it came from (path, format, hash, options).
     """
     source, target = Path(source), Path(target)
@@ -232,12 +226,13 @@ def convert(source: str | Path, target: str | Path, *, source_format: str | None
     if unused:
         raise OptionError(f"option '{unused[0]}' applies neither to the input format "
                           f"'{fmt_in.name}' nor to the output format '{fmt_out.name}'")
-    _refuse_overwrite(source, target, overwrite)
-    traces = read(source, format=fmt_in.name, **read_options)
-    digest = content_sha256(source)
-    provenance = {"path": str(source), "format": fmt_in.name, "sha256": digest,
-                  "options": read_options}
-    traces = replace(traces, metadata={**traces.metadata, "converted_from": provenance})
-    written = write(traces, target, format=fmt_out.name, **write_options)
-    return Conversion(str(source), fmt_in.name, digest, str(written), fmt_out.name, read_options,
+    kind = "directory" if fmt_out.name == "csv-dir" else "file"
+    with output_path(target, [source], kind=kind, overwrite=overwrite) as partial:
+        traces = read(source, format=fmt_in.name, **read_options)
+        digest = content_sha256(source)
+        provenance = {"path": str(source), "format": fmt_in.name, "sha256": digest,
+                      "options": read_options}
+        traces = replace(traces, metadata={**traces.metadata, "converted_from": provenance})
+        write(traces, partial, format=fmt_out.name, **write_options)
+    return Conversion(str(source), fmt_in.name, digest, str(target), fmt_out.name, read_options,
                       write_options, traces.n_runs, traces.n_rows, traces.signals)

@@ -44,6 +44,7 @@ import pyarrow.parquet as pq
 
 from simcred.errors import OptionError, TraceSetError
 from simcred.io._columns import float_column
+from simcred.io._paths import local
 from simcred.traces import TIME, TraceSet
 
 OBJECTS_AS = ("signals", "runs")
@@ -263,7 +264,7 @@ def _reorder(block: np.ndarray, names: list[str], signals: list[str], where: str
 def _read_table(path: Path, keys: Sequence[str]) -> pa.Table:
     if path.suffix.lower() in PARQUET_SUFFIXES:
         try:
-            return pq.read_table(path)
+            return pq.read_table(local(path))
         except (pa.ArrowException, OSError) as exc:
             raise TraceSetError(f"{path}: unreadable Parquet ({_first_line(exc)})") from None
     text = {k: pa.string() for k in keys}
@@ -527,7 +528,7 @@ def write(traces: TraceSet, path: str | Path, *, run_column: str = "run",
     path.parent.mkdir(parents=True, exist_ok=True)
     if path.suffix.lower() in PARQUET_SUFFIXES:
         meta = json.dumps(dict(traces.metadata), sort_keys=True).encode()
-        pq.write_table(table.replace_schema_metadata({METADATA_KEY: meta}), path)
+        pq.write_table(table.replace_schema_metadata({METADATA_KEY: meta}), local(path))
     else:
         pacsv.write_csv(table, path, write_options=pacsv.WriteOptions(quoting_header="none"))
     return path

@@ -45,6 +45,7 @@ import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 
 from simcred.errors import OptionError, TraceSetError
+from simcred.io._paths import local
 from simcred.limits import check_count, check_finite
 from simcred.traces import RUN_INFO, TIME, TraceSet
 
@@ -137,7 +138,7 @@ def _read_csv(path: Path) -> tuple[dict[str, list[str]], pa.Table]:
 
 def _read_parquet(path: Path) -> tuple[dict[str, list[str]], pa.Table]:
     try:
-        table = pq.read_table(path)
+        table = pq.read_table(local(path))
     except (pa.ArrowException, OSError) as exc:
         raise TraceSetError(f"{path}: unreadable Parquet ({str(exc).splitlines()[0]})") from None
     raw = (table.schema.metadata or {}).get(PARQUET_KEY)
@@ -244,7 +245,7 @@ def to_parquet(csv_path: str | Path, out: str | Path) -> Path:
         columns[name] = pa.array(np.where(finite, scaled, 0).astype(np.int32), mask=~finite)
     meta = json.dumps({k: header[k] for k in META_ROWS}).encode()
     out.parent.mkdir(parents=True, exist_ok=True)
-    pq.write_table(pa.table(columns).replace_schema_metadata({PARQUET_KEY: meta}), out,
+    pq.write_table(pa.table(columns).replace_schema_metadata({PARQUET_KEY: meta}), local(out),
                    compression="zstd", compression_level=19)
     return out
 

@@ -17,6 +17,7 @@ import pyarrow.parquet as pq
 from simcred._json import loads
 from simcred.errors import TraceSetError
 from simcred.io._columns import float_column
+from simcred.io._paths import local
 from simcred.traces import TIME, TraceSet
 
 RUN = "run"
@@ -25,7 +26,7 @@ METADATA_KEY = b"simcred"
 
 def read(path: Path) -> TraceSet:
     try:
-        table = pq.read_table(path)
+        table = pq.read_table(local(path))
     except (pa.ArrowException, OSError) as exc:
         reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise TraceSetError(f"{path}: unreadable Parquet ({reason})") from None
@@ -103,5 +104,5 @@ def write(traces: TraceSet, path: Path) -> Path:
     table = pa.table(columns)
     meta = json.dumps(dict(traces.metadata), sort_keys=True).encode()
     table = table.replace_schema_metadata({METADATA_KEY: meta})
-    pq.write_table(table, path)
+    pq.write_table(table, local(path))
     return path

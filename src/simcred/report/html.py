@@ -23,6 +23,7 @@ from typing import Any
 import jinja2
 
 from simcred.errors import SimcredError
+from simcred.outputs import write_atomic
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 MAX_VIOLATIONS = 20  # violations shown per monitor; the count says how many there are
@@ -120,10 +121,7 @@ def write_report(directory: str | Path, *, out: str | Path | None = None) -> Pat
         ``directory`` does not exist or has no readable ``claims.json``.
     """
     directory, out = _write_report_iv(directory, out)
-    html = render_report(directory)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_bytes(html.encode("utf-8"))
-    return out
+    return write_atomic(out, render_report(directory))
 
 
 def render_report(directory: str | Path) -> str:

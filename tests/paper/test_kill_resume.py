@@ -1,0 +1,75 @@
+"""The kill test: ``simcred paper 000`` at a reduced size, killed with SIGKILL at 5 random
+(seeded) moments and resumed each time with ``--resume``, writes the same bytes as an
+uninterrupted run; while it is interrupted no output that looks complete exists."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from simcred.outputs import partial_path
+
+SRC = Path(__file__).resolve().parents[2] / "src"
+KILLS = 5
+RUNS = "2"  # runs per trace set: the smallest paper 000 (the default is hundreds)
+
+
+def _command(out: Path, *extra: str) -> list[str]:
+    return [sys.executable, "-m", "simcred.cli", "-q", "paper", "000", "--runs", RUNS,
+            "--seed", "3", "--out", str(out), *extra]
+
+
+def _environment() -> dict[str, str]:
+    return {**os.environ, "PYTHONPATH": str(SRC), "OMP_NUM_THREADS": "1"}
+
+
+def _files(root: Path) -> dict[str, bytes]:
+    return {p.relative_to(root).as_posix(): p.read_bytes()
+            for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+def _chunks(out: Path) -> int:
+    folder = partial_path(out) / "checkpoints"
+    return len([p for p in folder.glob("map*")]) if folder.is_dir() else 0
+
+
+@pytest.mark.slow
+def test_paper_000_killed_five_times_and_resumed_is_byte_identical(tmp_path):
+    env = _environment()
+    started = time.monotonic()
+    subprocess.run(_command(tmp_path / "whole"), env=env, check=True, timeout=600)
+    duration = time.monotonic() - started  # only to spread the kills over a run, not asserted
+    expected = _files(tmp_path / "whole")
+    assert "claims.json" in expected and any(name.endswith(".png") for name in expected)
+
+    out = tmp_path / "out"
+    rng = np.random.default_rng(16)
+    kept, codes = [], []
+    for attempt in range(KILLS):
+        extra = ("--resume",) if attempt else ()
+        process = subprocess.Popen(_command(out, *extra), env=env, stdout=subprocess.DEVNULL,
+                                   stderr=subprocess.PIPE)
+        try:
+            process.wait(timeout=float(rng.uniform(0.15, 0.6)) * duration)
+        except subprocess.TimeoutExpired:
+            process.send_signal(signal.SIGKILL)
+            process.wait()
+        codes.append(process.returncode)
+        process.stderr.close()
+        if process.returncode == -signal.SIGKILL:
+            assert not out.exists()  # killed: nothing that looks complete
+        kept.append(_chunks(out))
+    print(f"exit codes {codes}, finished chunks kept after each {kept}")  # shown with -s
+    assert codes.count(-signal.SIGKILL) >= 3, codes  # the kills did interrupt the job
+    assert kept == sorted(kept) and kept[-1] > 0, kept  # finished chunks are never lost
+    if not out.exists():
+        subprocess.run(_command(out, "--resume"), env=env, check=True, timeout=600)
+    assert _files(out) == expected
+    assert not partial_path(out).exists()
