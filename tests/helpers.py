@@ -35,3 +35,15 @@ def ar_set(rng, runs, phi, length=30, source="<test>"):
     return TraceSet.from_runs(
         [{"t": np.arange(length) * 0.1, "x": r[:, 0], "y": r[:, 1]} for r in xy], source=source
     )
+
+
+def leaf_commands(group, prefix=()):
+    """(path, command) of every leaf command of a click/typer group (duck-typed: typer vendors
+    click)."""
+    found = []
+    for name, command in sorted(group.commands.items()):
+        if hasattr(command, "commands"):
+            found += leaf_commands(command, (*prefix, name))
+        else:
+            found.append(((*prefix, name), command))
+    return found

@@ -13,22 +13,11 @@ import re
 import pytest
 import typer
 
+from helpers import leaf_commands
 from simcred import __version__
 from simcred.cli import app, run
 
-
-def _commands(group, prefix: tuple[str, ...] = ()) -> list[tuple[tuple[str, ...], object]]:
-    """(path, command) of every leaf command (typer vendors click: duck-typed)."""
-    found = []
-    for name, command in sorted(group.commands.items()):
-        if hasattr(command, "commands"):
-            found += _commands(command, (*prefix, name))
-        else:
-            found.append(((*prefix, name), command))
-    return found
-
-
-COMMANDS = _commands(typer.main.get_command(app))
+COMMANDS = leaf_commands(typer.main.get_command(app))
 IDS = [" ".join(path) for path, _ in COMMANDS]
 
 

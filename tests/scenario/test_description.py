@@ -166,15 +166,32 @@ def test_fit_noise_free_is_exact_once_the_basis_contains_the_truth(truth: Object
     assert default.rmse < 0.05 / 2
 
 
-def test_fit_stalls_on_sensor_noise(truth: ObjectTrack):
+def test_fit_stops_at_the_noise_floor_of_sensor_noise(truth: ObjectTrack):
     t = np.linspace(0.0, 20.0, 2001)
     states = truth.states(t)
     rng = np.random.default_rng(3)
     fit = fit_track(t, states.x + 0.5 * rng.standard_normal(t.size),
                     states.y + 0.5 * rng.standard_normal(t.size))
-    assert fit.stop_reason is StopReason.STALLED
-    assert len(fit.history) == 2 and fit.sections == fit.history[0][0]  # the fit before is kept
+    assert fit.stop_reason is StopReason.NOISE_FLOOR and not fit.reached
+    assert abs(fit.noise - 0.5 * np.sqrt(2.0)) < 0.05  # the estimate finds the planted noise
+    assert len(fit.history) == 1  # the first step is already at the noise: no more sections
     assert 0.6 < fit.rmse < 0.8  # √2 · 0.5 m: the noise, not the fit
+
+
+def test_fit_stalls_without_progress(truth: ObjectTrack):
+    t = np.linspace(0.0, 20.0, 2001)
+    states = truth.states(t)
+    rng = np.random.default_rng(3)
+    # Noise the estimate cannot see (a slow random walk, smooth on the sample scale) and a
+    # threshold below it: no step makes progress, and the search gives up after `patience`.
+    walk = np.cumsum(rng.standard_normal((2, t.size)), axis=1) * 0.02
+    fit = fit_track(t, states.x + walk[0], states.y + walk[1], threshold=1e-3, min_gain=0.5,
+                    patience=2)
+    assert fit.stop_reason is StopReason.STALLED and not fit.reached
+    gains = [1 - b / a for (_, a), (_, b) in zip(fit.history, fit.history[1:], strict=False)]
+    assert len(gains) >= 2 and all(g < 0.5 for g in gains[-2:])  # the last 2 steps: no progress
+    if len(gains) >= 3:  # ... and not earlier: the two steps before were not both without progress
+        assert not (gains[-3] < 0.5 and gains[-2] < 0.5)
 
 
 def test_fit_stops_at_max_sections(truth: ObjectTrack):
@@ -214,7 +231,7 @@ t20 = np.linspace(0.0, 2.0, 21)
 
 
 @pytest.mark.parametrize(("t", "x", "y", "needle"), [
-    (t20[:5], t20[:5], t20[:5], "at least 8"),
+    (t20[:1], t20[:1], t20[:1], "at least 2"),
     (t20, t20, t20[:-1], "different lengths"),
     (t20, np.where(t20 == 1.0, np.nan, t20), t20, "column 'x', sample 11"),
     (t20[::-1], t20, t20, "not strictly increasing"),

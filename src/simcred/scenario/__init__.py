@@ -9,7 +9,8 @@ Bézier path (:class:`BezierPath`) and rejects implausible variations
 (:class:`PlausibilityLimits`).
 
 Modules: ``spline`` (time curves, the quadrature of eq. (1)), ``description`` (objects,
-JSON), ``fit`` (least squares, sections), ``openscenario`` (export), ``frenet`` (path frame),
+JSON), ``fit`` (least squares, sections), ``fit_constraints`` (plausibility rows of the fit),
+``fit_robust`` (noise, glitches, reversals), ``openscenario`` (export), ``frenet`` (path frame),
 ``bezier`` (the path), ``plausibility`` (limits), ``variation`` (drawing and refitting
 variations), ``variation_set`` (options and results).
 """
@@ -22,7 +23,12 @@ from simcred.scenario.openscenario import (
     to_openscenario,
     validate_openscenario,
 )
-from simcred.scenario.plausibility import PlausibilityLimits, Reason, check_plausibility
+from simcred.scenario.plausibility import (
+    VEHICLE_LIMITS,
+    PlausibilityLimits,
+    Reason,
+    check_plausibility,
+)
 from simcred.scenario.spline import Spline
 from simcred.scenario.variation import draw_displacements, generate_variations, vary_one
 from simcred.scenario.variation_set import (
@@ -35,6 +41,7 @@ from simcred.scenario.variation_set import (
 )
 
 __all__ = [
+    "VEHICLE_LIMITS",
     "BezierPath",
     "ObjectTrack",
     "PlausibilityLimits",

@@ -1,5 +1,7 @@
-"""Plausibility of a varied trajectory: limits on speed, acceleration, jerk, yaw rate, lateral
-acceleration, rejected by reason (simcred's choice; [1] sec. V keeps every variation).
+"""Plausibility of a track: limits on speed, acceleration, yaw rate, lateral acceleration and
+curvature, named by reason. Used to reject varied trajectories (simcred's choice; [1] sec. V keeps
+every variation) and, with :data:`VEHICLE_LIMITS`, held by the fit of any real track ([1] sec.
+II-B asks for a description "physically realistic"; the bounds are simcred's).
 
 References
 ----------
@@ -30,6 +32,8 @@ PLAUSIBILITY_DT = 0.01
 class Reason(StrEnum):
     """Why a variation is rejected; the names of :attr:`VariationSet.rejections`."""
 
+    SPEED = "speed"
+    """v outside [min_speed, max_speed]."""
     LONGITUDINAL_ACCELERATION = "longitudinal_acceleration"
     """v̇ outside [min_acceleration, max_acceleration]."""
     LATERAL_ACCELERATION = "lateral_acceleration"
@@ -50,10 +54,15 @@ class Reason(StrEnum):
 
 @dataclass(frozen=True, slots=True)
 class PlausibilityLimits:
-    """Driving-dynamics bounds for a varied TO track (SI units), [1] sec. V "physically feasible".
+    """Driving-dynamics bounds for a track (SI units), [1] sec. V "physically feasible".
+
+    The defaults are the bounds for a varied highway cut-in; :data:`VEHICLE_LIMITS` are the
+    looser bounds of any road vehicle, which the fit holds for real tracks.
 
     Parameters
     ----------
+    min_speed, max_speed : float, default: 0.0, 70.0
+        Bounds on v (m/s): the description drives forward (v ≥ 0); 70 m/s = 252 km/h.
     min_acceleration, max_acceleration : float, default: -9.0, 4.0
         Bounds on v̇ (m/s²): −9 is full braking on dry asphalt (μ ≈ 0.9 g), 4 a strong car's
         acceleration.
@@ -75,6 +84,8 @@ class PlausibilityLimits:
         cannot carry.
     """
 
+    min_speed: float = 0.0
+    max_speed: float = 70.0
     min_acceleration: float = -9.0
     max_acceleration: float = 4.0
     max_lateral_acceleration: float = 6.0
@@ -90,13 +101,30 @@ class PlausibilityLimits:
                     or not math.isfinite(value):
                 raise OptionError(f"plausibility limit {name} must be a finite number, got "
                                   f"{value!r}")
-            if name not in ("min_acceleration", "curvature_min_speed") and value <= 0:
+            if name not in ("min_speed", "min_acceleration", "curvature_min_speed") \
+                    and value <= 0:
                 raise OptionError(f"plausibility limit {name} must be > 0, got {value!r}")
         if self.min_acceleration >= 0:
             raise OptionError(f"min_acceleration must be < 0, got {self.min_acceleration!r}")
+        if not self.min_speed < self.max_speed:
+            raise OptionError(f"min_speed must be < max_speed, got {self.min_speed!r}, "
+                              f"{self.max_speed!r}")
         if self.curvature_min_speed < 0:
             raise OptionError(f"curvature_min_speed must be >= 0, got "
                               f"{self.curvature_min_speed!r}")
+
+
+VEHICLE_LIMITS = PlausibilityLimits(min_acceleration=-10.0, max_acceleration=6.0,
+                                    max_lateral_acceleration=8.0, max_yaw_rate=1.3,
+                                    max_curvature=0.2)
+"""Bounds of any road vehicle, held by :func:`~simcred.scenario.fit.fit_track` on real tracks.
+
+Chosen from vehicle physics, not from data: braking ≥ −10 m/s² (≈ 1 g, the tyre limit on dry
+asphalt); acceleration ≤ 6 m/s² (a strong passenger car in first gear); lateral acceleration
+≤ 8 m/s² (≈ 0.8 g, road tyres); curvature ≤ 0.2 1/m (5 m turning radius); yaw rate ≤ 1.3 rad/s
+≈ √(8 m/s² · 0.2 1/m), the most that lateral acceleration and curvature allow together (reached
+at ≈ 6.3 m/s); speed in [0, 70] m/s (forward driving).
+"""
 
 
 def check_plausibility(states: Track | ObjectTrack,
@@ -135,6 +163,7 @@ def check_plausibility(states: Track | ObjectTrack,
     dt = np.diff(t)
     moving = np.abs(v) > lim.curvature_min_speed
     checks = {
+        Reason.SPEED: (v >= lim.min_speed) & (v <= lim.max_speed),
         Reason.LONGITUDINAL_ACCELERATION: (a >= lim.min_acceleration) & (a <= lim.max_acceleration),
         Reason.LATERAL_ACCELERATION: np.abs(v * omega) <= lim.max_lateral_acceleration,
         Reason.YAW_RATE: np.abs(omega) <= lim.max_yaw_rate,
