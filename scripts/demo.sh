@@ -33,6 +33,10 @@ echo
 echo "== 7. a real A9 recording (sensor data only, shipped in simcred.data), reprocessed"
 a9="$("$simcred" data path a9/trajectories_file.csv)"
 "$simcred" reprocess "$a9" --out "$out/a9" --threshold 0.1
+echo "   and one obstacle of a real NGSIM scene (CommonRoad, BSD-3, tests/data) as the TO, its"
+echo "   follower as the EGO"
+"$simcred" reprocess tests/data/commonroad-ngsim/USA_US101-3_3_T-1.xml --object 394 \
+  --out "$out/ngsim-394"
 echo
 echo "== 8. real data meets a real simulator: OpenACC human car following (shipped) vs SUMO"
 echo "   Krauss/IDM/EIDM/ACC replaying the recorded leaders, and vs real ACC, per speed band"
@@ -54,6 +58,7 @@ cutin="$out/validate-examples/cutin"
 "$simcred" validate "$cutin/validation.yaml" --out "$out/validate-cutin"
 echo
 echo "Outputs in $out/: compare-*/, matrix/, all/ (paper000/, paper002/, paper003/, claims.json), a9/,"
+echo "  ngsim-394/ (a CommonRoad obstacle reprocessed: JSON, descriptions, scenario.xosc, figures),"
 echo "  study/ (study.json, matrix.csv/png, headway.png, bands/, maps/, comparisons/),"
 echo "  validate-cf/ and validate-cutin/ (verdict.json, contracts.yaml, report.html)"
 echo

@@ -48,9 +48,8 @@ CASES: dict[str, Args] = {
     "vary": lambda v, o: ["vary", str(v["description"]), "-n", "4", "--seed", "2",
                           "--out", str(o)],
     "paper 000": lambda v, o: ["paper", "000", "--runs", "2", "--seed", "3", "--out", str(o)],
-    "paper 002": lambda v, o: ["paper", "002", "--variations", "4", "--seed", "3",
+    "paper 002": lambda v, o: ["paper", "002", "--variations", "20", "--seed", "3",
                                "--out", str(o)],
-    "report": lambda v, o: ["report", str(v["paper"]), "--out", str(o.with_suffix(".html"))],
     "monitor": lambda v, o: ["monitor", str(FIGURE2), str(v["runs"]), "--setup",
                              "I1=M1,I2=M2a", "--out", str(o.with_suffix(".json"))],
     "study car-following": lambda v, o: ["study", "car-following", "--models", "IDM",
@@ -60,7 +59,8 @@ CASES: dict[str, Args] = {
 }
 # Writes the same files as its parts, `paper 000` and `paper 002`, checked above.
 COVERED_ELSEWHERE = {"paper all": "paper 000 + paper 002",
-                     "validate": "tests/validate/test_loop.py (identical bytes, same seed)"}
+                     "validate": "tests/validate/test_loop.py (identical bytes, same seed)",
+                     "report": "tests/report/test_html.py (same directory, identical HTML)"}
 
 
 def _writing_commands() -> list[str]:
@@ -79,13 +79,12 @@ def inputs(tmp_path_factory) -> dict[str, Path]:
     root = tmp_path_factory.mktemp("inputs")
     v = {"a": root / "sets" / "baseline", "b": root / "sets" / "variant",
          "measurement": root / "measurement", "human": root / "human.parquet",
-         "paper": root / "paper", "runs": root / "runs"}
+         "runs": root / "runs"}
     steps = [["example", "--runs", "20", "--steps", "30", "--seed", "0", "--out",
               str(root / "sets")],
              ["simulate", "cutin", "--seed", "0", "--out", str(v["measurement"])],
              ["reprocess", str(v["measurement"]), "--out", str(root / "reprocessed")],
-             ["data", "openacc", "--follower", "human", "--out", str(v["human"])],
-             ["paper", "000", "--runs", "2", "--seed", "0", "--out", str(v["paper"])]]
+             ["data", "openacc", "--follower", "human", "--out", str(v["human"])]]
     for argv in steps:
         assert run(["--quiet", *argv]) == 0, argv
     TraceSet.from_runs([{"t": np.arange(5) * 0.1, "v": np.full(5, 20.0), "q": np.full(5, 10.0),

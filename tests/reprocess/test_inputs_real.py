@@ -2,9 +2,8 @@
 scenarios as the TO (with its follower as the EGO), and the A9 recording's lane changer.
 
 ``--object all`` reprocesses every obstacle and reports each one that fails, with the stage and
-the reason, instead of aborting. The one obstacle that cannot be reprocessed by its data is
-in :data:`TOO_SHORT` (if the fit needs more samples than it has); every other obstacle must
-reprocess.
+the reason, instead of aborting. Every obstacle must reprocess, the shortest (3 states, 0.2 s)
+included: the robust fit needs 2 samples.
 """
 
 from __future__ import annotations
@@ -22,10 +21,6 @@ from simcred.scenario.fit import MIN_SAMPLES
 
 DATA = Path(__file__).parents[1] / "data" / "commonroad-ngsim"
 SCENARIOS = sorted(DATA.glob("*.xml"))
-#: obstacles too short for a fit if it needs more than their 3 states (0.2 s): MIN_SAMPLES is 8
-#: before the robust fit (issue 14 part 1) merges, 2 after
-TOO_SHORT = {("USA_Peach-4_8_T-1", 507)}
-SHORT_REASON = f"a fit needs at least {MIN_SAMPLES}"
 
 
 @pytest.fixture(scope="module")
@@ -46,8 +41,6 @@ def test_every_ngsim_obstacle_gets_an_ego_and_a_reported_outcome(outcomes):
         if outcome.status == "ok":
             assert outcome.summary["ego"] != key[1]
             assert outcome.summary["samples"] >= MIN_SAMPLES
-        elif SHORT_REASON in outcome.reason:
-            assert outcome.stage == "input" and key in TOO_SHORT, key
         else:  # reported, one line, by a step that raised a SimcredError
             assert outcome.stage == "pipeline", (key, outcome.stage, outcome.reason)
             assert outcome.reason and "\n" not in outcome.reason
@@ -57,9 +50,8 @@ def test_every_ngsim_obstacle_gets_an_ego_and_a_reported_outcome(outcomes):
 @pytest.mark.slow
 def test_every_ngsim_obstacle_reprocesses(outcomes):
     failed = {key: o.reason for key, o in outcomes.items() if o.status != "ok"}
-    too_short = {key for key, reason in failed.items() if SHORT_REASON in reason}
-    assert too_short <= TOO_SHORT
-    assert set(failed) == too_short, failed
+    assert not failed
+    assert ("USA_Peach-4_8_T-1", 507) in outcomes  # the shortest: 3 states
 
 
 @pytest.mark.slow
