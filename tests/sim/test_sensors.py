@@ -12,14 +12,18 @@ import pytest
 
 from simcred.errors import SimcredError
 from simcred.scenario.description import ObjectTrack, ScenarioDescription, Spline
-from simcred.sim.driver import DriverConfig
+from simcred.sim.closed_loop import run_closed_loop
+from simcred.sim.driver import ADFunction, DriverConfig
+from simcred.sim.experiments.cutin import CutInScript, scripted_object
 from simcred.sim.resimulation import resimulate, simulate_batch
 from simcred.sim.sensors import (
     IdealSensor,
     OffsetDelaySensor,
     TrackerSensor,
     estimate_sensor,
+    perceive_recording,
 )
+from simcred.sim.vehicles import vehicle_model
 
 DT = 0.01
 
@@ -313,3 +317,31 @@ def test_same_seed_same_perception_other_seed_other_perception():
     a = simulate_batch(BATCH, names, t, seed=3, **{**common, "sensor": quiet})
     b = simulate_batch(BATCH, names, t, seed=4, **{**common, "sensor": quiet})
     np.testing.assert_array_equal(a.perceived.states(), b.perceived.states())
+
+
+# -- a sensor run over a recording (a model evaluated on another drive) ---------------------------
+
+
+def test_perceive_recording_is_the_literal_offset_and_delay():
+    """Offset along the line of sight on the current position; velocity vector of k samples ago
+    (the first one before that), written out from the definitions."""
+    t = np.arange(400) * DT
+    ego, xy, velocity = ego_xy(t), object_xy(t), object_velocity(t)
+    k = 25
+    seen = perceive_recording(OffsetDelaySensor(offset=1.4, delay=k * DT), t, ego,
+                              states(xy, velocity))
+    sight = (xy - ego) / np.hypot(*(xy - ego).T)[:, None]
+    np.testing.assert_allclose(seen[:, :2], xy + 1.4 * sight, rtol=0, atol=1e-12)
+    late = velocity[np.maximum(np.arange(len(t)) - k, 0)]
+    np.testing.assert_allclose(seen[:, 2:], states(xy, late)[:, 2:], rtol=0, atol=1e-12)
+
+
+def test_perceive_recording_replays_what_the_closed_loop_perceived_without_noise():
+    t = np.arange(601) * DT
+    truth = scripted_object(CutInScript(), t)
+    sensor = TrackerSensor()
+    record = run_closed_loop(vehicle_model("ks"), np.array([[0.0, 0.0, 27.0, 0.0]]),
+                             truth[None, :, None, :], sensor, ADFunction(), DT,
+                             np.zeros((1, len(t), 1, 2)))
+    replayed = perceive_recording(sensor, t, record.ego.states()[0, :, :2], truth)
+    np.testing.assert_allclose(replayed, record.perceived.states()[0, :, 0], rtol=0, atol=1e-12)

@@ -73,10 +73,11 @@ def paper_002(
                 minimum=20)
     with writing(out, overwrite=overwrite, resume=resume) as target, \
             target.engine(workers, scheduler) as runner:
-        claims = seed002.run_all(target.path, seed=seed, variations=variations, runner=runner,
-                                 progress=_steps("paper 002"), progress_for=progress).claims
+        run = seed002.run_all(target.path, seed=seed, variations=variations, runner=runner,
+                              progress=_steps("paper 002"), progress_for=progress)
     if not State.quiet:
-        out_console.print(claims_table(claims, "seed 002: the paper's claims"))
+        out_console.print(claims_table(run.claims, "seed 002: the paper's claims"))
+        say(run.reaction_summary())
         say(f"wrote measurement, results, figures and claims.json to {out}")
 
 

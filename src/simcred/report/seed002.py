@@ -160,12 +160,31 @@ def fig7_velocity_risk(result: Reprocessed, path: str | Path) -> Path:
         risk.plot(r["t"], log_risk(r["risk"]), color=color, ls=style, label=label)
     if "GT" in result.states:
         speed.plot(t, result.states["GT"][to].v, color=TO_COLOR, lw=0.8, label="TO (GT)")
-    speed.set(ylabel="v [m/s]", title="EGO speed: the measurement and its resimulations")
+    _mark_reactions(speed, result)
+    speed.set(ylabel="v [m/s]", title="EGO speed: the measurement and its resimulations"
+                                      + _shift_title(result))
     risk.set(xlabel="t [s]", ylabel="log10 risk", title="TTR risk per scene (log scale)")
     for ax in (speed, risk):
         ax.legend(fontsize=8)
         ax.grid(alpha=0.3)
     return save_figure(fig, Path(path))
+
+
+def _mark_reactions(ax, result: Reprocessed) -> None:
+    """A marker at each representation's reaction (eqs. (4)-(7)) on its speed curve."""
+    ego = result.config.ego
+    for key, (_, color, _) in _styles(result):
+        reaction = result.reactions.get(key)
+        if reaction is None or np.isnan(reaction.time):
+            continue
+        track = result.descriptions[key.fit()].objects[ego].states(np.array([reaction.time]))
+        ax.plot([reaction.time], [track.v[0]], marker="o", ms=6, mfc="none", color=color)
+
+
+def _shift_title(result: Reprocessed) -> str:
+    shift = result.analysis.get("dt_react_GT_rGT")
+    return "" if shift is None else (f"\n(o: reaction; GT − rGT = {shift:.2f} s, [1] eq. 4: "
+                                     "≈ 1 s)")
 
 
 FIGURES = {"fig3_fit.png": fig3_fit, "fig4_errors.png": fig4_errors,

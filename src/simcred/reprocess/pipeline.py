@@ -69,6 +69,9 @@ class ReprocessConfig:
     criteria: ReactionCriteria = field(default_factory=ReactionCriteria)
     max_gap: float = MAX_GAP  # s: longer gaps are refused or cut away (long_gaps)
     long_gaps: str = "error"  # or "longest": reprocess the longest stretch without one
+    # a scenario-based sensor model estimated on other drives ([1] §IV: "a set of drives");
+    # None: estimated from this measurement's own GT/SD pair
+    sensor_model: OffsetDelaySensor | None = None
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -133,7 +136,8 @@ def reprocess(measurement: Measurement | Drive, config: ReprocessConfig | None =
         say(f"fit {name}")
         fits[name.fit()] = fit_scenario({o: (t.t, t.x, t.y) for o, t in tracks.items()},
                                         objects=list(objects), threshold=c.threshold)
-    sensor_model = _sensor_model(times, states, c) if c.scenario_based and GT in raw else None
+    sensor_model = c.sensor_model if c.sensor_model is not None else (
+        _sensor_model(times, states, c) if c.scenario_based and GT in raw else None)
     for name in raw:
         for kind, sensor in _sensors(name, sensor_model):
             say(f"resimulate {name} ({sensor.name} sensor)")

@@ -2,9 +2,14 @@
 
 Computed on the physically consistent scenario description of each trace (as [1] does for the
 risk), so measurement noise does not trigger it. The EGO **reacts** at the first time its
-acceleration falls below ``-decel`` or its lateral speed (v sin θ) exceeds ``lateral_speed``.
-Its **manoeuvre** is ``evade`` when it gets more than half a lane away from its start lateral
-position, ``brake`` when it reacted otherwise, ``none`` when it never reacted.
+acceleration falls below ``-decel`` or its lateral speed (v sin θ) exceeds ``lateral_speed``
+(an emergency manoeuvre: beyond the AD function's comfort braking). Its **manoeuvre** is
+``evade`` when it gets more than half a lane away from its start lateral position, ``brake``
+when it reacted otherwise, ``none`` when it never reacted. The **onset** is the first time its
+speed is ``onset_drop`` below the highest speed it had so far: where its speed profile starts
+to drop ([1] Fig. 7 reads the reaction off the speed profiles), comfort braking of the ACC
+included. (A speed drop, not an acceleration threshold: a fitted description's acceleration
+swings by ±1-2 m/s² at its ends, its speed by centimetres per second.)
 
 References
 ----------
@@ -30,6 +35,7 @@ class ReactionCriteria:
     decel: float = 2.5  # m/s²
     lateral_speed: float = 0.3  # m/s
     lane_width: float = LANE_WIDTH  # m
+    onset_drop: float = 0.3  # m/s, several times a description's speed error (≈ 0.05 m/s)
 
 
 @dataclass(frozen=True, slots=True)
@@ -41,6 +47,7 @@ class Reaction(JsonResult):
     speed_at_reaction: float
     min_acceleration: float
     max_lateral: float
+    onset: float = math.nan
 
     def to_dict(self) -> dict[str, float | str | None]:
         return {k: (None if isinstance(v, float) and math.isnan(v) else v)
@@ -53,14 +60,16 @@ def reaction(t: np.ndarray, y: np.ndarray, v: np.ndarray, heading: np.ndarray,
     +x) and acceleration."""
     c = ReactionCriteria() if criteria is None else criteria
     lateral = np.abs(y - y[0])
+    slowing = v < np.maximum.accumulate(v) - c.onset_drop
+    onset = float(t[int(np.argmax(slowing))]) if slowing.any() else math.nan
     reacting = (acceleration < -c.decel) | (np.abs(v * np.sin(heading)) > c.lateral_speed)
     if not reacting.any():
         return Reaction(math.nan, "none", math.nan, float(acceleration.min()),
-                        float(lateral.max()))
+                        float(lateral.max()), onset)
     k = int(np.argmax(reacting))
     manoeuvre = "evade" if lateral.max() > c.lane_width / 2 else "brake"
     return Reaction(float(t[k]), manoeuvre, float(v[k]), float(acceleration.min()),
-                    float(lateral.max()))
+                    float(lateral.max()), onset)
 
 
 def reaction_analysis(reactions: dict[str, Reaction], sensor_offset: float, ego_speed: float
@@ -70,10 +79,11 @@ def reaction_analysis(reactions: dict[str, Reaction], sensor_offset: float, ego_
     ``sensor_offset`` is ΔS,d (mean TO position error of SD against GT), ``ego_speed`` the EGO's
     speed before the reaction; the result holds Δt_react(GT, rGT) (eq. 4, positive: the
     resimulation reacts earlier), t_ΔS,d = ΔS,d / v_EGO (eq. 5), their ratio (eq. 6) and
-    Δt_react(rGT, rSD) = t_rSD − t_rGT (eq. 7).
+    Δt_react(rGT, rSD) = t_rSD − t_rGT (eq. 7); and the same two differences for the onset of
+    the speed drop (``dt_onset_...``).
     """
-    def time(name: str) -> float:
-        return reactions[name].time if name in reactions else math.nan
+    def time(name: str, what: str = "time") -> float:
+        return getattr(reactions[name], what) if name in reactions else math.nan
 
     gt_vs_rgt = time("GT") - time("rGT")
     offset_time = sensor_offset / ego_speed
@@ -82,5 +92,7 @@ def reaction_analysis(reactions: dict[str, Reaction], sensor_offset: float, ego_
         "t_offset": offset_time,
         "ratio_eq6": gt_vs_rgt / offset_time if offset_time > 0 else math.nan,
         "dt_react_rGT_rSD": time("rSD") - time("rGT"),
+        "dt_onset_GT_rGT": time("GT", "onset") - time("rGT", "onset"),
+        "dt_onset_rGT_rSD": time("rSD", "onset") - time("rGT", "onset"),
     }
     return {k: (None if math.isnan(v) else v) for k, v in result.items()}

@@ -4,7 +4,12 @@ Batched over runs; it sees the EGO's own state (odometry) and its sensor's objec
 true object states. Road: straight along +x, lanes ``lane_centres`` (the EGO starts in the first,
 the rightmost), width ``lane_width``. Every step it
 
-1. **selects** the nearest object ahead whose centre lies in the EGO's current lane;
+1. **selects** the nearest *relevant* object ahead: one whose centre lies in the EGO's current
+   lane, or (``cut_in=True``, the default) one that is **cutting in** — its perceived lateral
+   velocity towards the EGO's lane is at least ``cut_in_lateral_speed`` and its time to lane
+   crossing (the gap between its near side and the lane boundary over that velocity) is at most
+   ``cut_in_tlc`` (see :meth:`ADFunction.cutting_in`). The cut-in trigger reads the perceived
+   heading and speed, so a sensor that delays them delays the reaction;
 2. estimates that object's acceleration from the perceived speed (first-order filter,
    ``accel_filter``) — with a delayed sensor the deceleration is seen late;
 3. computes the **required deceleration** ``a_req``: the larger of the relative-motion value
@@ -48,6 +53,11 @@ class DriverConfig:
     lane_centres: tuple[float, ...] = (0.0, LANE_WIDTH)
     lane_width: float = LANE_WIDTH
     vehicle_length: float = 4.5
+    # relevance of an object: centre in the lane, or cutting in (perceived lateral motion)
+    cut_in: bool = True  # False: only objects whose centre is in the lane (the old function)
+    cut_in_lateral_speed: float = 0.3  # m/s towards the EGO's lane, at least
+    cut_in_tlc: float = 1.0  # s, time to lane crossing of the object's near side, at most
+    object_width: float = 1.8  # m, assumed width of an object (the object list has none)
     # ACC
     time_gap: float = 1.5  # s
     standstill_gap: float = 5.0  # m
@@ -122,14 +132,33 @@ class ADFunction:
                                                                        dt))
         memory.object_speed = objects[:, :, V].copy()
 
+    def cutting_in(self, objects: np.ndarray, lane_y: np.ndarray) -> np.ndarray:
+        """``(runs, n)``: which objects cut into the lane centred at ``lane_y`` (runs,).
+
+        An object in a neighbouring lane (centre within 1.5 lane widths of ``lane_y``) cuts in
+        when its perceived lateral velocity towards the lane, ``v sin θ`` signed towards it, is
+        at least ``cut_in_lateral_speed`` and its time to lane crossing — the lateral gap between
+        its near side (``object_width / 2`` from its centre) and the lane boundary, divided by
+        that velocity; 0 once its side is over the boundary — is at most ``cut_in_tlc``.
+        """
+        c = self.config
+        offset = objects[:, :, Y] - lane_y[:, None]
+        towards = -np.sign(offset) * objects[:, :, V] * np.sin(objects[:, :, HEADING])
+        gap = np.maximum(np.abs(offset) - (c.object_width + c.lane_width) / 2, 0.0)
+        moving = towards >= c.cut_in_lateral_speed
+        tlc = np.divide(gap, towards, out=np.full_like(gap, np.inf), where=moving)
+        return (np.abs(offset) < 1.5 * c.lane_width) & moving & (tlc <= c.cut_in_tlc)
+
     def _lead(self, memory: DriverMemory, ego: np.ndarray, objects: np.ndarray
               ) -> tuple[np.ndarray, np.ndarray]:
-        """Index of the nearest in-lane object ahead (-1: none) and its bumper gap (inf)."""
+        """Index of the nearest relevant object ahead (-1: none) and its bumper gap (inf)."""
         c = self.config
         lane_y = np.asarray(c.lane_centres)[memory.target_lane]
         ahead = objects[:, :, X] - ego[:, None, X]
-        in_lane = np.abs(objects[:, :, Y] - lane_y[:, None]) < c.lane_width / 2
-        distance = np.where(in_lane & (ahead > 0), ahead, np.inf)
+        relevant = np.abs(objects[:, :, Y] - lane_y[:, None]) < c.lane_width / 2
+        if c.cut_in:
+            relevant = relevant | self.cutting_in(objects, lane_y)
+        distance = np.where(relevant & (ahead > 0), ahead, np.inf)
         lead = np.argmin(distance, axis=1)
         gap = distance[np.arange(len(lead)), lead] - c.vehicle_length
         return np.where(np.isfinite(gap), lead, -1), gap

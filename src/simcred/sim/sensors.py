@@ -190,6 +190,29 @@ class OffsetDelaySensor(JsonResult):
                 "delay": self.delay, "position_sd": self.position_sd, **self.fit}
 
 
+def perceive_recording(sensor: Sensor, t: np.ndarray, ego_xy: np.ndarray, truth: np.ndarray
+                       ) -> np.ndarray:
+    """What ``sensor`` makes of one recorded object, without noise: ``(n, 4)`` x, y, v, heading.
+
+    Streams the recording through the sensor as the closed loop would (``start``, then
+    ``perceive`` per sample); used to evaluate a sensor model on a drive it was not estimated
+    on ([1] §IV: a model derived from a set of drives, applied to others).
+
+    Parameters
+    ----------
+    t : (n,) array
+        Sample times (s), equally spaced.
+    ego_xy : (n, 2) array
+        EGO position at those times.
+    truth : (n, 4) array
+        The object's true (GT) states.
+    """
+    memory = sensor.start(1, _step(t))
+    silent = np.zeros((1, 2))
+    return np.concatenate([sensor.perceive(memory, ego_xy[k:k + 1], truth[k:k + 1], silent)
+                           for k in range(len(t))])
+
+
 def estimate_sensor(t: np.ndarray, ego_xy: np.ndarray, gt: np.ndarray, sd: np.ndarray, *,
                     max_delay: float = 2.0, offset_vs_range: bool = True) -> OffsetDelaySensor:
     """Estimate an :class:`OffsetDelaySensor` from one object's GT and SD over the same times.

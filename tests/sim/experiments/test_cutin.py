@@ -25,7 +25,7 @@ from simcred.sim.experiments.cutin import (
     simulate,
     vehicle_model,
 )
-from simcred.sim.sensors import IdealSensor
+from simcred.sim.sensors import IdealSensor, OffsetDelaySensor
 from simcred.traces import TraceSet, concat
 
 CONFIG = CutInConfig()
@@ -42,6 +42,14 @@ def reality():
 @pytest.fixture(scope="module")
 def ideal():
     return drive(replace(CONFIG, sensor=IdealSensor()), 0)
+
+
+CENTRE_ONLY = replace(DRIVER, cut_in=False)  # the AD function without its cut-in trigger
+
+
+@pytest.fixture(scope="module")
+def ideal_centre_only():
+    return drive(replace(CONFIG, sensor=IdealSensor(), driver=CENTRE_ONLY), 0)
 
 
 @pytest.fixture(scope="module")
@@ -168,13 +176,66 @@ def test_in_reality_the_ego_brakes_and_never_evades(reality):
     assert overlapping_gap(reality).min() > 0
 
 
-def test_with_an_ideal_sensor_the_ego_evades_to_the_left_lane(ideal):
-    mode = ideal.mode[0]
+def test_without_the_cut_in_trigger_an_ideal_sensor_evades_to_the_left_lane(ideal_centre_only):
+    """The evasion path: reacting only once the TO's centre is in the lane, the ideal sensor
+    sees the braking TO at once and the required deceleration is above ``evade_decel``."""
+    record = ideal_centre_only
+    mode = record.mode[0]
     assert (mode == EVADE).any() and not (mode == BRAKE).any()
     left = DRIVER.lane_centres[1]
-    assert abs(ideal.ego.y[0, -1] - left) < 0.05
-    assert np.all(ideal.ego.y[0] < left + 0.1)  # no overshoot out of the road
-    assert overlapping_gap(ideal).min() > 0
+    assert abs(record.ego.y[0, -1] - left) < 0.05
+    assert np.all(record.ego.y[0] < left + 0.1)  # no overshoot out of the road
+    assert overlapping_gap(record).min() > 0
+
+
+def first_slowing(record, decel=1.0):
+    """Time of the first commanded deceleration beyond ``decel`` (m/s²)."""
+    return record.t[np.argmax(record.ego.acceleration[0] < -decel)]
+
+
+def test_the_cut_in_trigger_makes_the_reaction_depend_on_the_perceived_lateral_motion(
+        reality, ideal, ideal_centre_only):
+    """With the trigger, the ideal sensor starts following the TO earlier than the delayed
+    tracker (its lateral velocity lags by ≈ window / 2); without it both react when the TO's
+    centre reaches the lane boundary (3.5 s), whatever the sensor."""
+    assert first_slowing(reality) - first_slowing(ideal) > 0.2
+    assert first_slowing(ideal) < 3.0  # before the centre crossing: the trigger, not the lane
+    reality_centre_only = drive(replace(CONFIG, driver=CENTRE_ONLY), 0)
+    for record in (reality_centre_only, ideal_centre_only):
+        assert 3.5 <= first_slowing(record) <= 3.6
+    np.testing.assert_array_equal(reality.mode[0] == EVADE, False)
+    np.testing.assert_array_equal(ideal.mode[0] == EVADE, False)
+
+
+def test_a_pure_delay_shifts_the_reaction_monotonically_and_zero_delay_is_the_ideal_sensor():
+    """OffsetDelaySensor without offset and noise: delay 0 is the truth (the same drive as the
+    ideal sensor up to the rounding of speed and heading through the velocity vector); longer
+    delays of the perceived velocity react later."""
+    def run(sensor):
+        return drive(replace(CONFIG, sensor=sensor), 0)
+
+    ideal_record = run(IdealSensor())
+    zero = run(OffsetDelaySensor())
+    np.testing.assert_allclose(zero.ego.states(), ideal_record.ego.states(), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(zero.ego.acceleration, ideal_record.ego.acceleration, rtol=0,
+                               atol=1e-9)
+    times = [first_slowing(run(OffsetDelaySensor(delay=d))) for d in (0.0, 0.25, 0.5)]
+    assert times[0] < times[1] < times[2]
+
+
+@settings(max_examples=80, deadline=None, derandomize=True, database=None)
+@given(y=st.floats(-6.0, 9.0), speed=st.floats(0.0, 40.0), heading=st.floats(-0.6, 0.6),
+       lane=st.sampled_from([0, 1]))
+def test_cutting_in_is_the_literal_lateral_speed_and_tlc_law(y, speed, heading, lane):
+    c = DRIVER
+    objects = np.array([[[50.0, y, speed, heading]]])
+    got = ADFunction(c).cutting_in(objects, np.array([c.lane_centres[lane]]))[0, 0]
+    offset = y - c.lane_centres[lane]
+    towards = -np.sign(offset) * speed * np.sin(heading)
+    gap = max(abs(offset) - c.object_width / 2 - c.lane_width / 2, 0.0)
+    expected = (abs(offset) < 1.5 * c.lane_width and towards >= c.cut_in_lateral_speed
+                and gap / towards <= c.cut_in_tlc)
+    assert got == expected
 
 
 @pytest.mark.parametrize("which", ["reality", "ideal"])

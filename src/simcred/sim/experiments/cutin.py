@@ -57,6 +57,14 @@ class CutInScript:
     brake_to: float = 10.0  # speed held after braking
 
 
+#: A second drive of the same universe ([1] §IV: a sensor model comes from "a set of drives"):
+#: the TO starts farther and slower, changes lanes faster (2.5 s) and brakes earlier and more
+#: gently (5 m/s² from 3.0 s down to 12 m/s; its centre crosses the boundary at 3.25 s).
+HELD_OUT_SCRIPT = CutInScript(start_distance=35.0, speed=24.0, lane_change_start=2.0,
+                              lane_change_duration=2.5, brake_start=3.0, brake_decel=5.0,
+                              brake_to=12.0)
+
+
 @dataclass(frozen=True, slots=True)
 class DGPSNoise:
     """Standard deviations of the reference measurement ([1] §II-A)."""
