@@ -139,7 +139,7 @@ def fig6_traces(result: Reprocessed, path: str | Path, before: float = 0.5,
     truth = result.states[GT.fit() if GT.fit() in result.states else SD.fit()][to]
     ax.plot(truth.x[window], truth.y[window], color=TO_COLOR, lw=6, alpha=0.35, label="TO")
     ax.set(xlabel="x [m]", ylabel="y [m]",
-           title=f"paths from {start:.1f} s to {start + before + after:.1f} s: who brakes, "
+           title=f"paths from {t[window][0]:.1f} s to {t[window][-1]:.1f} s: who brakes, "
                  "who evades")
     ax.legend(fontsize=8, ncols=2)
     ax.grid(alpha=0.3)
