@@ -248,3 +248,75 @@ def test_vary_resumes_after_ctrl_c_with_the_same_bytes(tmp_path, monkeypatch, ca
     assert run(args("v", "--resume")) == 0
     assert len(calls) == 1  # the chunk left
     assert tree(tmp_path / "v") == tree(tmp_path / "whole")
+
+
+@pytest.mark.slow
+def test_study_resumes_after_ctrl_c_with_the_same_bytes(tmp_path, monkeypatch, capsys):
+    """The SUMO replays are checkpointed per chunk; the resumed study equals an uninterrupted one
+    (findings, tables, comparisons and figures)."""
+    import simcred.sim.sumo as sumo
+
+    def args(out: str, *extra: str) -> list[str]:
+        return ["-q", "study", "car-following", "--models", "IDM,Krauss", "--max-episodes", "60",
+                "--permutations", "99", "--baseline", "1", "--min-runs", "5", "--seed", "2",
+                "--out", str(tmp_path / out), *extra]
+
+    assert run(args("whole")) == 0
+    real, calls = sumo._simulate_chunk, []  # 60 episodes in chunks of 50: 2 chunks per model
+
+    def interrupted_at_the_third_chunk(task):
+        calls.append(task[2][0])
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return real(task)
+
+    monkeypatch.setattr(sumo, "_simulate_chunk", interrupted_at_the_third_chunk)
+    capsys.readouterr()
+    assert run(args("s")) == 130
+    assert "2 finished chunks kept" in capsys.readouterr().err
+    calls.clear()
+    assert run(args("s", "--resume")) == 0
+    assert len(calls) == 2  # the interrupted chunk and the one after it
+    assert tree(tmp_path / "s") == tree(tmp_path / "whole")
+
+
+@pytest.mark.slow
+def test_validate_resumes_after_ctrl_c_with_the_same_bytes(tmp_path, monkeypatch, capsys):
+    """Example (a) at a smaller test size: interrupted while the second candidate simulates, the
+    resumed validation simulates only that one and writes the bytes of an uninterrupted run."""
+    import simcred.sim.sumo as sumo
+
+    base = tmp_path / "base"
+    assert run(["-q", "data", "openacc", "--follower", "human", "--out",
+                str(base / "human.parquet")]) == 0
+    example = Path(__file__).parents[2] / "examples" / "validate" / "car_following"
+    text = (example / "validation.yaml").read_text()
+    text = text.replace("permutations: 199", "permutations: 99").replace("baseline: 10",
+                                                                         "baseline: 2")
+    assert "permutations: 99" in text and "baseline: 2" in text
+    (base / "validation.yaml").write_text(text)
+
+    def args(out: str, *extra: str) -> list[str]:
+        return ["-q", "validate", str(base / "validation.yaml"), "--out", str(tmp_path / out),
+                *extra]
+
+    whole = run(args("whole"))
+    assert whole in (0, 1, 3)
+    real, models = sumo._simulate_chunk, []
+
+    def interrupted_in_krauss(task):
+        models.append(task[0].name)
+        if task[0].name == "Krauss":
+            raise KeyboardInterrupt
+        return real(task)
+
+    monkeypatch.setattr(sumo, "_simulate_chunk", interrupted_in_krauss)
+    capsys.readouterr()
+    assert run(args("v")) == 130
+    assert "IDM" in models and "kept" in capsys.readouterr().err
+    models.clear()
+    monkeypatch.setattr(sumo, "_simulate_chunk", lambda task: models.append(task[0].name)
+                        or real(task))
+    assert run(args("v", "--resume")) == whole
+    assert set(models) == {"Krauss"}  # IDM's finished simulation was kept
+    assert tree(tmp_path / "v") == tree(tmp_path / "whole")
