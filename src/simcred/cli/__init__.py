@@ -41,20 +41,24 @@ __all__ = ["app", "entry", "run"]
 EXIT_INTERNAL = 70  # EX_SOFTWARE: a defect of simcred, not of the input
 
 
-def run(argv: Sequence[str] | None = None) -> int:
+def run(argv: Sequence[str] | None = None, *, propagate_interrupt: bool = False) -> int:
     """Run the CLI and return its exit code; every failure is one line on stderr.
 
     Bad input and usage: exit 2. Ctrl-C: exit 130 (a command that can resume keeps
-    ``OUT.partial`` and says so). A defect of simcred itself: exit 70 with one line, the
-    traceback only under ``--debug``.
+    ``OUT.partial`` and says so), or, with ``propagate_interrupt`` (a command run inside
+    another), the interruption is raised to the caller, which reports it once. A defect of
+    simcred itself: exit 70 with one line, the traceback only under ``--debug``.
     """
     args = list(sys.argv[1:] if argv is None else argv) or ["--help"]
+    nested, State.nested = State.nested, propagate_interrupt
     try:
         code = app(args=args, prog_name="simcred", standalone_mode=False)
     except typer.TyperException as exc:
         error_line(exc.format_message())
         return exc.exit_code
     except (typer.Abort, KeyboardInterrupt) as exc:
+        if propagate_interrupt:
+            raise KeyboardInterrupt from exc
         error_line(_interruption(exc))
         return EXIT_INTERRUPTED
     except SimcredError as exc:  # raised outside a command body, e.g. in an option callback
@@ -66,6 +70,10 @@ def run(argv: Sequence[str] | None = None) -> int:
         error_line(f"internal error ({type(exc).__name__}: {' '.join(str(exc).split())[:300]}); "
                    "please report it; --debug shows the traceback")
         return EXIT_INTERNAL
+    finally:
+        State.nested = nested
+    if propagate_interrupt and code == EXIT_INTERRUPTED:  # typer turns Ctrl-C into Exit(130)
+        raise KeyboardInterrupt
     return code if isinstance(code, int) else 0
 
 

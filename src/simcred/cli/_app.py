@@ -38,6 +38,7 @@ EXIT_BAD_INPUT = 2
 class State:
     quiet = False
     debug = False
+    nested = False  # a command run inside another: Ctrl-C goes to the outer one, which reports
 
 
 def _print_version(value: bool) -> None:
@@ -110,6 +111,8 @@ def one_line_errors(command: Callable) -> Callable:
         except KeyboardInterrupt as exc:
             from simcred.cli._writing import Interrupted
 
+            if State.nested:
+                raise
             error_line(str(exc) if isinstance(exc, Interrupted)
                        else "interrupted (Ctrl-C); no output was completed")
             raise typer.Exit(EXIT_INTERRUPTED) from None

@@ -83,15 +83,13 @@ def simulate_candidates(spec: ValidationSpec, base: Path, out: Path,
         folder.mkdir(parents=True)
         args = [a.replace("{base}", str(base)).replace("{out}", str(folder))
                 for a in candidate.simulate.command]
-        from simcred.cli import EXIT_INTERRUPTED, run
+        from simcred.cli import run
 
         quiet, debug = State.quiet, State.debug
         try:
-            code = run(["--quiet", *args])
+            code = run(["--quiet", *args], propagate_interrupt=True)
         finally:
             State.quiet, State.debug = quiet, debug
-        if code == EXIT_INTERRUPTED:
-            raise KeyboardInterrupt
         if code != 0:
             raise SimcredError(f"candidates.{name}.simulate: 'simcred {' '.join(args)}' exited "
                                f"with {code}")
