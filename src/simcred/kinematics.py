@@ -46,6 +46,14 @@ MOTION_SIGNALS = ("x", "y", "v", "heading")
 RATE_SIGNALS = ("acceleration", "yaw_rate")
 
 
+
+def read_only(values: object, dtype: type = np.float64) -> np.ndarray:
+    """An own, write-protected copy of ``values`` (broadcast views and caller arrays stay
+    untouched): the arrays of simcred's frozen dataclasses."""
+    array = np.array(values, dtype=dtype)
+    array.setflags(write=False)
+    return array
+
 @dataclass(frozen=True, slots=True, eq=False)
 class Track:
     """States of one object at increasing times ``t``.
@@ -202,9 +210,7 @@ class TrackBatch:
         except ValueError:
             raise SimcredError("track batch: fields do not broadcast to one shape") from None
         for name, array in zip(names, arrays, strict=True):
-            array = np.array(array)
-            array.setflags(write=False)
-            object.__setattr__(self, name, array)
+            object.__setattr__(self, name, read_only(array))
 
     @classmethod
     def of_tracks(cls, tracks: Track | Sequence[Track], **options: object) -> TrackBatch:

@@ -35,7 +35,7 @@ import numpy as np
 import pyproj
 
 from simcred.errors import TraceSetError
-from simcred.kinematics import MOTION_SIGNALS, Track
+from simcred.kinematics import MOTION_SIGNALS, Track, read_only
 from simcred.traces import TIME, TraceSet
 
 EGO_COLUMNS = ("timestamp", "lat", "long", "heading", "speed")
@@ -50,12 +50,6 @@ KMH = 1 / 3.6  # km/h -> m/s
 STALE_SPEED = 1.0  # m/s: a fix repeated while the ego is faster than this is a held (stale) fix
 MIN_TRACK = 1.0  # m of GNSS track needed to estimate the heading offset
 _OBJECT_COLUMN = re.compile(r"^(pos_x|pos_y|speed_x|speed_y|class)_(\d+)$")
-
-
-def _frozen(array: Any, dtype: type = np.float64) -> np.ndarray:
-    out = np.array(array, dtype=dtype)
-    out.setflags(write=False)
-    return out
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -87,12 +81,12 @@ class A9Object:
     object_class: int | None = None
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "rows", _frozen(self.rows, np.int64))
+        object.__setattr__(self, "rows", read_only(self.rows, np.int64))
         for name in ("rel_x", "rel_y"):
-            object.__setattr__(self, name, _frozen(getattr(self, name)))
+            object.__setattr__(self, name, read_only(getattr(self, name)))
         track = self.track
         object.__setattr__(self, "track", Track(
-            *(_frozen(getattr(track, s)) for s in ("t", *MOTION_SIGNALS))))
+            *(read_only(getattr(track, s)) for s in ("t", *MOTION_SIGNALS))))
 
     def __len__(self) -> int:
         return len(self.rows)
@@ -146,9 +140,9 @@ class A9Recording:
     gnss_rms: float
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "time", _frozen(self.time))
+        object.__setattr__(self, "time", read_only(self.time))
         for name in ("ego", "lanes"):
-            arrays = {k: _frozen(v) for k, v in getattr(self, name).items()}
+            arrays = {k: read_only(v) for k, v in getattr(self, name).items()}
             object.__setattr__(self, name, MappingProxyType(arrays))
         object.__setattr__(self, "objects", MappingProxyType(dict(sorted(self.objects.items()))))
 

@@ -12,7 +12,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from simcred.errors import OptionError, SimcredError
-from simcred.kinematics import LANE_WIDTH, TrackBatch
+from simcred.kinematics import LANE_WIDTH, TrackBatch, read_only
 
 STATE_FIELDS = ("x", "y", "v", "heading", "acceleration", "yaw_rate", "length", "width")
 # peak |d²p/dτ²| of the quintic smoothstep p(τ) = 10τ³ - 15τ⁴ + 6τ⁵, at τ = (3 ∓ √3)/6
@@ -83,9 +83,7 @@ class VehicleStates(TrackBatch):
                                f"got shape {arrays[0].shape}")
         for f, a in zip(STATE_FIELDS, arrays, strict=True):
             _check_values(f"{self.name}.{f}", a)
-            a = np.array(a)  # own copy: broadcast views share memory with the caller
-            a.setflags(write=False)
-            object.__setattr__(self, f, a)
+            object.__setattr__(self, f, read_only(a))
 
     def as_dict(self) -> dict[str, np.ndarray]:
         """The fields by name (without ``name``)."""

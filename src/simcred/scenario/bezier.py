@@ -19,6 +19,7 @@ from numpy.typing import ArrayLike
 from scipy.linalg import solve_banded
 
 from simcred.errors import OptionError, SimcredError
+from simcred.kinematics import read_only
 
 _BERNSTEIN_FACTOR = (1.0, 3.0, 6.0, 6.0)  # 3! / (3 - order)!: the Bézier derivative factor
 
@@ -57,13 +58,12 @@ class BezierPath:
 
     def __post_init__(self) -> None:
         times = fix_times_iv(self.times)
-        c = np.array(self.control_points, dtype=np.float64)
+        c = read_only(self.control_points)
         if c.shape != (len(times) - 1, 4, 2):
             raise SimcredError(f"control_points must have shape ({len(times) - 1}, 4, 2) for "
                                f"{len(times)} fix times, got {c.shape}")
         if not np.all(np.isfinite(c)):
             raise SimcredError("control_points must be finite")
-        c.setflags(write=False)
         object.__setattr__(self, "times", times)
         object.__setattr__(self, "control_points", c)
 

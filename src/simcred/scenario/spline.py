@@ -21,6 +21,7 @@ from numpy.typing import ArrayLike
 from scipy.interpolate import BSpline
 
 from simcred.errors import SimcredError
+from simcred.kinematics import read_only
 
 DEGREE = 3
 
@@ -82,13 +83,12 @@ class Spline:
         t0, t1 = float(self.t0), float(self.t1)
         if not (math.isfinite(t0) and math.isfinite(t1) and t0 < t1):
             raise SimcredError(f"spline span must be finite with t0 < t1, got [{t0!r}, {t1!r}]")
-        c = np.array(self.coefficients, dtype=np.float64)
+        c = read_only(self.coefficients)
         if c.ndim != 1 or len(c) < DEGREE + 1:
             raise SimcredError(f"spline needs a 1-D array of at least {DEGREE + 1} coefficients "
                                f"(sections + 3), got shape {c.shape}")
         if not np.all(np.isfinite(c)):
             raise SimcredError("spline coefficients must be finite")
-        c.setflags(write=False)
         object.__setattr__(self, "t0", t0)
         object.__setattr__(self, "t1", t1)
         object.__setattr__(self, "coefficients", c)
