@@ -60,8 +60,10 @@ EstimatorOpt = Annotated[Estimator, typer.Option(help="MMD estimator: the paper'
                                                       "MMD_b or the unbiased MMD²_u.")]
 TestOpt = Annotated[Test, typer.Option(
     help="runs: run-level permutation test with a chain verdict (whole runs reassigned, valid "
-         "when transitions within a run are dependent); bound / permutation: the paper's "
-         "per-transition tests.")]
+         "when transitions within a run are dependent); response: the law of the response "
+         "given the state (run lengths, visit frequencies and declared inputs are not part of "
+         "it; paired/grouped designs, effect with interval, equivalence); bound / permutation: "
+         "the paper's per-transition tests.")]
 MultiplicityOpt = Annotated[Multiplicity | None, typer.Option(
     help="Per-state verdicts of the runs test: family-wise (max-T), FDR (Benjamini-Hochberg) or "
          "uncorrected. Default: fwer for --test runs, none otherwise.")]
@@ -88,6 +90,20 @@ StopEarly = Annotated[bool, typer.Option(
     "--stop-early/--all-permutations",
     help="Permutation test: stop once rejection is impossible (same verdicts; p-values above "
          "alpha are then sequential estimates), or always draw all permutations.")]
+
+
+def _margin(text: str | None) -> float | dict[str, float] | None:
+    """``0.2`` (every response feature) or ``v=0.1,gap=0.3``."""
+    if text is None:
+        return None
+    try:
+        if "=" not in text:
+            return float(text)
+        pairs = [part.split("=") for part in text.split(",")]
+        return {name.strip(): float(value) for name, value in pairs}
+    except ValueError:
+        raise OptionError(f"--margin must be a number or FEATURE=NUMBER,...; got {text!r}"
+                          ) from None
 
 
 def _options(features, bins, kernel, estimator, test, alpha, permutations, seed,
@@ -133,6 +149,18 @@ def compare(
              "(biased upward, not a confidence interval); 0 = none.")] = 0,
     relevance: Annotated[bool, typer.Option(
         help="Runs test: chain test per feature alone and per feature left out.")] = False,
+    inputs: Annotated[str | None, typer.Option(
+        help="Response test: comma-separated features the model does not control (a recorded "
+             "leader's speed); they condition the state and are not compared.")] = None,
+    pair_by: Annotated[str | None, typer.Option(
+        "--pair-by", help="Response test: run_id or a per-run fact pairing each run of B with "
+                          "the run of A it replays (the null swaps within pairs).")] = None,
+    group_by: Annotated[str | None, typer.Option(
+        "--group-by", help="Response test: a per-run fact (driver, recording, parent run) whose "
+                           "runs form one unit, permuted and resampled whole.")] = None,
+    margin: Annotated[str | None, typer.Option(
+        help="Response test: equivalence margin of the response deviation, per second: one "
+             "number for every response feature, or FEATURE=NUMBER,...")] = None,
     continue_on_start_difference: Continue = False,
     stop_early: StopEarly = True,
     out: Annotated[Path | None, typer.Option(help="Directory for comparison.json and "
@@ -144,6 +172,11 @@ def compare(
     (Neurohr et al.)."""
     extra = dict(baseline=baseline, bootstrap=bootstrap, relevance=relevance) \
         if test is Test.RUNS else {}
+    if test is Test.RESPONSE:
+        extra = dict(bootstrap=bootstrap, inputs=_split(inputs) or (), pair_by=pair_by,
+                     group_by=group_by, margin=_margin(margin))
+    elif inputs or pair_by or group_by or margin:
+        raise OptionError("--inputs, --pair-by, --group-by and --margin need --test response")
     options = _options(features, bins, kernel, estimator, test, alpha, permutations, seed,
                        continue_on_start_difference, stop_early, multiplicity, chain, one_sided,
                        history, time_bins, resample)
@@ -166,7 +199,9 @@ def _print_comparison(result, out: Path | None) -> None:
     table = Table(title=f"{result.inputs[0].source}  vs  {result.inputs[1].source}")
     table.add_column("quantity")
     table.add_column("value", justify="right")
-    if result.chain is not None:
+    if result.response is not None:
+        _response_rows(table, result)
+    elif result.chain is not None:
         _chain_rows(table, result)
     start = result.start
     verdict = "differ" if start.rejected else "equal (H0 kept)"
@@ -203,6 +238,32 @@ def _chain_rows(table: Table, result) -> None:
                       f"{distance} where {len(base.distances)} splits of A give "
                       f"{100 * base.low:.2f}–{100 * base.high:.2f} % "
                       f"({base.nonzero} of {len(base.distances)} > 0)")
+    table.add_section()
+
+
+def _response_rows(table: Table, result) -> None:
+    """The response verdict, the effect with its interval, equivalence, then the named tests."""
+    chain, options, analysis = result.chain, result.options, result.response
+    design = analysis.design
+    verdict = "DIFFERENT response" if chain.rejected else "no difference shown"
+    table.add_row("response verdict",
+                  f"{verdict}: p = {chain.pvalue:.4g} (α = {options.alpha:g}, "
+                  f"{chain.permutations} permutations, {design.kind}: {design.units_a} vs "
+                  f"{design.units_b} units)")
+    effect = analysis.effect
+    for f in effect.features:
+        equivalence = "" if f.margin is None else \
+            (f"; equivalent within {f.margin:g}" if f.equivalent
+             else f"; NOT shown equivalent within {f.margin:g}")
+        table.add_row(f"deviation of d{f.feature}/dt [{f.unit}]",
+                      f"{f.estimate:.3g} ({100 * effect.level:.0f} % CI {f.low:.3g}–{f.high:.3g}; "
+                      f"detectable {f.mde:.3g}){equivalence}")
+    for test in analysis.scenario:
+        table.add_row(f"{test.name} law (not part of the verdict)",
+                      f"{'differs' if test.rejected else 'no difference shown'}, "
+                      f"p = {test.pvalue:.4g}")
+    for warning in analysis.warnings:
+        table.add_row("warning", warning)
     table.add_section()
 
 

@@ -71,6 +71,7 @@ class Estimator(StrEnum):
 class Test(StrEnum):
     __test__ = False  # not a pytest test class
 
+    RESPONSE = "response"  # conditional response test (simcred.compare.conditional)
     RUNS = "runs"  # run-level permutation test (simcred.compare.runs)
     BOUND = "bound"
     PERMUTATION = "permutation"

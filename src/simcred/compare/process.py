@@ -11,14 +11,16 @@ from __future__ import annotations
 import dataclasses
 import math
 import numbers
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from simcred.compare.chains import ChainCounts, aligned, successor_counts
+from simcred.compare.design import Design, build_design, runs_design
 from simcred.compare.discretize import StateSpace
+from simcred.compare.effect import check_margins
 from simcred.compare.encoding import (
     EncodedRuns,
     check_history,
@@ -38,12 +40,14 @@ from simcred.compare.result import (
     UntestableState,
 )
 from simcred.compare.runs import ChainStatistic, Multiplicity, OneSided
+from simcred.compare.transitions import response_features
 from simcred.engine import Progress
 from simcred.errors import OptionError
 from simcred.seeds import resolve_seed, stream
 from simcred.traces import TraceSet
 
 START_KEY = 0  # seed stream of the start test; state s uses 1 + s
+DEFAULT_REPLICATES = 500  # response test: cluster-bootstrap replicates of the effect intervals
 
 
 # compare() is long only in its signature and docstring (21 documented options, the public face
@@ -71,6 +75,10 @@ def compare(
     relevance: bool = False,
     continue_on_start_difference: bool = False,
     stop_early: bool = True,
+    inputs: Sequence[str] | str = (),
+    pair_by: str | None = None,
+    group_by: str | None = None,
+    margin: float | Mapping[str, float] | None = None,
     progress: Progress | None = None,
 ) -> Comparison:
     """Compare two trace sets as Markov chains with MMD tests ([1] sec. V-A).
@@ -88,9 +96,12 @@ def compare(
         [1] eqs. (3)-(5); Gaussian and Laplace use the median heuristic for σ.
     estimator : {"biased", "unbiased"}, default: "biased"
         MMD_b (the paper's, reported not squared) or MMD²_u.
-    test : {"runs", "bound", "permutation"}, default: "runs"
+    test : {"runs", "response", "bound", "permutation"}, default: "runs"
         ``runs``: run-level permutation test (whole runs reassigned; valid under any dependence
-        within runs) with a chain-level verdict; ``bound``: the paper's Gretton-type bound;
+        within runs) with a chain-level verdict; ``response``: the conditional test of the
+        response law given the state (docs/comparison.md: run lengths, visit frequencies,
+        start states and declared inputs are not part of its H0; paired and grouped designs;
+        effect sizes with intervals; equivalence); ``bound``: the paper's Gretton-type bound;
         ``permutation``: the paper's per-transition permutation test. The last two treat
         transitions as independent samples.
     alpha : float, default: 0.01
@@ -118,9 +129,10 @@ def compare(
     baseline : int, default: 0
         Run-level test: number of random half-splits of set A compared against each other, the
         distance's same-model baseline.
-    bootstrap : int, default: 0
-        Run-level test: bootstrap replicates (runs resampled within each set) for a 95 %
-        interval of the distance.
+    bootstrap : int, default: 0 (``response``: 500)
+        Run-level test: bootstrap replicates (runs resampled within each set) for a re-test
+        spread of the distance. Response test: cluster-bootstrap replicates of the effect
+        intervals (units resampled within each set, or whole pairs).
     relevance : bool, default: False
         Run-level test: chain statistics on each feature alone and with each feature left out.
     continue_on_start_difference : bool, default: False
@@ -129,6 +141,18 @@ def compare(
         Permutation test: stop drawing once rejection is impossible (Besag & Clifford 1991).
         Verdicts are those of the full test; p-values above ``alpha`` become sequential
         estimates. False always draws all ``permutations``.
+    inputs : sequence of str or comma-separated str
+        Response test: features the model does not control (a recorded leader's speed):
+        they condition the state but their own evolution is not compared.
+    pair_by : str, optional
+        Response test: ``"run_id"`` or a per-run fact (``metadata["run_info"]``) that pairs run
+        *i* of B with the run of A whose scenario it replays; the null swaps within pairs.
+    group_by : str, optional
+        Response test: a per-run fact (driver, recording, parent run of a segment) whose runs
+        form one exchangeable unit; whole groups are permuted and resampled.
+    margin : float or mapping, optional
+        Response test: equivalence margin per response feature (its unit per second), or one
+        for all; the result says whether equivalence within the margin is shown.
     progress : callable, optional
         Wraps the sequence of start states (e.g. a progress bar).
 
@@ -161,9 +185,13 @@ def compare(
         alpha=alpha, permutations=permutations, seed=seed, multiplicity=multiplicity,
         chain=chain, one_sided=one_sided, history=history, time_bins=time_bins,
         resample=resample, baseline=baseline, bootstrap=bootstrap,
-        continue_on_start_difference=continue_on_start_difference, stop_early=stop_early)
+        continue_on_start_difference=continue_on_start_difference, stop_early=stop_early,
+        inputs=inputs, pair_by=pair_by, group_by=group_by, margin=margin)
     prepared = [Prepared.of(traces, options.features, options.resample) for traces in (a, b)]
-    result = with_units(compare_prepared(*prepared, options, progress), a, b)
+    design = build_design(a, b, pair_by=options.pair_by, group_by=options.group_by) \
+        if Test(options.test) is Test.RESPONSE else None
+    units = dict(zip(options.features, feature_units(a, b, options.features), strict=True))
+    result = with_units(compare_prepared(*prepared, options, progress, design, units), a, b)
     if relevance:
         from simcred.compare.calibrate import feature_relevance
 
@@ -224,11 +252,22 @@ def common_space(a: Prepared, b: Prepared, options: ComparisonOptions) -> StateS
 
 
 def compare_prepared(
-    a: Prepared, b: Prepared, options: ComparisonOptions, progress: Progress | None = None
+    a: Prepared, b: Prepared, options: ComparisonOptions, progress: Progress | None = None,
+    design: Design | None = None, units: dict[str, str] | None = None,
 ) -> Comparison:
-    """The process of [1] sec. V-A on validated options and prepared sets."""
+    """The process of [1] sec. V-A on validated options and prepared sets.
+
+    ``design`` (response test): the units of the runs; default: every run its own unit.
+    """
     space = common_space(a, b, options)
     runs_a, runs_b = a.encoded(space, options), b.encoded(space, options)
+    if Test(options.test) is Test.RESPONSE:
+        from simcred.compare.conditional import response_comparison
+
+        design = design or runs_design(a.info.runs, b.info.runs)
+        parts = [(p.values, p.time, p.offsets, r.codes) for p, r in ((a, runs_a), (b, runs_b))]
+        return response_comparison(parts, design, space, options, (a.info, b.info),
+                                   units or {})
     if Test(options.test) is Test.RUNS:
         from simcred.compare.calibrate import run_level_comparison
 
@@ -303,16 +342,30 @@ def comparison_options(
     sets: Sequence[TraceSet], *, features=None, bins=10, kernel="gaussian", estimator="biased",
     test="runs", alpha=0.01, permutations=999, seed=None, multiplicity=None, chain="sum",
     one_sided="evidence", history=1, time_bins=None, resample=None, baseline=0, bootstrap=0,
-    continue_on_start_difference=False, stop_early=True,
+    continue_on_start_difference=False, stop_early=True, inputs=(), pair_by=None, group_by=None,
+    margin=None,
 ) -> ComparisonOptions:
     """Validate every option of :func:`compare` against the trace sets they will be used on."""
     names = resolve_features(sets, features)
     estimator = _choice(Estimator, estimator, "estimator")
     test = _choice(Test, test, "test")
     runs = test is Test.RUNS
-    multiplicity = _choice(Multiplicity, multiplicity or ("fwer" if runs else "none"),
+    response = test is Test.RESPONSE
+    inputs = _names(inputs, "inputs")
+    if not response and (inputs or pair_by or group_by or margin is not None):
+        raise OptionError("inputs, pair-by, group-by and margin belong to the response test "
+                          "(--test response)")
+    if response:
+        response_features(names, inputs)
+        if baseline:
+            raise OptionError("the response test has no random-halves baseline (it cannot see "
+                              "heterogeneity of the reference); use --baseline 0")
+    multiplicity = _choice(Multiplicity, multiplicity or ("fwer" if runs or response else "none"),
                            "multiplicity")
-    if not runs and multiplicity is not Multiplicity.NONE:
+    if response and multiplicity is not Multiplicity.FWER:
+        raise OptionError("the response test's per-state verdicts are family-wise (max-T, "
+                          "after the chain verdict); multiplicity must be fwer")
+    if not runs and not response and multiplicity is not Multiplicity.NONE:
         raise OptionError(f"multiplicity {multiplicity.value} needs the run-level test "
                           "(--test runs); the paper's tests are per state only")
     small = [s for s in sets if s.n_runs < estimator.min_samples]
@@ -344,8 +397,29 @@ def comparison_options(
         time_bins=check_time_bins(time_bins),
         resample=resample,
         baseline=_check_count(baseline, "baseline") if runs else 0,
-        bootstrap=_check_count(bootstrap, "bootstrap") if runs else 0,
+        bootstrap=(_check_count(bootstrap, "bootstrap") or DEFAULT_REPLICATES) if response
+        else _check_count(bootstrap, "bootstrap") if runs else 0,
+        inputs=inputs,
+        pair_by=_key(pair_by, "pair-by"),
+        group_by=_key(group_by, "group-by"),
+        margin=check_margins(margin, response_features(names, inputs)) if response else (),
     )
+
+
+def _names(value: Sequence[str] | str, option: str) -> tuple[str, ...]:
+    names = tuple(v.strip() for v in value.split(",")) if isinstance(value, str) \
+        else tuple(value)
+    if any(not isinstance(n, str) or not n for n in names) or len(set(names)) != len(names):
+        raise OptionError(f"{option} must be distinct signal names, got {value!r}")
+    return names
+
+
+def _key(value: str | None, option: str) -> str | None:
+    if value is None:
+        return None
+    if not isinstance(value, str) or not value.strip():
+        raise OptionError(f"{option} must be 'run_id' or a per-run fact's name, got {value!r}")
+    return value.strip()
 
 
 def _check_count(value: int, name: str) -> int:

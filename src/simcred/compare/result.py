@@ -33,6 +33,10 @@ class ComparisonOptions:
     resample: float | None = None
     baseline: int = 0
     bootstrap: int = 0
+    inputs: tuple[str, ...] = ()
+    pair_by: str | None = None
+    group_by: str | None = None
+    margin: tuple[tuple[str, float], ...] = ()
 
     @property
     def spec(self) -> MMDTestSpec:
@@ -164,6 +168,7 @@ class Comparison:
     interval: DistanceInterval | None = None
     relevance: tuple[FeatureRelevance, ...] | None = None
     units: tuple[str, ...] = ()
+    response: Any = None  # ResponseAnalysis of the conditional test (compare.conditional)
 
     @property
     def n_states(self) -> int:
@@ -208,6 +213,8 @@ class Comparison:
             body["distance_interval"] = asdict(self.interval)
         if self.relevance is not None:
             body["relevance"] = [asdict(r) for r in self.relevance]
+        if self.response is not None:
+            body = _after(body, "chain", "response", asdict(self.response))
         return envelope("comparison", body)
 
     def to_json(self) -> str:
@@ -235,11 +242,16 @@ class Comparison:
 
 def _chain_first(body: dict[str, Any], chain: dict[str, Any]) -> dict[str, Any]:
     """The body with "chain" right after the options: the verdict a reader looks for first."""
+    return _after(body, "options", "chain", chain)
+
+
+def _after(body: dict[str, Any], anchor: str, key: str, value: Any) -> dict[str, Any]:
+    """``body`` with ``key: value`` inserted right after ``anchor``."""
     out: dict[str, Any] = {}
-    for key, value in body.items():
-        out[key] = value
-        if key == "options":
-            out["chain"] = chain
+    for name, item in body.items():
+        out[name] = item
+        if name == anchor:
+            out[key] = value
     return out
 
 

@@ -235,12 +235,12 @@ def run_level_test(counts: RunCounts, in_a: np.ndarray, grid_of, spec: RunTestSp
         assignments = np.vstack([in_a[None, :], np.asarray(null, dtype=bool)])
     stats = assignment_statistics(counts, states, assignments, spec.estimator,
                                   _batch(counts))
-    z, in_family = _standardise(stats, spec.one_sided)
+    z, in_family = standardise(stats, spec.one_sided)
     chain = z[:, in_family].sum(axis=1) if spec.chain is ChainStatistic.SUM \
-        else _row_max(z[:, in_family])
+        else row_max(z[:, in_family])
     pvalue = exceedance_pvalues(z, z[0])
     if spec.multiplicity is Multiplicity.FWER:
-        adjusted = exceedance_pvalues(_row_max(z[:, in_family])[:, None], z[0])
+        adjusted = exceedance_pvalues(row_max(z[:, in_family])[:, None], z[0])
     else:
         adjusted = pvalue.copy()
     adjusted[~in_family] = 1.0
@@ -284,7 +284,7 @@ def benjamini_hochberg(pvalues: np.ndarray, family: np.ndarray) -> np.ndarray:
     return out
 
 
-def _row_max(z: np.ndarray) -> np.ndarray:
+def row_max(z: np.ndarray) -> np.ndarray:
     return z.max(axis=1) if z.shape[1] else np.zeros(len(z))
 
 
@@ -347,7 +347,7 @@ class SideCounts:
     def __init__(self, counts: RunCounts) -> None:
         self.matrix = counts.matrix
         n_cols, n_runs = self.matrix.shape
-        exact32 = n_cols == 0 or self.matrix.sum(axis=1).max() < 2**24
+        exact32 = n_cols == 0 or abs(self.matrix).sum(axis=1).max() < 2**24
         self.dtype = np.float32 if exact32 else np.float64
         self.dense_columns = self.matrix.getnnz(axis=1) * SPARSE_RATIO >= n_runs
         per_block = np.add.reduceat(self.dense_columns.astype(np.int64), counts.bounds[:-1]) \
@@ -431,7 +431,7 @@ def _size_factor(m: np.ndarray, n: np.ndarray, estimator: Estimator) -> np.ndarr
     return np.sqrt(harmonic) if estimator is Estimator.BIASED else harmonic
 
 
-def _standardise(stats: np.ndarray, one_sided: OneSided) -> tuple[np.ndarray, np.ndarray]:
+def standardise(stats: np.ndarray, one_sided: OneSided) -> tuple[np.ndarray, np.ndarray]:
     """Standardised statistics (P + 1, blocks) and the family of states that vary.
 
     One-sided entries (NaN) become, for ``EVIDENCE``, the state's largest two-sided value over

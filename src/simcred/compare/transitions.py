@@ -1,0 +1,130 @@
+"""From runs to the response data of a conditional comparison: state, covariates, response.
+
+For every transition ``t → t+1`` inside a run:
+
+* the **state** is the discretised state at ``t`` (pooled equal-frequency bins of every feature,
+  exogenous inputs included; history and time windows as in :mod:`simcred.compare.encoding`);
+* the **covariates** are the continuous feature values at ``t`` and, for declared inputs, their
+  values at ``t+1`` (the input path is given, not produced by the model);
+* the **response** is the rate of change ``(y[t+1] − y[t]) / Δt`` of every feature that is not
+  an input: what the model does in that situation, in the feature's unit per second.
+
+The response is then **adjusted** within each state by a pooled least-squares fit of a quadratic
+polynomial in the covariates (``residual = response − fit``; the fit uses both sets together and
+no labels, so the permutation null is untouched). Two sets that visit a bin in different places
+(other leaders, shorter runs, a start transient) then no longer differ for that reason alone, and
+a level or a change of level give the same residual. States with too few pooled transitions for
+the fit are centred on their pooled mean instead.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from simcred.errors import OptionError
+
+#: Pooled transitions per fitted coefficient before a state gets its linear adjustment.
+PER_COEFFICIENT = 5
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Transitions:
+    """Pooled transitions of both sets, sorted by (state, unit).
+
+    ``state``: state code at ``t``; ``unit``: the design unit of the transition's run;
+    ``residual``: (n, J) adjusted response in the response features' units per second.
+    """
+
+    state: np.ndarray
+    unit: np.ndarray
+    residual: np.ndarray
+    response: tuple[str, ...]
+
+
+def response_features(features: Sequence[str], inputs: Sequence[str]) -> tuple[str, ...]:
+    """The features the model produces (all but the inputs); one-line error if none is left."""
+    unknown = [name for name in inputs if name not in features]
+    if unknown:
+        raise OptionError(f"input {unknown[0]!r} is not one of the features {list(features)}; "
+                          "inputs condition the state, so they must be features")
+    out = tuple(name for name in features if name not in set(inputs))
+    if not out:
+        raise OptionError("every feature is declared an input: nothing of the model's own "
+                          "response is left to compare")
+    return out
+
+
+def transitions(parts: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]],
+                unit_of_run: np.ndarray, features: Sequence[str], inputs: Sequence[str],
+                history: int) -> Transitions:
+    """Pool the transitions of both sets.
+
+    ``parts``: per set, ``(values, time, offsets, codes)`` with ``codes`` the encoded states
+    (one per row from step ``history - 1`` of each run on); ``unit_of_run``: the unit of every
+    pooled run (A's runs first).
+    """
+    response = response_features(features, inputs)
+    out_j = [features.index(name) for name in response]
+    in_j = [features.index(name) for name in inputs]
+    pieces = [_set_transitions(values, time, offsets, codes, history, out_j, in_j)
+              for values, time, offsets, codes in parts]
+    state = np.concatenate([p[0] for p in pieces])
+    first_run = np.cumsum([0] + [len(offsets) - 1 for _, _, offsets, _ in parts])
+    run = np.concatenate([p[1] + first_run[i] for i, p in enumerate(pieces)])
+    covariates = np.concatenate([p[2] for p in pieces])
+    rate = np.concatenate([p[3] for p in pieces])
+    unit = np.asarray(unit_of_run)[run]
+    order = np.lexsort((unit, state))
+    state, unit = state[order], unit[order]
+    residual = adjusted(state, covariates[order], rate[order])
+    return Transitions(state, unit, residual, response)
+
+
+def _set_transitions(values, time, offsets, codes, history, out_j, in_j):
+    """One set's (state, run, covariates, response rate) per transition."""
+    lengths = np.diff(offsets)
+    run_of_row = np.repeat(np.arange(len(lengths)), lengths)
+    position = np.arange(len(values)) - np.repeat(offsets[:-1], lengths)
+    rows = np.flatnonzero((position >= history - 1) & (position < np.repeat(lengths, lengths) - 1))
+    state_at_row = np.full(len(values), -1, dtype=np.int64)
+    state_at_row[position >= history - 1] = codes  # encode() keeps exactly these rows
+    dt = time[rows + 1] - time[rows]
+    rate = (values[rows + 1][:, out_j] - values[rows][:, out_j]) / dt[:, None]
+    covariates = np.hstack([values[rows], values[rows + 1][:, in_j]])
+    return state_at_row[rows], run_of_row[rows], covariates, rate
+
+
+def adjusted(state: np.ndarray, covariates: np.ndarray, rate: np.ndarray) -> np.ndarray:
+    """Residuals of a pooled per-state least-squares fit of ``rate`` on a polynomial in the
+    covariates (``state`` sorted): quadratic where the state has ``PER_COEFFICIENT`` transitions
+    per coefficient, else linear, else its pooled mean."""
+    residual = np.empty_like(rate)
+    bounds = np.r_[0, np.flatnonzero(np.diff(state)) + 1, len(state)]
+    for lo, hi in zip(bounds[:-1], bounds[1:], strict=True):
+        y = rate[lo:hi]
+        design = _polynomial(covariates[lo:hi])
+        if design is None:
+            residual[lo:hi] = y - y.mean(axis=0)
+            continue
+        coef, *_ = np.linalg.lstsq(design, y, rcond=None)
+        residual[lo:hi] = y - design @ coef
+    return residual
+
+
+def _polynomial(x: np.ndarray) -> np.ndarray | None:
+    """``[1, z, z_i z_j]`` of the standardised covariates ``z`` (quadratic terms only with enough
+    rows), or None when even a linear fit has too few rows."""
+    centred = x - x.mean(axis=0)
+    scale = centred.std(axis=0)
+    z = centred[:, scale > 0] / scale[scale > 0]
+    n, p = z.shape
+    if n < PER_COEFFICIENT * (p + 1):
+        return None
+    columns = [np.ones((n, 1)), z]
+    if n >= PER_COEFFICIENT * (1 + p + p * (p + 1) // 2):
+        i, j = np.triu_indices(p)
+        columns.append(z[:, i] * z[:, j])
+    return np.hstack(columns)

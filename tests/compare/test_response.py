@@ -1,0 +1,204 @@
+"""The response test (test="response"): design, statistic, exactness, effects, bad input.
+
+Oracles: exact enumeration of every assignment of a paired and a grouped design (an exact test
+rejects in at most ⌊α·N⌋/N of them); a literal per-transition computation of the statistic; a
+response that is exactly quadratic in the covariates leaves no residual; an injected bias is
+recovered by the shift estimate; the design's bad inputs give one-line errors.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+
+import numpy as np
+import pytest
+
+from compare_designs import traits
+from simcred.compare import compare
+from simcred.compare.design import build_design
+from simcred.compare.response import (
+    FOURIER,
+    LEVELS,
+    assignment_statistics,
+    fourier_features,
+    response_test,
+    unit_sums,
+)
+from simcred.compare.transitions import Transitions, adjusted
+from simcred.errors import OptionError
+from simcred.traces import RUN_INFO, TraceSet
+
+
+def _set(rng, runs, steps, shift=0.0, ids=None, info=None):
+    x = np.zeros((runs, steps))
+    x[:, 0] = rng.normal(size=runs)
+    for t in range(1, steps):
+        x[:, t] = 0.6 * x[:, t - 1] + shift + rng.normal(size=runs)
+    u = rng.normal(size=(runs, steps))
+    ids = ids or [f"r{i:03d}" for i in range(runs)]
+    metadata = {RUN_INFO: info} if info else {}
+    return TraceSet.from_runs([{"t": np.arange(steps) * 1.0, "x": x[i], "u": u[i]}
+                               for i in range(runs)], run_ids=ids, metadata=metadata)
+
+
+def _transitions(rng, units, per_unit, n_states=3):
+    n = units * per_unit
+    state = rng.integers(0, n_states, n)
+    unit = np.repeat(np.arange(units), per_unit)
+    order = np.lexsort((unit, state))
+    return Transitions(state[order], unit[order], rng.normal(size=(n, 1))[order], ("x",))
+
+
+def _every_split(units_a, units):
+    for chosen in itertools.combinations(range(units), units_a):
+        row = np.zeros(units, dtype=bool)
+        row[list(chosen)] = True
+        yield row
+
+
+@pytest.mark.parametrize("kind", ["pairs", "groups"])
+def test_exact_by_enumeration(kind):
+    """Every assignment taken in turn as the observed one, all others as the null."""
+    rng = np.random.default_rng(4)
+    if kind == "pairs":
+        units, half = 12, 6  # 2**6 = 64 assignments
+        rows = np.array([np.r_[flip, ~flip] for flip in
+                         (np.array(bits, dtype=bool) for bits in
+                          itertools.product([True, False], repeat=half))])
+    else:
+        units, half = 8, 4  # C(8, 4) = 70 assignments
+        rows = np.array(list(_every_split(half, units)))
+    data = _transitions(rng, units, 15)
+    alpha, rejections = 0.1, {"chain": 0, "state": 0}
+    for i in range(len(rows)):
+        order = np.r_[i, np.delete(np.arange(len(rows)), i)]
+        outcome = response_test(data, units, rows[order], np.random.default_rng(0))
+        rejections["chain"] += outcome.chain_pvalue <= alpha
+        rejections["state"] += bool(outcome.rejected(alpha).any())
+    bound = np.floor(alpha * len(rows)) + 1  # ties at the boundary of a discrete null
+    assert rejections["chain"] <= bound
+    assert rejections["state"] <= rejections["chain"]  # gatekept: never without the chain
+
+
+def test_statistic_equals_literal_computation():
+    rng = np.random.default_rng(1)
+    data = _transitions(rng, 10, 12, n_states=2)
+    features, _ = fourier_features(data.residual, np.random.default_rng(3))
+    sums = unit_sums(data, features, 10)
+    assignment = np.zeros((1, 10), dtype=bool)
+    assignment[0, [0, 2, 3, 7]] = True
+    stats, m, n = assignment_statistics(sums, assignment, 1)
+    for s in range(2):
+        here = data.state == s
+        side = assignment[0][data.unit[here]]
+        phi = features[here][:, 1:] / LEVELS
+        diff = phi[side].mean(axis=0) - phi[~side].mean(axis=0)
+        k, l_ = side.sum(), (~side).sum()
+        assert (m[s], n[s]) == (k, l_)
+        assert stats[0, s] == pytest.approx(k * l_ / (k + l_) * (diff @ diff), rel=1e-12)
+    assert features.shape[1] == 1 + FOURIER
+
+
+def test_quadratic_response_leaves_no_residual():
+    rng = np.random.default_rng(2)
+    x = rng.normal(size=(400, 2))
+    y = (1 + 2 * x[:, 0] - x[:, 1] + 0.5 * x[:, 0] * x[:, 1] - x[:, 1] ** 2)[:, None]
+    state = np.repeat([0, 1], 200)
+    assert np.abs(adjusted(state, x, y)).max() < 1e-9
+
+
+def test_design_units():
+    rng = np.random.default_rng(0)
+    info_a = {f"r{i:03d}": {"driver": f"d{i % 3}"} for i in range(9)}
+    info_b = {f"r{i:03d}": {"driver": f"e{i % 4}"} for i in range(8)}
+    a, b = _set(rng, 9, 5, info=info_a), _set(rng, 8, 5, info=info_b)
+    grouped = build_design(a, b, group_by="driver")
+    assert (grouped.units_a, grouped.n_units) == (3, 7)
+    assert grouped.unit_of_run.tolist() == [0, 1, 2] * 3 + [3, 4, 5, 6] * 2
+    b9 = _set(rng, 9, 5, ids=[f"r{i:03d}" for i in reversed(range(9))])
+    paired = build_design(a, b9, pair_by="run_id")
+    assert paired.unit_of_run[9:].tolist() == [9 + i for i in reversed(range(9))]
+    flips = paired.assignments(50, np.random.default_rng(1))[1:]
+    assert (flips[:, :9] != flips[:, 9:]).all()  # one member of each pair per side
+    assert paired.smallest_pvalue == 2.0**-9
+
+
+@pytest.mark.parametrize("case, message", [
+    ("missing", "has no partner for 'r004'"),
+    ("duplicate", "repeats the pair key"),
+    ("group_absent", "group-by 'driver': <memory> has no per-run facts"),
+    ("margin", "must be a number > 0"),
+    ("both", "cannot be combined"),
+    ("input_unknown", "is not one of the features"),
+])
+def test_bad_design_one_line(case, message):
+    rng = np.random.default_rng(0)
+    a = _set(rng, 5, 6, info={f"r{i:03d}": {"driver": "d"} for i in range(5)})
+    b = _set(rng, 5, 6)
+    kwargs = dict(features=["x", "u"], test="response", permutations=19, seed=0)
+    if case == "missing":
+        b = _set(rng, 4, 6)
+        kwargs["pair_by"] = "run_id"
+    elif case == "duplicate":
+        info = {f"r{i:03d}": {"scenario": "same"} for i in range(5)}
+        a = b = _set(rng, 5, 6, info=info)
+        kwargs["pair_by"] = "scenario"
+    elif case == "group_absent":
+        kwargs["group_by"] = "driver"
+    elif case == "margin":
+        kwargs["margin"] = {"x": 0.0}
+    elif case == "both":
+        kwargs.update(pair_by="run_id", group_by="driver")
+    else:
+        kwargs["inputs"] = ["w"]
+    with pytest.raises(OptionError, match=message) as error:
+        compare(a, b, **kwargs)
+    assert "\n" not in str(error.value)
+
+
+def test_cli_bad_margin_exit_2(tmp_path):
+    from typer.testing import CliRunner
+
+    from simcred.cli import app
+
+    rng = np.random.default_rng(0)
+    _set(rng, 6, 5).write(tmp_path / "a.parquet")
+    _set(rng, 6, 5).write(tmp_path / "b.parquet")
+    result = CliRunner().invoke(app, ["compare", str(tmp_path / "a.parquet"),
+                                      str(tmp_path / "b.parquet"), "--test", "response",
+                                      "--margin", "x=-1", "-f", "x,u"])
+    assert result.exit_code == 2
+    assert result.output.strip().count("\n") == 0 and "margin" in result.output
+
+
+def test_warns_when_the_design_cannot_reject():
+    rng = np.random.default_rng(0)
+    a, b = _set(rng, 4, 30), _set(rng, 4, 30)
+    result = compare(a, b, features=["x"], test="response", pair_by="run_id", alpha=0.05,
+                     permutations=99, seed=1, bootstrap=20)
+    assert result.response.design.smallest_pvalue == 1 / 16
+    assert any("cannot reject" in w for w in result.response.warnings)
+
+
+def test_injected_bias_is_recovered_and_detected():
+    rng = np.random.default_rng(5)
+    a, b = _set(rng, 60, 40), _set(rng, 60, 40, shift=0.5)
+    result = compare(a, b, features=["x"], test="response", permutations=199, seed=2,
+                     alpha=0.01, bootstrap=300, margin=0.1)
+    effect = result.response.effect.features[0]
+    assert result.chain.rejected
+    assert effect.shift_low < -0.2 < effect.shift_high or effect.shift < 0
+    assert effect.low > 0.1 and effect.equivalent is False
+
+
+def test_same_model_is_not_shown_different_and_json_is_deterministic():
+    a, b = traits(np.random.default_rng(11)), traits(np.random.default_rng(12))
+    first = compare(a, b, test="response", bins=4, permutations=99, seed=3, bootstrap=50)
+    again = compare(a, b, test="response", bins=4, permutations=99, seed=3, bootstrap=50)
+    assert first.to_json() == again.to_json()
+    body = json.loads(first.to_json())
+    assert list(body)[list(body).index("options") + 1:][:2] == ["chain", "response"]
+    assert body["response"]["design"]["kind"] == "runs"
+    assert {t["name"] for t in body["response"]["scenario"]} == {"start", "occupancy",
+                                                                  "lengths"}
