@@ -88,7 +88,7 @@ def test_statistic_equals_literal_computation():
     sums = unit_sums(data, features, 10)
     assignment = np.zeros((1, 10), dtype=bool)
     assignment[0, [0, 2, 3, 7]] = True
-    stats, m, n = assignment_statistics(sums, assignment, 1)
+    stats, _, m, n = assignment_statistics(sums, assignment, 1)
     for s in range(2):
         here = data.state == s
         side = assignment[0][data.unit[here]]

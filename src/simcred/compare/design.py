@@ -27,6 +27,7 @@ References
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -60,6 +61,7 @@ class Design:
     unit_of_run: np.ndarray
     units_a: int
     labels: tuple[str, ...]
+    strata: np.ndarray | None = None  # per unit; the null permutes within strata
 
     @property
     def n_units(self) -> int:
@@ -69,13 +71,6 @@ class Design:
     def observed(self) -> np.ndarray:
         """The observed assignment: True for A's units."""
         return np.arange(self.n_units) < self.units_a
-
-    @property
-    def distinct_assignments(self) -> float:
-        """How many assignments the null has (float: it may be astronomically large)."""
-        if self.kind is DesignKind.PAIRS:
-            return 2.0 ** self.units_a
-        return float(math.comb(self.n_units, self.units_a))
 
     @property
     def smallest_pvalue(self) -> float:
@@ -90,10 +85,39 @@ class Design:
             flip = rng.random((permutations, self.units_a)) < 0.5
             rows[1:, :self.units_a] = ~flip
             rows[1:, self.units_a:] = flip
-        else:
+        elif self.strata is None:
             pattern = np.broadcast_to(self.observed, (permutations, self.n_units))
             rows[1:] = rng.permuted(pattern, axis=1)
+        else:
+            for stratum in np.unique(self.strata):
+                members = np.flatnonzero(self.strata == stratum)
+                pattern = np.broadcast_to(self.observed[members], (permutations, len(members)))
+                rows[1:, members] = rng.permuted(pattern, axis=1)
         return rows
+
+    def stratified(self, unit_inputs: np.ndarray, per_input: int) -> Design:
+        """This design with strata of units whose mean inputs fall into the same
+        equal-frequency bins (``per_input`` per input column of ``unit_inputs``)."""
+        if self.kind is DesignKind.PAIRS or unit_inputs.shape[1] == 0:
+            return self
+        codes = np.zeros(self.n_units, dtype=np.int64)
+        for column in unit_inputs.T:
+            edges = np.unique(np.quantile(column, np.arange(1, per_input) / per_input))
+            codes = codes * per_input + np.searchsorted(edges, column, side="right")
+        return dataclasses.replace(self, strata=codes)
+
+    @property
+    def distinct_assignments(self) -> float:
+        """How many assignments the null has (float: it may be astronomically large)."""
+        if self.kind is DesignKind.PAIRS:
+            return 2.0 ** self.units_a
+        if self.strata is None:
+            return float(math.comb(self.n_units, self.units_a))
+        total = 1.0
+        for stratum in np.unique(self.strata):
+            members = self.strata == stratum
+            total *= math.comb(int(members.sum()), int(self.observed[members].sum()))
+        return total
 
     def resamples(self, replicates: int, rng: np.random.Generator) -> np.ndarray:
         """(units, B) multiplicities of a cluster bootstrap: units drawn with replacement within

@@ -48,6 +48,9 @@ from simcred.compare.runs import (
 )
 from simcred.compare.transitions import Transitions
 
+#: The comparison's resolution: residuals get N(0, (RESOLUTION · spread)²) noise, spread = the
+#: pooled standard deviation of the raw response (see response_test).
+RESOLUTION = 0.02
 #: Random Fourier features of the Gaussian kernel on the residuals.
 FOURIER = 16
 #: Each feature value is rounded to a multiple of 1 / LEVELS (integer sums, exact products).
@@ -135,8 +138,11 @@ def unit_sums(data: Transitions, columns: np.ndarray, n_units: int) -> RunCounts
                      np.zeros(len(blocks) * width, dtype=np.int64))
 
 
+STATE_RANK = 16
+
+
 def response_test(data: Transitions, n_units: int, assignments: np.ndarray,
-                  rng: np.random.Generator) -> ResponseOutcome:
+                  rng: np.random.Generator, vectors=None) -> ResponseOutcome:
     """The response test of every state and of the chain (module docs).
 
     ``assignments``: (P + 1, units) bool, row 0 the observed one (:meth:`Design.assignments`);
@@ -147,12 +153,20 @@ def response_test(data: Transitions, n_units: int, assignments: np.ndarray,
     speed) adds one standardised term, not its raw spread. A state's verdict is that of its
     most significant feature.
     """
-    features, sigma = fourier_features(data.residual, rng)
+    dither = RESOLUTION * data.spread if data.spread is not None else 0.0
+    features, sigma = fourier_features(
+        data.residual + dither * rng.normal(size=data.residual.shape), rng)
     sums = unit_sums(data, features, n_units)
     n_features = len(data.response)
-    stats, m, n = assignment_statistics(sums, assignments, n_features)
+    totals = np.bincount(np.searchsorted(sums.blocks, data.state), minlength=len(sums.blocks))
+    basis = state_basis(vectors(sums.blocks), totals / totals.sum(), STATE_RANK) \
+        if CHAIN == "smooth" and vectors is not None else None
+    stats, pooled, m, n = assignment_statistics(sums, assignments, n_features,
+                                                state_variances(data.state, features), basis)
     z, in_family = standardise(stats, OneSided.NEUTRAL)
-    chain = z[:, in_family].sum(axis=1)
+    weight = np.repeat(np.sqrt((m + n).astype(float)), n_features)
+    chain = _chain(z[:, in_family], standardise(pooled, OneSided.NEUTRAL)[0],
+                   weight[in_family])
     adjusted = exceedance_pvalues(row_max(z[:, in_family])[:, None], z[0])
     adjusted[~in_family] = 1.0
     per_state = (len(sums.blocks), n_features)
@@ -165,40 +179,111 @@ def response_test(data: Transitions, n_units: int, assignments: np.ndarray,
         permutations=len(assignments) - 1, bandwidth=sigma)
 
 
-def assignment_statistics(sums: RunCounts, assignments: np.ndarray, n_features: int
-                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(P + 1, blocks · features) statistics ``T_s,j`` of every assignment, and the observed m, n
-    per block."""
+CHAIN = "pooled"
+
+
+def _chain(z_states: np.ndarray, z_pooled: np.ndarray, weight) -> np.ndarray:
+    if CHAIN == "states":
+        return z_states.sum(axis=1)
+    if CHAIN == "weighted":
+        return z_states @ weight
+    if CHAIN == "weighted_n":
+        return z_states @ weight**2
+    if CHAIN in ("pooled", "smooth"):
+        return z_pooled.sum(axis=1)
+    ranks = [_pvalue_of_each_row(c) for c in (z_states.sum(axis=1), z_pooled.sum(axis=1))]
+    return -np.minimum(*ranks)
+
+
+def _pvalue_of_each_row(values: np.ndarray) -> np.ndarray:
+    """Permutation p-value of every row against all rows (Tippett's combination needs them)."""
+    order = np.sort(values)
+    return 1.0 - np.searchsorted(order, values, side="left") / len(values)
+
+
+def state_variances(state: np.ndarray, features: np.ndarray) -> np.ndarray:
+    """(blocks, features) pooled within-state variance ``E‖φ_j‖² − ‖Eφ_j‖²`` of the Fourier
+    features of every response feature (``state`` sorted, blocks in order; label-free)."""
+    bounds = np.r_[0, np.flatnonzero(np.diff(state)) + 1, len(state)]
+    phi = features[:, 1:] / LEVELS
+    mean = np.add.reduceat(phi, bounds[:-1], axis=0) / np.diff(bounds)[:, None]
+    square = np.add.reduceat(phi**2, bounds[:-1], axis=0) / np.diff(bounds)[:, None]
+    variance = (square - mean**2).reshape(len(mean), -1, FOURIER).sum(axis=2)
+    return np.maximum(variance, 0.0)
+
+
+def state_basis(vectors: np.ndarray, weights: np.ndarray, rank: int) -> np.ndarray:
+    """(blocks, rank) factor ``U √Λ`` of the Gaussian kernel matrix between the states' bin-index
+    vectors (bandwidth: the weighted median distance between states), top ``rank`` eigenpairs."""
+    distance = np.sqrt(((vectors[:, None, :] - vectors[None, :, :]) ** 2).sum(axis=2))
+    pair_weight = np.outer(weights, weights)
+    order = np.argsort(distance, axis=None)
+    cumulative = np.cumsum(pair_weight.ravel()[order])
+    sigma = float(distance.ravel()[order][np.searchsorted(cumulative, cumulative[-1] / 2)])
+    sigma = sigma if sigma > 0 else 1.0
+    kernel = np.exp(-distance**2 / (2 * sigma**2))
+    values, vectors_ = np.linalg.eigh(kernel)
+    top = np.argsort(values)[::-1][:rank]
+    return vectors_[:, top] * np.sqrt(np.maximum(values[top], 0.0))
+
+
+def assignment_statistics(sums: RunCounts, assignments: np.ndarray, n_features: int,
+                          variances: np.ndarray | None = None, basis: np.ndarray | None = None
+                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Statistics of every assignment: (P + 1, blocks · features) per-state ``T_s,j``,
+    (P + 1, features) pooled ``T_j`` (studentised by ``variances``, (blocks, features)), and the
+    observed m, n per block."""
     product = SideCounts(sums)
     width = 1 + n_features * FOURIER
     totals = np.asarray(sums.matrix.sum(axis=1)).ravel()
     n_blocks = len(sums.blocks)
+    share = totals[0::width] / max(totals[0::width].sum(), 1.0)
     out = np.empty((len(assignments), n_blocks, n_features))
+    basis = np.ones((n_blocks, 1)) if basis is None else basis
+    pooled = np.zeros((basis.shape[1], n_features * FOURIER, len(assignments)))
+    spread = np.zeros((n_features, len(assignments)))
+    variances = np.ones((n_blocks, n_features)) if variances is None else variances
+    diagonal = (basis**2).sum(axis=1)
     batch = int(np.clip(BATCH_BUDGET // max(*sums.matrix.shape, 1), 8, 1024))
     for first, last, lo, hi in product.chunks:
         rows = product.rows(lo, hi)
         for start in range(0, len(assignments), batch):
             side_a = product.product(rows, assignments[start:start + batch])
             side_a = side_a.reshape(last - first, width, -1)
-            out[start:start + batch, first:last] = _statistic(
-                side_a, totals[lo:hi].reshape(last - first, width), n_features).transpose(2, 0, 1)
+            value, diff, inverse = _statistic(
+                side_a, totals[lo:hi].reshape(last - first, width), n_features)
+            out[start:start + batch, first:last] = value.transpose(2, 0, 1)
+            pooled[:, :, start:start + batch] += np.einsum(
+                "sq,s,sdb->qdb", basis[first:last], share[first:last], diff)
+            spread[:, start:start + batch] += np.einsum(
+                "s,sj,sb->jb", diagonal[first:last] * share[first:last] ** 2,
+                variances[first:last], inverse)
     observed = sums.matrix[0::width] @ assignments[0].astype(np.float64) if n_blocks \
         else np.zeros(0)
     total = totals[0::width]
-    return (out.reshape(len(assignments), -1), observed.astype(np.int64),
+    with np.errstate(invalid="ignore", divide="ignore"):
+        pooled_stat = ((pooled.reshape(len(basis.T), n_features, FOURIER, -1) ** 2)
+                       .sum(axis=(0, 2)) / LEVELS**2 / spread).T
+    return (out.reshape(len(assignments), -1), pooled_stat, observed.astype(np.int64),
             (total - observed).astype(np.int64))
 
 
-def _statistic(side_a: np.ndarray, totals: np.ndarray, n_features: int) -> np.ndarray:
-    """``m n / (m + n) · ‖μ_A,j − μ_B,j‖²`` per block, feature and assignment:
-    (blocks, features, batch)."""
+def _statistic(side_a: np.ndarray, totals: np.ndarray, n_features: int
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """``m n / (m + n) · ‖μ_A,j − μ_B,j‖²`` per block, feature and assignment
+    (blocks, features, batch), ``μ_A − μ_B`` (blocks, features · FOURIER, batch) and
+    ``1/m + 1/n`` (blocks, batch); both 0 where a side is empty."""
     m = side_a[:, 0, :]
     n = totals[:, :1] - m
+    empty = (m < 1) | (n < 1)
     with np.errstate(invalid="ignore", divide="ignore"):
         mean_a = side_a[:, 1:, :] / m[:, None, :]
         mean_b = (totals[:, 1:, None] - side_a[:, 1:, :]) / n[:, None, :]
-        squared = (mean_a - mean_b) ** 2
-        per_feature = squared.reshape(len(m), n_features, FOURIER, -1).sum(axis=2)
+        diff = mean_a - mean_b
+        per_feature = (diff**2).reshape(len(m), n_features, FOURIER, -1).sum(axis=2)
         value = (m * n / (m + n))[:, None, :] * per_feature / LEVELS**2
-    value[np.broadcast_to(((m < 1) | (n < 1))[:, None, :], value.shape)] = np.nan
-    return value
+    value[np.broadcast_to(empty[:, None, :], value.shape)] = np.nan
+    diff[np.broadcast_to(empty[:, None, :], diff.shape)] = 0.0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        inverse = np.where(empty, 0.0, 1.0 / m + 1.0 / n)
+    return value, diff, inverse

@@ -19,6 +19,7 @@ the fit are centred on their pooled mean instead.
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -28,6 +29,8 @@ from simcred.errors import OptionError
 
 #: Pooled transitions per fitted coefficient before a state gets its linear adjustment.
 PER_COEFFICIENT = 5
+GLOBAL = True
+CUBIC = True
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -42,6 +45,7 @@ class Transitions:
     unit: np.ndarray
     residual: np.ndarray
     response: tuple[str, ...]
+    spread: np.ndarray | None = None  # pooled standard deviation of the raw response rates
 
 
 def response_features(features: Sequence[str], inputs: Sequence[str]) -> tuple[str, ...]:
@@ -80,7 +84,7 @@ def transitions(parts: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray, np.nda
     order = np.lexsort((unit, state))
     state, unit = state[order], unit[order]
     residual = adjusted(state, covariates[order], rate[order])
-    return Transitions(state, unit, residual, response)
+    return Transitions(state, unit, residual, response, rate.std(axis=0))
 
 
 def _set_transitions(values, time, offsets, codes, history, out_j, in_j):
@@ -102,6 +106,11 @@ def adjusted(state: np.ndarray, covariates: np.ndarray, rate: np.ndarray) -> np.
     covariates (``state`` sorted): quadratic where the state has ``PER_COEFFICIENT`` transitions
     per coefficient, else linear, else its pooled mean."""
     residual = np.empty_like(rate)
+    if GLOBAL:
+        design = _polynomial(covariates, cubic=CUBIC)
+        if design is not None:
+            coef, *_ = np.linalg.lstsq(design, rate, rcond=None)
+            rate = rate - design @ coef
     bounds = np.r_[0, np.flatnonzero(np.diff(state)) + 1, len(state)]
     for lo, hi in zip(bounds[:-1], bounds[1:], strict=True):
         y = rate[lo:hi]
@@ -114,7 +123,7 @@ def adjusted(state: np.ndarray, covariates: np.ndarray, rate: np.ndarray) -> np.
     return residual
 
 
-def _polynomial(x: np.ndarray) -> np.ndarray | None:
+def _polynomial(x: np.ndarray, cubic: bool = False) -> np.ndarray | None:
     """``[1, z, z_i z_j]`` of the standardised covariates ``z`` (quadratic terms only with enough
     rows), or None when even a linear fit has too few rows."""
     centred = x - x.mean(axis=0)
@@ -127,4 +136,7 @@ def _polynomial(x: np.ndarray) -> np.ndarray | None:
     if n >= PER_COEFFICIENT * (1 + p + p * (p + 1) // 2):
         i, j = np.triu_indices(p)
         columns.append(z[:, i] * z[:, j])
+    if cubic and n >= PER_COEFFICIENT * (1 + p + p * (p + 1) // 2 + p * (p + 1) * (p + 2) // 6):
+        i, j, k = np.array([c for c in itertools.combinations_with_replacement(range(p), 3)]).T
+        columns.append(z[:, i] * z[:, j] * z[:, k])
     return np.hstack(columns)
