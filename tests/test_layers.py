@@ -207,3 +207,17 @@ def test_every_face_lists_names_that_exist(face):
     assert module.__all__, face
     missing = [name for name in module.__all__ if getattr(module, name, None) is None]
     assert not missing, f"{face}.__all__ lists missing names {missing}"
+
+
+# -- tests mirror the package: tests/<package>/test_*.py -----------------------------------------
+
+#: The only test modules at the top of tests/: whole-project checks (this file), and (allowed for
+#: now, to be moved to tests/compare/) the comparison's calibration and oracle suites.
+TOP_LEVEL_TESTS = {"test_layers.py", "test_calibration.py", "test_compare_oracle.py"}
+
+
+def test_package_tests_sit_in_their_package_folder():
+    tests = Path(__file__).resolve().parent
+    top = {p.name for p in tests.glob("test_*.py")}
+    assert top <= TOP_LEVEL_TESTS, (f"move {sorted(top - TOP_LEVEL_TESTS)} into "
+                                    "tests/<package>/ (git mv)")
