@@ -211,11 +211,11 @@ def test_every_face_lists_names_that_exist(face):
 
 # -- tests mirror the package: tests/<package>/test_*.py -----------------------------------------
 
-#: The only test modules at the top of tests/: whole-project checks (this file, test_docs.py),
-#: and (allowed for now, to be moved to tests/compare/) the comparison's calibration and oracle
-#: suites.
-TOP_LEVEL_TESTS = {"test_layers.py", "test_docs.py", "test_calibration.py",
-                   "test_compare_oracle.py"}
+#: The only test modules at the top of tests/: whole-project checks (this file, test_docs.py,
+#: test_wheel_install.py), and (allowed for now, to be moved to tests/compare/) the comparison's
+#: calibration and oracle suites.
+TOP_LEVEL_TESTS = {"test_layers.py", "test_docs.py", "test_wheel_install.py",
+                   "test_calibration.py", "test_compare_oracle.py"}
 
 
 def test_package_tests_sit_in_their_package_folder():
