@@ -4,10 +4,11 @@ monitor the resimulated runs and the variations of seed 002 against the validity
 
 The library is ``vehicle.yaml`` (SimpleCar/KS/ST, ideal vs scenario-based sensor, the AD
 function; test case ``cutin``), shipped as ``simcred.data``'s ``contracts/vehicle.yaml`` (the
-repository's ``examples/contracts/vehicle.yaml`` links to it). Monitored signals are derived from each run:
-``ego.v``, ``ego.a_long`` = dv/dt, ``ego.a_lat`` = v · dθ/dt and ``obj.range`` (centre distance
-to the TO); only the models' *assumptions* (their validity domains) are monitored, because a
-resimulation alone has no reality to measure the error metrics (``dyn.error``, ...) against.
+repository's ``examples/contracts/vehicle.yaml`` links to it). Monitored signals are derived
+from each run: ``ego.v``, ``ego.a_long`` = dv/dt, ``ego.a_lat`` = v · dθ/dt and ``obj.range``
+(centre distance to the TO); only the models' *assumptions* (their validity domains) are
+monitored, because a resimulation alone has no reality to measure the error metrics
+(``dyn.error``, ...) against.
 """
 
 from __future__ import annotations
