@@ -6,7 +6,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 DEMO_OUT ?= demo-out
 
-.PHONY: demo test test-fast bench lint clean
+.PHONY: demo test test-fast bench lint check-wheel clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -33,6 +33,10 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/reprocess.py
 	$(BIN)/python benchmarks/vary.py
 	$(BIN)/python benchmarks/sumo.py
+
+# pip install . (not editable) into a fresh venv; paper all + validate from outside the repo.
+check-wheel:
+	PYTHON=$(PYTHON) bash scripts/check_wheel_install.sh
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks

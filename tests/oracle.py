@@ -2,8 +2,9 @@
 Neurohr et al. 2023.
 
 Paper: seeds/000_8ef4c7b231790a1f.txt, sections IV (MMD, kernels, threshold) and V (process,
-eq. 6); precise reading: DESIGN.md, "seed 000 — comparison". The production code works on counts;
-this file works on individual samples, the slow and obvious way, so tests can compare the two.
+eq. 6); precise reading: docs/comparison.md, "The process" and "MMD, kernels, tests". The
+production code works on counts; this file works on individual samples, the slow and obvious way,
+so tests can compare the two.
 Only numpy/scipy.
 """
 
@@ -12,11 +13,12 @@ import math
 import numpy as np
 from scipy.spatial.distance import cdist
 
-K_BOUND = 1.0  # K = sup k(x, y) for all three kernels (DESIGN 5)
+K_BOUND = 1.0  # K = sup k(x, y) for all three kernels (docs/comparison.md: "MMD, kernels...")
 
 
 def literal_edges(a_runs, b_runs, bins):
-    """Equal-frequency binning on the pooled values of both sets (sec. V-A, Fig. 3; DESIGN 2).
+    """Equal-frequency binning on the pooled values of both sets (sec. V-A, Fig. 3;
+    docs/comparison.md, "The process", 2).
 
     Per feature j: np.unique(np.quantile(all values of feature j in A and B,
                                          [k/B for k = 1..B-1]))."""
@@ -33,7 +35,8 @@ def literal_states(run, edges):
 
 
 def literal_median_bandwidth(X, Y, metric):
-    """sigma = median of {||x - y|| : x in X, y in Y} with multiplicity (eqs. 3, 4; DESIGN 5).
+    """sigma = median of {||x - y|| : x in X, y in Y} with multiplicity (eqs. 3, 4;
+    docs/comparison.md, "MMD, kernels, tests").
 
     If the median is 0: median of the non-zero cross distances; if there is none, return None
     (X and Y are all one and the same point)."""

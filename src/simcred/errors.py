@@ -21,3 +21,8 @@ class TraceSetError(SimcredError):
 
 class OptionError(SimcredError):
     """An option is outside its domain (e.g. ``bins < 2``, ``alpha`` not in (0, 1))."""
+
+
+class MissingDependencyError(SimcredError):
+    """A program or package a command needs is not installed (e.g. SUMO): the message names it
+    and how to install it; a user's environment, not a defect of simcred."""

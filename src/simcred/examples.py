@@ -6,7 +6,7 @@ import numpy as np
 
 from simcred.kinematics import LANE_WIDTH
 from simcred.limits import check_count, check_finite
-from simcred.traces import TraceSet
+from simcred.traces import TraceSet, handed_over
 
 
 def lane_change_runs(
@@ -29,9 +29,9 @@ def lane_change_runs(
     heading = np.arctan2(np.gradient(y, dt, axis=1), speed)
     return TraceSet(
         signals=("x", "y", "v", "heading"),
-        time=np.tile(t, runs),
-        values=np.column_stack([x.ravel(), y.ravel(), np.repeat(speed.ravel(), steps),
-                                heading.ravel()]),
+        time=handed_over(np.tile(t, runs)),
+        values=handed_over(np.column_stack([x.ravel(), y.ravel(),
+                                            np.repeat(speed.ravel(), steps), heading.ravel()])),
         offsets=np.arange(runs + 1) * steps,
         run_ids=tuple(f"run_{i:04d}" for i in range(runs)),
         metadata={"model": "example.lane_change", "duration_scale": duration_scale, "dt": dt},

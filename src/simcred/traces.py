@@ -51,6 +51,49 @@ def _files() -> FileHandlers:
         raise RuntimeError("no TraceSet file formats registered: import simcred.io") from None
 
 
+def _writable_anywhere(array: np.ndarray) -> bool:
+    """Whether ``array`` or an array whose memory it views can still be written."""
+    while isinstance(array, np.ndarray):
+        if array.flags.writeable:
+            return True
+        array = array.base
+    return False
+
+
+def _kept(given: Any, dtype: type) -> np.ndarray:
+    """The read-only C-contiguous ``dtype`` array a TraceSet keeps for ``given``.
+
+    A new array (a list, another dtype, a strided view) is converted once and frozen. An array
+    used as is would be shared: it is kept only when no one can write it (read-only, and so is
+    all memory under it: another TraceSet's columns, :func:`handed_over` arrays, Arrow
+    buffers); a caller's writable array is copied, so the caller's array stays writable and
+    later writes to it do not reach the set.
+    """
+    array = np.ascontiguousarray(given, dtype=dtype)
+    shared = (np.may_share_memory(array, given) if isinstance(given, np.ndarray)
+              else array.base is not None)  # an array-like's own buffer
+    if shared:
+        if not _writable_anywhere(array):
+            return array
+        array = array.copy()
+    array.setflags(write=False)
+    return array
+
+
+def handed_over(array: np.ndarray) -> np.ndarray:
+    """``array``, made read-only with the memory under it, for a TraceSet to keep uncopied.
+
+    Only for arrays built to be handed to a :class:`TraceSet` that nothing else writes: a
+    TraceSet copies writable arrays (they are its caller's), so a constructor of fresh
+    columns hands them over instead of having them copied.
+    """
+    view: Any = array
+    while isinstance(view, np.ndarray):
+        view.setflags(write=False)
+        view = view.base
+    return array
+
+
 @dataclass(frozen=True, slots=True, eq=False)
 class TraceSet:
     """A set of runs: columnar storage of concatenated rows plus run offsets.
@@ -79,7 +122,9 @@ class TraceSet:
     Construction validates everything a comparison relies on: at least one run, at least two steps
     per run, finite values, strictly increasing time. Errors are one line naming the file, run,
     column and row (1-based data row, header excluded). Equality is identity; use
-    :meth:`equals` for content equality.
+    :meth:`equals` for content equality. The arrays are read-only; a caller's writable array is
+    copied (it stays writable, and writing it later does not change the set), a read-only one is
+    kept as it is (builders of fresh columns pass them through :func:`handed_over`).
     """
 
     signals: tuple[str, ...]
@@ -93,14 +138,12 @@ class TraceSet:
     _digest: str | None = field(default=None, init=False, repr=False)
 
     def __post_init__(self) -> None:
-        for name, array, dtype in (
+        for name, given, dtype in (
             ("time", self.time, np.float64),
             ("values", self.values, np.float64),
             ("offsets", self.offsets, np.int64),
         ):
-            array = np.ascontiguousarray(array, dtype=dtype)
-            array.setflags(write=False)
-            object.__setattr__(self, name, array)
+            object.__setattr__(self, name, _kept(given, dtype))
         object.__setattr__(self, "signals", tuple(self.signals))
         object.__setattr__(self, "run_ids", tuple(str(r) for r in self.run_ids))
         object.__setattr__(self, "run_sources", tuple(self.run_sources))
@@ -139,7 +182,8 @@ class TraceSet:
         values = np.empty((len(time), len(first)))
         for j, name in enumerate(first):
             values[:, j] = np.concatenate([np.asarray(run[name], dtype=np.float64) for run in runs])
-        return cls(tuple(first), time, values, offsets, tuple(ids), dict(metadata or {}), source)
+        return cls(tuple(first), handed_over(time), handed_over(values), offsets, tuple(ids),
+                   dict(metadata or {}), source)
 
     # -- access -------------------------------------------------------------------------------
 
@@ -323,8 +367,8 @@ def concat(parts: Sequence[TraceSet], *, source: str | None = None,
     sizes = np.cumsum([0] + [p.n_rows for p in parts[:-1]])
     return TraceSet(
         signals=first.signals,
-        time=np.concatenate([p.time for p in parts]),
-        values=np.concatenate([p.values for p in parts]),
+        time=handed_over(np.concatenate([p.time for p in parts])),
+        values=handed_over(np.concatenate([p.values for p in parts])),
         offsets=np.concatenate([[0]] + [p.offsets[1:] + s for p, s in zip(parts, sizes,
                                                                            strict=True)]),
         run_ids=tuple(r for p in parts for r in p.run_ids),
@@ -352,8 +396,8 @@ def take(traces: TraceSet, runs: Sequence[int], *, source: str | None = None) ->
         metadata[RUN_INFO] = {r: metadata[RUN_INFO][r] for r in ids if r in metadata[RUN_INFO]}
     return TraceSet(
         signals=traces.signals,
-        time=traces.time[rows],
-        values=traces.values[rows],
+        time=handed_over(traces.time[rows]),
+        values=handed_over(traces.values[rows]),
         offsets=np.concatenate([[0], np.cumsum(hi - lo)]),
         run_ids=ids,
         metadata=metadata,

@@ -1,12 +1,19 @@
 """Same inputs and seed ⇒ byte-identical outputs, for every command that writes files.
 
 Each writing command runs twice (small sizes) into two fresh outputs; every file of the two,
-figures and OpenSCENARIO included, must be equal byte for byte. A command of the app that takes
-``--out`` but has no entry here fails the coverage test, so a new command cannot skip this check.
+figures and OpenSCENARIO included, must be equal byte for byte. The two passes are two separate
+Python processes with different ``PYTHONHASHSEED`` (one process per pass runs every selected
+command, so the start-up is paid twice, not per command): an output that depends on the order of
+a set or dict of strings differs between them. A command of the app that takes ``--out`` but has
+no entry here fails the coverage test, so a new command cannot skip this check.
 """
 
 from __future__ import annotations
 
+import json
+import os
+import subprocess
+import sys
 from collections.abc import Callable
 from pathlib import Path
 
@@ -14,6 +21,7 @@ import numpy as np
 import pytest
 import typer
 
+import simcred
 from helpers import leaf_commands
 from simcred.cli import app, run
 from simcred.traces import TraceSet
@@ -94,28 +102,71 @@ def inputs(tmp_path_factory) -> dict[str, Path]:
     return v
 
 
+#: Hash seeds of the two passes (different, so string hashing orders sets differently).
+HASH_SEEDS = (1, 2)
+#: One pass: every command of a JSON list of argvs in this process; the exit codes as JSON.
+PASS = """
+import json, sys
+from simcred.cli import run
+cases = json.loads(open(sys.argv[1]).read())
+codes = {name: run(["--quiet", *argv]) for name, argv in cases.items()}
+open(sys.argv[2], "w").write(json.dumps(codes))
+"""
+
+
+def _selected(request) -> list[str]:
+    """The cases of the byte-identity test that this session runs (all, or those of ``-k``)."""
+    test = test_same_inputs_and_seed_give_byte_identical_outputs.__name__
+    return sorted({item.callspec.params["name"] for item in request.session.items
+                   if getattr(item, "originalname", None) == test}) or sorted(CASES)
+
+
+@pytest.fixture(scope="module")
+def passes(inputs, request, tmp_path_factory) -> dict[str, list[tuple[int, Path]]]:
+    """Both passes, as two processes with different hash seeds run side by side: per case, the
+    exit code and output path of each."""
+    root = tmp_path_factory.mktemp("passes")
+    names = _selected(request)
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1",  # the simcred this session imports
+           "PYTHONPATH": os.pathsep.join([str(Path(simcred.__file__).parents[1]),
+                                          os.environ.get("PYTHONPATH", "")])}
+    argvs, started = [], []
+    for k, hash_seed in enumerate(HASH_SEEDS, 1):
+        argvs.append({n: CASES[n](inputs, root / f"out{k}" / n.replace(" ", "-")) for n in names})
+        (root / f"cases{k}.json").write_text(json.dumps(argvs[-1]))
+        with (root / f"stderr{k}.txt").open("w") as stderr:
+            started.append(subprocess.Popen(
+                [sys.executable, "-c", PASS, str(root / f"cases{k}.json"),
+                 str(root / f"codes{k}.json")],
+                env={**env, "PYTHONHASHSEED": str(hash_seed)}, stderr=stderr))
+    for k, process in enumerate(started, 1):
+        assert process.wait(timeout=1200) == 0, \
+            f"pass {k} failed: {(root / f'stderr{k}.txt').read_text()[-3000:]}"
+    codes = [json.loads((root / f"codes{k}.json").read_text()) for k in (1, 2)]
+    return {n: [(codes[i][n], _output(argvs[i][n])) for i in (0, 1)] for n in names}
+
+
 def _files(out: Path) -> dict[str, bytes]:
     if out.is_file():
         return {"": out.read_bytes()}
     return {str(p.relative_to(out)): p.read_bytes() for p in sorted(out.rglob("*")) if p.is_file()}
 
 
-def _output(argv: list[str], out: Path) -> Path:
+def _output(argv: list[str]) -> Path:
     """The path the command wrote: ``--out``'s value, or convert's target."""
     return Path(argv[argv.index("--out") + 1]) if "--out" in argv else Path(argv[-1])
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(CASES))
-def test_same_inputs_and_seed_give_byte_identical_outputs(name, inputs, tmp_path):
+def test_same_inputs_and_seed_give_byte_identical_outputs(name, passes):
     written = []
-    for k in (1, 2):
-        argv = CASES[name](inputs, tmp_path / f"out{k}")
-        code = run(["--quiet", *argv])
-        assert code in (0, 1), (argv, code)  # 1 = a verdict ("differs"), not a failure
-        written.append(_files(_output(argv, tmp_path / f"out{k}")))
+    for code, out in passes[name]:
+        assert code in (0, 1), (name, out, code)  # 1 = a verdict ("differs"), not a failure
+        written.append(_files(out))
     first, second = written
     assert first, f"{name} wrote nothing"
     assert first.keys() == second.keys()
     differing = [path for path in first if first[path] != second[path]]
-    assert not differing, f"{name}: {differing} differ between two identical runs"
+    assert not differing, (f"{name}: {differing} differ between two identical runs "
+                           f"(processes with PYTHONHASHSEED {HASH_SEEDS})")

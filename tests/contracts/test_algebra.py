@@ -1,5 +1,6 @@
-"""Contract algebra (seed 003, sec. III; DESIGN.md "seed 003"): laws on random linear contracts,
-verdicts against closed forms and a brute-force oracle, counterexamples checked by evaluation.
+"""Contract algebra (seed 003, sec. III; docs/contracts.md "Algebra"): laws on random linear
+contracts, verdicts against closed forms and a brute-force oracle, counterexamples checked by
+evaluation.
 
 Oracles (all but the last check of receptiveness independent of z3):
 
@@ -719,7 +720,7 @@ def test_timeouts_give_unknown_or_a_sound_answer_and_never_raise():
 
 
 def test_operations_follow_the_saturated_definitions():
-    """The ASTs the operations build, against the formulas of DESIGN.md "seed 003"."""
+    """The ASTs the operations build, against the formulas of docs/contracts.md "Algebra"."""
     c1 = Contract.from_strings("u >= 0", "y <= u")
     c2 = Contract.from_strings("y >= 0", "z == y")
     g1, g2 = implies(c1.assumption, c1.guarantee), implies(c2.assumption, c2.guarantee)

@@ -4,6 +4,7 @@ monitors; and the combined claims of `paper all`."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -68,3 +69,13 @@ def test_monitored_signals_are_derived_from_the_run():
     np.testing.assert_allclose(signals["ego.a_long"], -3.0, atol=1e-9)
     np.testing.assert_allclose(signals["ego.a_lat"], 0.1 * (20 - 3 * t), atol=1e-9)
     np.testing.assert_allclose(signals["obj.range"], np.hypot(30.0, 4.0), atol=1e-9)
+
+
+def test_the_library_ships_with_the_package_and_the_example_is_that_file():
+    """`simcred paper 003|all` from a wheel: the library is package data, not a repository file
+    (tests/test_wheel_install.py runs it from a real non-editable install)."""
+    package = Path(seed003.__file__).resolve().parents[1]
+    assert seed003.LIBRARY.is_file()
+    assert package in seed003.LIBRARY.parents, seed003.LIBRARY  # not examples/ beside src/
+    example = package.parents[1] / "examples" / "contracts" / "vehicle.yaml"
+    assert example.resolve() == seed003.LIBRARY.resolve()  # one file, linked: nothing can drift

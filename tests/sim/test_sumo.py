@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 import pytest
 
-from simcred.errors import OptionError, TraceSetError
+from simcred.errors import MissingDependencyError, OptionError, TraceSetError
 from simcred.io.openacc import read_openacc
 from simcred.sim.sumo import (
     FOLLOWER_START,
@@ -14,6 +16,7 @@ from simcred.sim.sumo import (
     episode_seed,
     parse_model,
     replay,
+    require_sumo,
     write_replays,
 )
 from simcred.traces import RUN_INFO, TraceSet, take
@@ -145,3 +148,37 @@ def test_cli_sumo_following(real, tmp_path, capsys):
     assert run(["simulate", "sumo-following", str(src), "--out", str(tmp_path / "p"),
                 "--models", "Gipps"]) == 2
     assert "must be one of" in capsys.readouterr().err
+
+
+def _episodes() -> TraceSet:
+    t = np.arange(5) * 0.1
+    return TraceSet.from_runs([{"t": t, "gap": np.full(5, 20.0), "v": np.full(5, 10.0),
+                                "v_leader": np.full(5, 10.0)}], run_ids=["e"])
+
+
+def test_a_missing_libsumo_is_one_user_error_line_naming_what_to_install(tmp_path, capsys,
+                                                                          monkeypatch):
+    from simcred.cli import run
+
+    src = _episodes().write(tmp_path / "episodes.parquet")
+    monkeypatch.setitem(sys.modules, "libsumo", None)  # `import libsumo` raises ImportError
+    code = run(["simulate", "sumo-following", str(src), "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err.strip()
+    assert code == 2, err
+    assert len(err.splitlines()) == 1 and "internal error" not in err
+    assert "SUMO is not installed" in err and "pip install eclipse-sumo libsumo" in err
+    with pytest.raises(MissingDependencyError, match="libsumo"):
+        replay(_episodes(), ["IDM"])
+
+
+def test_a_missing_netconvert_names_eclipse_sumo(monkeypatch):
+    import importlib.metadata
+    import shutil
+
+    def absent(name):
+        raise importlib.metadata.PackageNotFoundError(name)
+
+    monkeypatch.setattr(importlib.metadata, "distribution", absent)
+    monkeypatch.setattr(shutil, "which", lambda name: None)
+    with pytest.raises(MissingDependencyError, match="netconvert .*pip install eclipse-sumo"):
+        require_sumo()

@@ -2,7 +2,7 @@
 al. 2018), decided with z3.
 
 A contract is C = (A, G) over declared variables; its saturation is (A, A → G). With saturated
-guarantees G' (DESIGN.md "seed 003"):
+guarantees G' (docs/contracts.md, "Algebra"):
 
 * refinement  C2 ≼ C1  iff  A1 → A2  and  G2' → G1'  are valid;
 * composition C1 ⊗ C2 = (A1 ∧ A2 ∨ ¬(G1' ∧ G2'),  G1' ∧ G2');

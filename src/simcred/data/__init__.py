@@ -3,6 +3,8 @@
 - ``openacc/``: JRC OpenACC car following on the ZalaZONE test track (Makridis et al. 2021), one
   zstd Parquet file per recording with time, speeds and gaps; CC BY 4.0.
 - ``a9/``: the OSC-Generator A9 highway recording (sensor-data CSV, 10 Hz); Apache-2.0.
+- ``contracts/vehicle.yaml``: the contract library of ``simcred paper 003`` (SimpleCar/KS/ST,
+  sensors, the AD function); ``examples/contracts/vehicle.yaml`` in the repository links here.
 
 Each folder holds its licence and attribution next to the data. :func:`path` gives the file of a
 name relative to this package (``path("a9/trajectories_file.csv")``); the command line offers the

@@ -22,7 +22,7 @@ import pyarrow.csv as pacsv
 from simcred._json import read_json
 from simcred.errors import TraceSetError
 from simcred.io._columns import float_column
-from simcred.traces import TIME, TraceSet, _check_same_signals
+from simcred.traces import TIME, TraceSet, _check_same_signals, handed_over
 
 METADATA_FILE = "traceset.json"
 MAX_COLUMNS = 10_000
@@ -102,8 +102,8 @@ def read(directory: Path) -> TraceSet:
         lengths.append(table.num_rows)
     return TraceSet(
         signals=tuple(signals or ()),
-        time=np.concatenate(times),
-        values=np.concatenate(blocks),
+        time=handed_over(np.concatenate(times)),
+        values=handed_over(np.concatenate(blocks)),
         offsets=np.concatenate([[0], np.cumsum(lengths)]),
         run_ids=tuple(p.stem for p in files),
         metadata=_read_metadata(directory),

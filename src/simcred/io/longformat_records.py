@@ -18,7 +18,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 
 from simcred.errors import OptionError, TraceSetError
-from simcred.traces import TIME, TraceSet
+from simcred.traces import TIME, TraceSet, handed_over
 
 OBJECTS_AS = ("signals", "runs")
 MISSING = ("error", "intersect")
@@ -148,8 +148,8 @@ def to_traceset(records: Records, *, objects_as: str = "signals", missing: str =
         raise TraceSetError(f"{records.where}: no run has two time steps or more")
     return TraceSet(
         signals=tuple(signals),
-        time=np.concatenate(times),
-        values=np.concatenate(blocks),
+        time=handed_over(np.concatenate(times)),
+        values=handed_over(np.concatenate(blocks)),
         offsets=np.concatenate([[0], np.cumsum([len(t) for t in times])]),
         run_ids=tuple(kept),
         metadata=meta,

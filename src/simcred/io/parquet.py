@@ -18,7 +18,7 @@ from simcred._json import loads
 from simcred.errors import TraceSetError
 from simcred.io._columns import float_column
 from simcred.io._paths import local
-from simcred.traces import TIME, TraceSet
+from simcred.traces import TIME, TraceSet, handed_over
 
 RUN = "run"
 METADATA_KEY = b"simcred"
@@ -51,8 +51,8 @@ def read(path: Path) -> TraceSet:
     lengths = np.bincount(run_of_row, minlength=len(ids))
     return TraceSet(
         signals=tuple(signals),
-        time=float_column(table, TIME, str(path))[rows],
-        values=values,
+        time=handed_over(float_column(table, TIME, str(path))[rows]),
+        values=handed_over(values),
         offsets=np.concatenate([[0], np.cumsum(lengths)]),
         run_ids=ids,
         metadata=_metadata(table, path),

@@ -2,11 +2,13 @@
 for the test case, derive what a missing dynamics model must satisfy when ST is removed, and
 monitor the resimulated runs and the variations of seed 002 against the validity domains.
 
-The library is ``examples/contracts/vehicle.yaml`` (SimpleCar/KS/ST, ideal vs scenario-based
-sensor, the AD function; test case ``cutin``). Monitored signals are derived from each run:
-``ego.v``, ``ego.a_long`` = dv/dt, ``ego.a_lat`` = v · dθ/dt and ``obj.range`` (centre distance
-to the TO); only the models' *assumptions* (their validity domains) are monitored, because a
-resimulation alone has no reality to measure the error metrics (``dyn.error``, ...) against.
+The library is ``vehicle.yaml`` (SimpleCar/KS/ST, ideal vs scenario-based sensor, the AD
+function; test case ``cutin``), shipped as ``simcred.data``'s ``contracts/vehicle.yaml`` (the
+repository's ``examples/contracts/vehicle.yaml`` links to it). Monitored signals are derived
+from each run: ``ego.v``, ``ego.a_long`` = dv/dt, ``ego.a_lat`` = v · dθ/dt and ``obj.range``
+(centre distance to the TO); only the models' *assumptions* (their validity domains) are
+monitored, because a resimulation alone has no reality to measure the error metrics
+(``dyn.error``, ...) against.
 """
 
 from __future__ import annotations
@@ -30,10 +32,11 @@ from simcred.contracts.expr import Bool, to_text
 from simcred.contracts.library import Library
 from simcred.contracts.monitor import MonitorReport, monitor
 from simcred.contracts.project import project
+from simcred.data import path as data_path
 from simcred.paper.claims import Claim
 from simcred.traces import TIME, TraceSet
 
-LIBRARY = Path(__file__).resolve().parents[3] / "examples" / "contracts" / "vehicle.yaml"
+LIBRARY = data_path("contracts/vehicle.yaml")
 TEST_CASE = "cutin"
 REMOVED = "ST"
 MONITORED_MODELS = ("KS", "ST", "scenario_sensor")

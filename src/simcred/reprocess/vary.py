@@ -46,7 +46,7 @@ from simcred.scenario.variation import (
 from simcred.sim.driver import DriverConfig
 from simcred.sim.resimulation import resimulate
 from simcred.sim.sensors import Sensor
-from simcred.traces import TIME, TraceSet, concat
+from simcred.traces import TIME, TraceSet, concat, handed_over
 
 REFERENCE = "original"
 
@@ -212,8 +212,8 @@ def _compare_to_original(runs: TraceSet, reference: TraceSet, c: VaryConfig) -> 
     step = max(1, int(round(c.risk_dt / c.dt)))
     varied = _subsample(runs, features, step)
     one = _subsample(reference, features, step)
-    copies = TraceSet(one.signals, np.tile(one.time, runs.n_runs),
-                      np.tile(one.values, (runs.n_runs, 1)),
+    copies = TraceSet(one.signals, handed_over(np.tile(one.time, runs.n_runs)),
+                      handed_over(np.tile(one.values, (runs.n_runs, 1))),
                       np.arange(runs.n_runs + 1) * one.n_rows,
                       tuple(f"original_{i}" for i in range(runs.n_runs)), {}, "original")
     return compare(varied, copies, features=features, bins=c.compare_bins,

@@ -43,7 +43,7 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 
 from simcred.engine import Engine, Progress, engine, shared
-from simcred.errors import OptionError, TraceSetError
+from simcred.errors import MissingDependencyError, OptionError, TraceSetError
 from simcred.limits import check_count
 from simcred.traces import RUN_INFO, TIME, TraceSet, concat
 
@@ -56,6 +56,7 @@ ROAD_SPEED = 36.11  # m/s (130 km/h): speed limit of the road, the followers' de
 FOLLOWER_START = 10.0  # m, lane position of the follower's front at the start
 LENGTH = 4.5  # m, both cars
 STEP_TOLERANCE = 1e-6  # s: every time step of an episode must equal the first within this
+INSTALL_SUMO = "eclipse-sumo libsumo"  # the pip packages of SUMO (pyproject.toml names them)
 _NAME_CHARS = set("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-")
 
 
@@ -137,9 +138,21 @@ def _libsumo():
     import contextlib
     import io
 
-    with contextlib.redirect_stdout(io.StringIO()):
-        import libsumo
+    try:
+        with contextlib.redirect_stdout(io.StringIO()):
+            import libsumo
+    except (ImportError, OSError) as exc:
+        raise MissingDependencyError(
+            f"SUMO is not installed: libsumo cannot be imported ({exc}); install it with "
+            f"'pip install {INSTALL_SUMO}'") from None
     return libsumo
+
+
+def require_sumo() -> None:
+    """Raise :class:`~simcred.errors.MissingDependencyError` (one line: what is missing, how to
+    install it) unless libsumo and netconvert are both there; replays check before they start."""
+    _libsumo()
+    _netconvert()
 
 
 def sumo_version() -> str:
@@ -179,7 +192,9 @@ def _netconvert() -> str:
         pass
     found = shutil.which("netconvert")
     if found is None:
-        raise RuntimeError("SUMO's netconvert not found: install eclipse-sumo")
+        raise MissingDependencyError(
+            "SUMO's netconvert is not installed: neither the eclipse-sumo package nor PATH has "
+            f"it; install it with 'pip install {INSTALL_SUMO}' (or put SUMO's bin/ on PATH)")
     return found
 
 
@@ -369,6 +384,7 @@ def replay(traces: TraceSet, models: Sequence[SumoModel | str], *, seed: int = 0
     if len(set(names)) != len(names):
         raise OptionError(f"SUMO model names repeat: {names}")
     plans = [Replay(traces, m, seed, chunk_size) for m in specs]
+    require_sumo()  # one line now, not a failed task on a worker
     if runner is None:
         with engine(workers, scheduler) as started:
             return replay(traces, specs, seed=seed, runner=started, chunk_size=chunk_size,

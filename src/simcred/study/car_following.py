@@ -49,7 +49,7 @@ from simcred.limits import check_count, check_finite
 from simcred.seeds import derive_seed
 from simcred.sim.sumo import replay, sumo_version
 from simcred.study.verdict import METHODS, CellVerdict, chain_verdict, check_test
-from simcred.traces import RUN_INFO, TIME, TraceSet, take
+from simcred.traces import RUN_INFO, TIME, TraceSet, handed_over, take
 
 BASELINE = "human vs human (random split)"
 BASELINE_CARS = "human vs human (split by car)"
@@ -282,7 +282,8 @@ def thin(traces: TraceSet, every: int) -> TraceSet:
                            zip(traces.offsets[:-1], traces.offsets[1:], strict=True)])
     lengths = np.array([len(range(lo, hi, every)) for lo, hi in
                         zip(traces.offsets[:-1], traces.offsets[1:], strict=True)])
-    return TraceSet(traces.signals, traces.time[rows], traces.values[rows],
+    return TraceSet(traces.signals, handed_over(traces.time[rows]),
+                    handed_over(traces.values[rows]),
                     np.concatenate([[0], np.cumsum(lengths)]), traces.run_ids,
                     traces.metadata, traces.source)
 

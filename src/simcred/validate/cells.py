@@ -19,7 +19,7 @@ from fractions import Fraction
 import numpy as np
 
 from simcred.contracts.expr import decimal_text
-from simcred.traces import TraceSet
+from simcred.traces import TraceSet, handed_over
 
 OUTSIDE = -1
 
@@ -120,7 +120,8 @@ def _subset(traces: TraceSet, parts: Sequence[tuple[int, int, str]], cell: int, 
             ) -> TraceSet:
     rows = np.concatenate([np.arange(a, b) for a, b, _ in parts])
     lengths = [b - a for a, b, _ in parts]
-    return TraceSet(traces.signals, traces.time[rows], traces.values[rows],
+    return TraceSet(traces.signals, handed_over(traces.time[rows]),
+                    handed_over(traces.values[rows]),
                     np.concatenate([[0], np.cumsum(lengths)]), tuple(n for _, _, n in parts),
                     dict(traces.metadata), f"{traces.source} [{grid.label(cell)}]")
 

@@ -1,4 +1,4 @@
-"""The user's loop (DESIGN.md): measurements → per-cell comparisons → learned domains →
+"""The user's loop (docs/validate.md): measurements → per-cell comparisons → learned domains →
 contracts → configuration → monitors → one verdict for the test case.
 
 Verdict of a candidate for the test case (its operating conditions, ``test_case.conditions``):

@@ -22,7 +22,7 @@ import numpy as np
 from simcred.seeds import stream
 from simcred.sim.campaign import run_id
 from simcred.sim.vehicles import SimpleCar, rk4_step
-from simcred.traces import TraceSet
+from simcred.traces import TraceSet, handed_over
 
 SPEED_MEAN, SPEED_AMPLITUDE, SPEED_PERIOD = 10.0, 3.0, 20.0  # m/s, m/s, s
 STEERING_AMPLITUDE, STEERING_PERIOD = 0.15, 10.0  # rad, s
@@ -78,8 +78,8 @@ def simulate(
     runs = len(indices)
     return TraceSet(
         signals=("x", "y", "heading", "v"),
-        time=np.tile(np.arange(steps) * dt, runs),
-        values=values.transpose(1, 0, 2).reshape(runs * steps, 4),
+        time=handed_over(np.tile(np.arange(steps) * dt, runs)),
+        values=handed_over(values.transpose(1, 0, 2).reshape(runs * steps, 4)),
         offsets=np.arange(runs + 1) * steps,
         run_ids=tuple(run_id(i) for i in indices),
         metadata={"model": "simplecar", "lambda": lam, "dt": dt, "duration": duration,

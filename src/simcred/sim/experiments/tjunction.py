@@ -63,7 +63,7 @@ from simcred.kinematics import LANE_WIDTH
 from simcred.seeds import stream
 from simcred.sim.campaign import run_id
 from simcred.sim.vehicles import SimpleCar, rk4_step
-from simcred.traces import TraceSet
+from simcred.traces import TraceSet, handed_over
 
 CATEGORIES = ("no-occlusion", "occlusion", "random")
 SIGNALS = ("ego.x", "ego.y", "ego.v", "ego.heading", "cyclist.x", "cyclist.y", "occluded",
@@ -360,8 +360,8 @@ def simulate(
     n = len(runs.parked)
     return TraceSet(
         signals=SIGNALS,
-        time=np.tile(np.arange(samples) * dt, n),
-        values=values.transpose(1, 0, 2).reshape(n * samples, len(SIGNALS)),
+        time=handed_over(np.tile(np.arange(samples) * dt, n)),
+        values=handed_over(values.transpose(1, 0, 2).reshape(n * samples, len(SIGNALS))),
         offsets=np.arange(n + 1) * samples,
         run_ids=tuple(run_id(i) for i in indices),
         metadata=metadata,
