@@ -18,12 +18,13 @@ from compare_designs import traits
 from simcred.compare import compare
 from simcred.compare.design import build_design
 from simcred.compare.response import (
+    BANDWIDTH_PAIRS,
     FOURIER,
     LEVELS,
+    RESOLUTION,
     assignment_statistics,
-    fourier_features,
+    kernel_sums,
     response_test,
-    unit_sums,
 )
 from simcred.compare.transitions import Transitions, adjusted
 from simcred.errors import OptionError
@@ -47,7 +48,8 @@ def _transitions(rng, units, per_unit, n_states=3):
     state = rng.integers(0, n_states, n)
     unit = np.repeat(np.arange(units), per_unit)
     order = np.lexsort((unit, state))
-    return Transitions(state[order], unit[order], rng.normal(size=(n, 1))[order], ("x",))
+    return Transitions(state[order], unit[order], rng.normal(size=(n, 1))[order], ("x",),
+                       np.array([1.0]))
 
 
 def _every_split(units_a, units):
@@ -82,22 +84,39 @@ def test_exact_by_enumeration(kind):
 
 
 def test_statistic_equals_literal_computation():
+    """Per state and for the pooled chain statistic, against a per-transition computation."""
     rng = np.random.default_rng(1)
     data = _transitions(rng, 10, 12, n_states=2)
-    features, _ = fourier_features(data.residual, np.random.default_rng(3))
-    sums = unit_sums(data, features, 10)
+    kernel = kernel_sums(data, 10, np.random.default_rng(3))
+    features = _literal_features(data, np.random.default_rng(3))
     assignment = np.zeros((1, 10), dtype=bool)
     assignment[0, [0, 2, 3, 7]] = True
-    stats, _, m, n = assignment_statistics(sums, assignment, 1)
+    stats, pooled, m, n = assignment_statistics(kernel.counts, assignment, 1, kernel.variances)
+    weighted, spread = np.zeros(FOURIER), 0.0
     for s in range(2):
         here = data.state == s
         side = assignment[0][data.unit[here]]
-        phi = features[here][:, 1:] / LEVELS
+        phi = features[here] / LEVELS
         diff = phi[side].mean(axis=0) - phi[~side].mean(axis=0)
         k, l_ = side.sum(), (~side).sum()
         assert (m[s], n[s]) == (k, l_)
         assert stats[0, s] == pytest.approx(k * l_ / (k + l_) * (diff @ diff), rel=1e-12)
-    assert features.shape[1] == 1 + FOURIER
+        share = here.mean()
+        weighted += share * diff
+        spread += share**2 * phi.var(axis=0).sum() * (1 / k + 1 / l_)
+    assert pooled[0, 0] == pytest.approx(weighted @ weighted / spread, rel=1e-10)
+
+
+def _literal_features(data, rng):
+    """The dithered Fourier features of every transition, one at a time (the same draws)."""
+    residual = data.residual + RESOLUTION * data.spread * rng.normal(size=data.residual.shape)
+    i, j = rng.integers(0, len(residual), (2, BANDWIDTH_PAIRS))
+    scale = residual[:, 0].std()
+    z = residual[:, 0] / scale
+    sigma = np.median(np.abs(z[i] - z[j]))
+    w, b = rng.normal(0.0, 1.0 / sigma, FOURIER), rng.uniform(0.0, 2 * np.pi, FOURIER)
+    return np.array([[np.rint(LEVELS * np.sqrt(2) * np.cos(zi * wk + bk))
+                      for wk, bk in zip(w, b, strict=True)] for zi in z])
 
 
 def test_quadratic_response_leaves_no_residual():

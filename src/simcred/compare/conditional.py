@@ -98,7 +98,7 @@ def response_comparison(parts, design: Design, space: StateSpace, options: Compa
                        options.history)
     assignments = design.assignments(options.permutations, stream(options.seed, ASSIGN_KEY))
     outcome = response_test(data, design.n_units, assignments,
-                            stream(options.seed, RESPONSE_KEY), space.vectors)
+                            stream(options.seed, RESPONSE_KEY))
     start, scenario = scenario_tests(parts, design, space, options, assignments)
     rate_units = {name: f"{units[name]}/s" if units.get(name) else "1/s"
                   for name in data.response}

@@ -27,7 +27,6 @@ References
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -61,7 +60,6 @@ class Design:
     unit_of_run: np.ndarray
     units_a: int
     labels: tuple[str, ...]
-    strata: np.ndarray | None = None  # per unit; the null permutes within strata
 
     @property
     def n_units(self) -> int:
@@ -72,11 +70,6 @@ class Design:
         """The observed assignment: True for A's units."""
         return np.arange(self.n_units) < self.units_a
 
-    @property
-    def smallest_pvalue(self) -> float:
-        """The smallest p-value any permutation test on this design can give (exact test)."""
-        return 1.0 / self.distinct_assignments
-
     def assignments(self, permutations: int, rng: np.random.Generator) -> np.ndarray:
         """(P + 1, units) bool: row 0 the observed assignment, then P draws from the null."""
         rows = np.empty((permutations + 1, self.n_units), dtype=bool)
@@ -85,39 +78,20 @@ class Design:
             flip = rng.random((permutations, self.units_a)) < 0.5
             rows[1:, :self.units_a] = ~flip
             rows[1:, self.units_a:] = flip
-        elif self.strata is None:
+        else:
             pattern = np.broadcast_to(self.observed, (permutations, self.n_units))
             rows[1:] = rng.permuted(pattern, axis=1)
-        else:
-            for stratum in np.unique(self.strata):
-                members = np.flatnonzero(self.strata == stratum)
-                pattern = np.broadcast_to(self.observed[members], (permutations, len(members)))
-                rows[1:, members] = rng.permuted(pattern, axis=1)
         return rows
 
-    def stratified(self, unit_inputs: np.ndarray, per_input: int) -> Design:
-        """This design with strata of units whose mean inputs fall into the same
-        equal-frequency bins (``per_input`` per input column of ``unit_inputs``)."""
-        if self.kind is DesignKind.PAIRS or unit_inputs.shape[1] == 0:
-            return self
-        codes = np.zeros(self.n_units, dtype=np.int64)
-        for column in unit_inputs.T:
-            edges = np.unique(np.quantile(column, np.arange(1, per_input) / per_input))
-            codes = codes * per_input + np.searchsorted(edges, column, side="right")
-        return dataclasses.replace(self, strata=codes)
-
     @property
-    def distinct_assignments(self) -> float:
-        """How many assignments the null has (float: it may be astronomically large)."""
+    def smallest_pvalue(self) -> float:
+        """The smallest p-value any permutation test on this design can give: one over the
+        number of distinct assignments (0.0 when that number overflows a float)."""
         if self.kind is DesignKind.PAIRS:
-            return 2.0 ** self.units_a
-        if self.strata is None:
-            return float(math.comb(self.n_units, self.units_a))
-        total = 1.0
-        for stratum in np.unique(self.strata):
-            members = self.strata == stratum
-            total *= math.comb(int(members.sum()), int(self.observed[members].sum()))
-        return total
+            return math.ldexp(1.0, -self.units_a)
+        n, k = self.n_units, self.units_a
+        log_count = math.lgamma(n + 1) - math.lgamma(k + 1) - math.lgamma(n - k + 1)
+        return math.exp(-log_count)
 
     def resamples(self, replicates: int, rng: np.random.Generator) -> np.ndarray:
         """(units, B) multiplicities of a cluster bootstrap: units drawn with replacement within
@@ -191,8 +165,9 @@ def _paired(a: TraceSet, b: TraceSet, key: str) -> Design:
     keys_a, keys_b = unit_keys(a, key, "pair-by"), unit_keys(b, key, "pair-by")
     for traces, keys in ((a, keys_a), (b, keys_b)):
         _check_unique(traces, keys, key)
-    missing_b = [k for k in keys_a if k not in set(keys_b)]
-    missing_a = [k for k in keys_b if k not in set(keys_a)]
+    set_a, set_b = set(keys_a), set(keys_b)
+    missing_b = [k for k in keys_a if k not in set_b]
+    missing_a = [k for k in keys_b if k not in set_a]
     if missing_b or missing_a:
         where, k = (b.source, missing_b[0]) if missing_b else (a.source, missing_a[0])
         raise OptionError(f"pair-by {key!r}: {where} has no partner for {k!r} "

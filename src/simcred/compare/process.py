@@ -188,7 +188,8 @@ def compare(
         continue_on_start_difference=continue_on_start_difference, stop_early=stop_early,
         inputs=inputs, pair_by=pair_by, group_by=group_by, margin=margin)
     prepared = [Prepared.of(traces, options.features, options.resample) for traces in (a, b)]
-    design = response_design(a, b, options) if Test(options.test) is Test.RESPONSE else None
+    design = build_design(a, b, pair_by=options.pair_by, group_by=options.group_by) \
+        if Test(options.test) is Test.RESPONSE else None
     units = dict(zip(options.features, feature_units(a, b, options.features), strict=True))
     result = with_units(compare_prepared(*prepared, options, progress, design, units), a, b)
     if relevance:
@@ -196,28 +197,6 @@ def compare(
 
         result = feature_relevance(result, *prepared)
     return result
-
-
-#: Response test with declared inputs: strata per input (equal-frequency bins of the units'
-#: mean input), inside which the null permutes.
-INPUT_STRATA = 4
-
-
-def response_design(a: TraceSet, b: TraceSet, options: ComparisonOptions) -> Design:
-    """The response test's design; with inputs and no pairs, stratified by the units' mean
-    inputs (units with similar inputs are exchanged, not a slow leader's run with a fast one's)."""
-    design = build_design(a, b, pair_by=options.pair_by, group_by=options.group_by)
-    if not options.inputs or not STRATIFY:
-        return design
-    means = np.vstack([np.add.reduceat(t.features(options.inputs), t.offsets[:-1], axis=0)
-                       / t.lengths[:, None] for t in (a, b)])
-    per_unit = np.stack([np.bincount(design.unit_of_run, weights=column,
-                                     minlength=design.n_units) for column in means.T], axis=1)
-    per_unit /= np.bincount(design.unit_of_run, minlength=design.n_units)[:, None]
-    return design.stratified(per_unit, INPUT_STRATA)
-
-
-STRATIFY = False
 
 
 def with_units(result: Comparison, a: TraceSet, b: TraceSet) -> Comparison:

@@ -9,12 +9,12 @@ For every transition ``t → t+1`` inside a run:
 * the **response** is the rate of change ``(y[t+1] − y[t]) / Δt`` of every feature that is not
   an input: what the model does in that situation, in the feature's unit per second.
 
-The response is then **adjusted** within each state by a pooled least-squares fit of a quadratic
-polynomial in the covariates (``residual = response − fit``; the fit uses both sets together and
-no labels, so the permutation null is untouched). Two sets that visit a bin in different places
-(other leaders, shorter runs, a start transient) then no longer differ for that reason alone, and
-a level or a change of level give the same residual. States with too few pooled transitions for
-the fit are centred on their pooled mean instead.
+The response is then **adjusted**: a pooled global cubic fit on the covariates, then within each
+state a pooled quadratic fit on what is left (``residual = response − fit``; both fits use both
+sets together and no labels, so the permutation null is untouched). Two sets that visit a bin in
+different places (other leaders, shorter runs, a start transient) then no longer differ for that
+reason alone, and a level or a change of level give the same residual. States with too few
+pooled transitions for a fit of their own are centred on their pooled mean.
 """
 
 from __future__ import annotations
@@ -29,8 +29,6 @@ from simcred.errors import OptionError
 
 #: Pooled transitions per fitted coefficient before a state gets its linear adjustment.
 PER_COEFFICIENT = 5
-GLOBAL = True
-CUBIC = True
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -102,15 +100,15 @@ def _set_transitions(values, time, offsets, codes, history, out_j, in_j):
 
 
 def adjusted(state: np.ndarray, covariates: np.ndarray, rate: np.ndarray) -> np.ndarray:
-    """Residuals of a pooled per-state least-squares fit of ``rate`` on a polynomial in the
-    covariates (``state`` sorted): quadratic where the state has ``PER_COEFFICIENT`` transitions
-    per coefficient, else linear, else its pooled mean."""
+    """Residuals of two pooled least-squares fits of ``rate`` (``state`` sorted): a global cubic
+    polynomial in the covariates (sparse states have too few transitions for a fit of their own),
+    then per state a quadratic polynomial on what is left where the state has
+    ``PER_COEFFICIENT`` transitions per coefficient, else linear, else its pooled mean."""
     residual = np.empty_like(rate)
-    if GLOBAL:
-        design = _polynomial(covariates, cubic=CUBIC)
-        if design is not None:
-            coef, *_ = np.linalg.lstsq(design, rate, rcond=None)
-            rate = rate - design @ coef
+    design = _polynomial(covariates, cubic=True)  # first a global fit: sparse states need it
+    if design is not None:
+        coef, *_ = np.linalg.lstsq(design, rate, rcond=None)
+        rate = rate - design @ coef
     bounds = np.r_[0, np.flatnonzero(np.diff(state)) + 1, len(state)]
     for lo, hi in zip(bounds[:-1], bounds[1:], strict=True):
         y = rate[lo:hi]
