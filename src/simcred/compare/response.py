@@ -166,55 +166,85 @@ class _FourierMap:
 
 
 def kernel_sums(data: Transitions, n_units: int, rng: np.random.Generator) -> KernelSums:
-    """Dithered residuals → Fourier features → per-(state, unit) sums, chunk by chunk (the
-    feature matrix of all transitions never exists)."""
+    """Dithered residuals → Fourier features → per-(state, unit) sums, state by state and chunk
+    by chunk (the feature matrix of all transitions never exists). The features are integers,
+    so every sum here is exact: pair sums are differences of a running sum, written straight
+    into the unit matrix."""
     spread = data.spread if data.spread is not None else np.zeros(data.residual.shape[1])
     residual = data.residual + RESOLUTION * spread * rng.normal(size=data.residual.shape)
     feature_map = _FourierMap(residual, rng)
     pairs = _Pairs.of(data)
-    n_pairs, n_blocks = len(pairs.state), len(pairs.blocks)
-    width = residual.shape[1] * FOURIER
-    sums = np.empty((n_pairs, 1 + width))
-    sums[:, 0] = np.diff(pairs.starts)
-    squares = np.zeros((n_blocks, width))
-    first = 0
-    while first < n_pairs:
-        last = int(np.searchsorted(pairs.starts, pairs.starts[first] + CHUNK, side="right"))
-        last = min(max(last - 1, first + 1), n_pairs)
-        lo, hi = pairs.starts[first], pairs.starts[last]
-        phi = feature_map(residual[lo:hi])
-        sums[first:last, 1:] = np.add.reduceat(phi, pairs.starts[first:last] - lo, axis=0)
-        np.add.at(squares, pairs.block[first:last],
-                  np.add.reduceat(phi * phi, pairs.starts[first:last] - lo, axis=0))
-        first = last
-    return KernelSums(_unit_matrix(pairs, sums, n_units),
-                      _variances(pairs, sums, squares), tuple(feature_map.bandwidth))
-
-
-def _variances(pairs: _Pairs, sums: np.ndarray, squares: np.ndarray) -> np.ndarray:
-    """(blocks, J) pooled within-state variance ``E‖φ_j‖² − ‖Eφ_j‖²`` (in units of LEVELS²)."""
-    totals = np.zeros((len(pairs.blocks), sums.shape[1]))
-    np.add.at(totals, pairs.block, sums)
+    n_blocks = len(pairs.blocks)
+    width = 1 + residual.shape[1] * FOURIER
+    layout = _Layout(pairs, width, n_units)
+    totals = np.zeros((n_blocks, width))
+    squares = np.zeros((n_blocks, width - 1))
+    for b in range(n_blocks):
+        p0, p1 = int(layout.first[b]), int(layout.first[b + 1])
+        view = layout.view(b)  # (width, pairs of block b)
+        view[0] = np.diff(pairs.starts[p0:p1 + 1])
+        first = p0
+        while first < p1:
+            last = int(np.searchsorted(pairs.starts, pairs.starts[first] + CHUNK, side="right"))
+            last = min(max(last - 1, first + 1), p1)
+            lo, hi = pairs.starts[first], pairs.starts[last]
+            phi = feature_map(residual[lo:hi])
+            running = np.empty((hi - lo + 1, width - 1))
+            running[0] = 0.0
+            np.cumsum(phi, axis=0, out=running[1:])
+            ends = pairs.starts[first:last + 1] - lo
+            view[1:, first - p0:last - p0] = (running[ends[1:]] - running[ends[:-1]]).T
+            squares[b] += np.einsum("ij,ij->j", phi, phi)
+            first = last
+        totals[b] = view.sum(axis=1)
     count = totals[:, :1]
     variance = squares / count - (totals[:, 1:] / count) ** 2
-    return np.maximum(variance.reshape(len(count), -1, FOURIER).sum(axis=2), 0.0) / LEVELS**2
+    variances = np.maximum(variance.reshape(n_blocks, -1, FOURIER).sum(axis=2), 0.0) / LEVELS**2
+    return KernelSums(layout.counts(), variances, tuple(feature_map.bandwidth))
 
 
-def _unit_matrix(pairs: _Pairs, sums: np.ndarray, n_units: int) -> RunCounts:
-    """The (blocks · width) × units sparse matrix of per-pair sums, one block per state."""
-    width = sums.shape[1]
-    rows = (pairs.block * width)[None, :] + np.arange(width)[:, None]
-    matrix = sp.csr_matrix((sums.T.ravel(), (rows.ravel(), np.tile(pairs.unit, width))),
-                           shape=(len(pairs.blocks) * width, n_units))
-    return RunCounts(matrix, pairs.blocks, np.arange(len(pairs.blocks) + 1) * width,
-                     np.zeros(len(pairs.blocks) * width, dtype=np.int64))
+class _Layout:
+    """The CSR arrays of the (blocks · width) × units matrix of per-pair sums: block ``b``'s
+    entries are one (width, pairs of b) array, row by row, each row's units ascending."""
+
+    def __init__(self, pairs: _Pairs, width: int, n_units: int) -> None:
+        n_blocks = len(pairs.blocks)
+        per_block = np.bincount(pairs.block, minlength=n_blocks)
+        self.first = np.r_[0, np.cumsum(per_block)]
+        nnz = len(pairs.unit) * width
+        index = np.int32 if max(nnz, n_units) < 2**31 else np.int64
+        self.data = np.empty(nnz)
+        self.indices = np.empty(nnz, dtype=index)
+        self.indptr = np.r_[0, np.cumsum(np.repeat(per_block, width))].astype(index)
+        self.pairs, self.width, self.n_units = pairs, width, n_units
+        for b in range(n_blocks):
+            self._segment(self.indices, b)[:] = pairs.unit[self.first[b]:self.first[b + 1]]
+
+    def _segment(self, array: np.ndarray, b: int) -> np.ndarray:
+        lo, hi = self.first[b] * self.width, self.first[b + 1] * self.width
+        return array[lo:hi].reshape(self.width, -1)
+
+    def view(self, b: int) -> np.ndarray:
+        """(width, pairs of block b): the writable entries of block ``b``."""
+        return self._segment(self.data, b)
+
+    def counts(self) -> RunCounts:
+        n_blocks = len(self.pairs.blocks)
+        matrix = sp.csr_matrix((self.data, self.indices, self.indptr),
+                               shape=(n_blocks * self.width, self.n_units))
+        return RunCounts(matrix, self.pairs.blocks, np.arange(n_blocks + 1) * self.width,
+                         np.zeros(n_blocks * self.width, dtype=np.int64))
 
 
 def unit_sums(data: Transitions, columns: np.ndarray, n_units: int) -> RunCounts:
     """Per state a block of ``columns.shape[1]`` rows, per unit the column sums over its
     transitions in that state: a sparse (blocks · width) × units matrix."""
     pairs = _Pairs.of(data)
-    return _unit_matrix(pairs, np.add.reduceat(columns, pairs.starts[:-1], axis=0), n_units)
+    sums = np.add.reduceat(columns, pairs.starts[:-1], axis=0)
+    layout = _Layout(pairs, columns.shape[1], n_units)
+    for b in range(len(pairs.blocks)):
+        layout.view(b)[:] = sums[layout.first[b]:layout.first[b + 1]].T
+    return layout.counts()
 
 
 def response_test(data: Transitions, n_units: int, assignments: np.ndarray,
