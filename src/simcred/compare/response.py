@@ -57,6 +57,7 @@ from simcred.compare.runs import (
     RunCounts,
     SideCounts,
     exceedance_pvalues,
+    is_paired,
     row_max,
     standardise,
 )
@@ -278,7 +279,7 @@ def assignment_statistics(sums: RunCounts, assignments: np.ndarray, n_features: 
                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Statistics of every assignment: (P + 1, blocks · features) per-state ``T_s,j``,
     (P + 1, features) pooled studentised ``T_j``, and the observed m, n per block."""
-    product = SideCounts(sums)
+    product = SideCounts(sums, paired=is_paired(assignments))
     width = 1 + n_features * FOURIER
     totals = np.asarray(sums.matrix.sum(axis=1)).ravel()
     share = totals[0::width] / max(totals[0::width].sum(), 1.0)
