@@ -96,17 +96,18 @@ class Design:
     def resamples(self, replicates: int, rng: np.random.Generator) -> np.ndarray:
         """(units, B) multiplicities of a cluster bootstrap: units drawn with replacement within
         each side, or whole pairs."""
-        weights = np.zeros((self.n_units, replicates))
-        for b in range(replicates):
+        picks = np.empty((replicates, self.n_units), dtype=np.int64)
+        n_b = self.n_units - self.units_a
+        for b in range(replicates):  # the draws of one replicate after another
             if self.kind is DesignKind.PAIRS:
-                picks = rng.integers(0, self.units_a, self.units_a)
-                np.add.at(weights[:, b], picks, 1.0)
-                np.add.at(weights[:, b], picks + self.units_a, 1.0)
+                picks[b, :self.units_a] = rng.integers(0, self.units_a, self.units_a)
+                picks[b, self.units_a:] = picks[b, :self.units_a] + self.units_a
                 continue
-            n_b = self.n_units - self.units_a
-            np.add.at(weights[:, b], rng.integers(0, self.units_a, self.units_a), 1.0)
-            np.add.at(weights[:, b], self.units_a + rng.integers(0, n_b, n_b), 1.0)
-        return weights
+            picks[b, :self.units_a] = rng.integers(0, self.units_a, self.units_a)
+            picks[b, self.units_a:] = self.units_a + rng.integers(0, n_b, n_b)
+        picks += self.n_units * np.arange(replicates)[:, None]
+        counts = np.bincount(picks.ravel(), minlength=replicates * self.n_units)
+        return counts.reshape(replicates, self.n_units).T.astype(np.float64)
 
 
 def build_design(a: TraceSet, b: TraceSet, *, pair_by: str | None = None,

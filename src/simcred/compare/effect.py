@@ -44,6 +44,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
 from scipy.stats import norm
 
 from simcred.compare.design import Design
@@ -133,8 +134,15 @@ def response_effects(data: Transitions, design: Design, replicates: int, alpha: 
 
 def _side_sums(matrix, weights: np.ndarray, in_a: np.ndarray, width: int) -> np.ndarray:
     """(blocks, width, k, 2) sums of the unit matrix over A's and B's units, each unit counted
-    ``weights[unit, r]`` times in replicate ``r``."""
-    sides = [np.asarray(matrix @ (weights * side[:, None])) for side in (in_a, 1 - in_a)]
+    ``weights[unit, r]`` times in replicate ``r``. ``in_a``: A's units first (the design's
+    order), so each side is one slice of the matrix's columns."""
+    units_a = int(in_a.sum())
+    if not in_a[:units_a].all():  # not the design's order: weight the whole matrix per side
+        sides = [np.asarray(matrix @ (weights * side[:, None])) for side in (in_a, 1 - in_a)]
+    else:
+        matrix = sp.csr_matrix(matrix)
+        sides = [np.asarray(matrix[:, cols] @ weights[cols])
+                 for cols in (slice(0, units_a), slice(units_a, None))]
     return np.stack(sides, axis=-1).reshape(-1, width, weights.shape[1], 2)
 
 
