@@ -79,10 +79,25 @@ def transitions(parts: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray, np.nda
     covariates = np.concatenate([p[2] for p in pieces])
     rate = np.concatenate([p[3] for p in pieces])
     unit = np.asarray(unit_of_run)[run]
-    order = np.lexsort((unit, state))
-    state, unit = state[order], unit[order]
-    residual = adjusted(state, covariates[order], rate[order])
+    del run
+    order = _order(state, unit)
+    state, unit = np.take(state, order), np.take(unit, order)
+    residual = adjusted(state, np.take(covariates, order, axis=0), np.take(rate, order, axis=0))
     return Transitions(state, unit, residual, response, rate.std(axis=0))
+
+
+def _order(state: np.ndarray, unit: np.ndarray) -> np.ndarray:
+    """``np.lexsort((unit, state))``: a stable sort by unit (none when already sorted), then a
+    stable sort by state (radix sorts where the keys fit 16 bits)."""
+    def stable(key: np.ndarray) -> np.ndarray:
+        if len(key) and key.min() >= 0 and key.max() < 2**16:
+            key = key.astype(np.uint16)
+        return np.argsort(key, kind="stable")
+
+    if len(unit) > 1 and (unit[1:] < unit[:-1]).any():
+        by_unit = stable(unit)
+        return by_unit[stable(state[by_unit])]
+    return stable(state)
 
 
 def _set_transitions(values, time, offsets, codes, history, out_j, in_j):
@@ -93,9 +108,11 @@ def _set_transitions(values, time, offsets, codes, history, out_j, in_j):
     rows = np.flatnonzero((position >= history - 1) & (position < np.repeat(lengths, lengths) - 1))
     state_at_row = np.full(len(values), -1, dtype=np.int64)
     state_at_row[position >= history - 1] = codes  # encode() keeps exactly these rows
-    dt = time[rows + 1] - time[rows]
-    rate = (values[rows + 1][:, out_j] - values[rows][:, out_j]) / dt[:, None]
-    covariates = np.hstack([values[rows], values[rows + 1][:, in_j]])
+    after = rows + 1
+    dt = time[after] - time[rows]
+    now, then = np.take(values, rows, axis=0), np.take(values, after, axis=0)
+    rate = (then[:, out_j] - now[:, out_j]) / dt[:, None]
+    covariates = np.hstack([now, then[:, in_j]])
     return state_at_row[rows], run_of_row[rows], covariates, rate
 
 
@@ -127,14 +144,25 @@ def _polynomial(x: np.ndarray, cubic: bool = False) -> np.ndarray | None:
     centred = x - x.mean(axis=0)
     scale = centred.std(axis=0)
     z = centred[:, scale > 0] / scale[scale > 0]
+    del centred
     n, p = z.shape
     if n < PER_COEFFICIENT * (p + 1):
         return None
-    columns = [np.ones((n, 1)), z]
+    terms: list[tuple[int, ...]] = [(i,) for i in range(p)]
     if n >= PER_COEFFICIENT * (1 + p + p * (p + 1) // 2):
-        i, j = np.triu_indices(p)
-        columns.append(z[:, i] * z[:, j])
+        terms += itertools.combinations_with_replacement(range(p), 2)  # np.triu_indices order
     if cubic and n >= PER_COEFFICIENT * (1 + p + p * (p + 1) // 2 + p * (p + 1) * (p + 2) // 6):
-        i, j, k = np.array([c for c in itertools.combinations_with_replacement(range(p), 3)]).T
-        columns.append(z[:, i] * z[:, j] * z[:, k])
-    return np.hstack(columns)
+        terms += itertools.combinations_with_replacement(range(p), 3)
+    columns = [np.ascontiguousarray(z[:, i]) for i in range(p)]
+    # the layout np.hstack of these columns had (it decides the summation order of design @ b)
+    design = np.empty((n, 1 + len(terms)), order="F" if p > 1 else "C")
+    design[:, 0] = 1.0
+    for c, term in enumerate(terms, start=1):
+        out = design[:, c]
+        if len(term) == 1:
+            out[:] = columns[term[0]]
+            continue
+        np.multiply(columns[term[0]], columns[term[1]], out=out)
+        for k in term[2:]:  # left to right, as z_i * z_j * z_k
+            out *= columns[k]
+    return design
