@@ -153,24 +153,25 @@ class _FourierMap:
             self.b.append(rng.uniform(0.0, 2 * np.pi, FOURIER))
             self.bandwidth.append(sigma * scale)
 
-    def __call__(self, residual: np.ndarray) -> np.ndarray:
-        """(rows, J · FOURIER) integer-valued features of a chunk of residuals."""
-        out = np.empty((len(residual), len(self.w) * FOURIER))
+    def __call__(self, residual: np.ndarray) -> list[np.ndarray]:
+        """Per response feature, the (rows, FOURIER) integer-valued features of a chunk of
+        residuals."""
+        out = []
         for k, (scale, w, b) in enumerate(zip(self.scale, self.w, self.b, strict=True)):
-            block = out[:, k * FOURIER:(k + 1) * FOURIER]
-            np.multiply((residual[:, k] / scale)[:, None], w, out=block)
+            block = np.multiply((residual[:, k] / scale)[:, None], w)
             block += b
             np.cos(block, out=block)
             block *= LEVELS * np.sqrt(2.0)
             np.rint(block, out=block)
+            out.append(block)
         return out
 
 
 def kernel_sums(data: Transitions, n_units: int, rng: np.random.Generator) -> KernelSums:
     """Dithered residuals → Fourier features → per-(state, unit) sums, state by state and chunk
     by chunk (the feature matrix of all transitions never exists). The features are integers,
-    so every sum here is exact: pair sums are differences of a running sum, written straight
-    into the unit matrix."""
+    so every sum here is exact (in any order): pair sums are one sparse product per chunk,
+    written straight into the unit matrix."""
     spread = data.spread if data.spread is not None else np.zeros(data.residual.shape[1])
     residual = data.residual + RESOLUTION * spread * rng.normal(size=data.residual.shape)
     feature_map = _FourierMap(residual, rng)
@@ -189,13 +190,13 @@ def kernel_sums(data: Transitions, n_units: int, rng: np.random.Generator) -> Ke
             last = int(np.searchsorted(pairs.starts, pairs.starts[first] + CHUNK, side="right"))
             last = min(max(last - 1, first + 1), p1)
             lo, hi = pairs.starts[first], pairs.starts[last]
-            phi = feature_map(residual[lo:hi])
-            running = np.empty((hi - lo + 1, width - 1))
-            running[0] = 0.0
-            np.cumsum(phi, axis=0, out=running[1:])
             ends = pairs.starts[first:last + 1] - lo
-            view[1:, first - p0:last - p0] = (running[ends[1:]] - running[ends[:-1]]).T
-            squares[b] += np.einsum("ij,ij->j", phi, phi)
+            indicator = sp.csr_matrix((np.ones(hi - lo), np.arange(hi - lo), ends),
+                                      shape=(last - first, hi - lo))  # pair × transition
+            for k, phi in enumerate(feature_map(residual[lo:hi])):
+                here = slice(1 + k * FOURIER, 1 + (k + 1) * FOURIER)
+                view[here, first - p0:last - p0] = (indicator @ phi).T
+                squares[b, here.start - 1:here.stop - 1] += np.einsum("ij,ij->j", phi, phi)
             first = last
         totals[b] = view.sum(axis=1)
     count = totals[:, :1]

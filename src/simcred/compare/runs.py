@@ -366,17 +366,16 @@ class SideCounts:
         places."""
         dense = np.flatnonzero(self.dense_columns[lo:hi])
         sparse = np.flatnonzero(~self.dense_columns[lo:hi])
-        block = self.matrix[lo:hi]
         dense_rows, slices, base, sparse_rows = None, None, None, None
         if len(dense):
-            dense_rows = block[dense].toarray()
+            dense_rows = _dense_rows(self.matrix, lo + dense)
             if self.paired:
                 half = dense_rows.shape[1] // 2
                 base = dense_rows[:, :half].sum(axis=1)
                 dense_rows = dense_rows[:, half:] - dense_rows[:, :half]
             dense_rows, slices = _exact_slices(dense_rows)
         if len(sparse):
-            sparse_rows = block[sparse]
+            sparse_rows = self.matrix[lo + sparse]
             exact32 = abs(sparse_rows).sum(axis=1).max() < 2**24
             sparse_rows = sparse_rows.astype(np.float32 if exact32 else np.float64)
         return dense, dense_rows, slices, base, sparse, sparse_rows
@@ -401,6 +400,23 @@ class SideCounts:
             out[sparse] = sparse_rows @ np.ascontiguousarray(assignment.T,
                                                              dtype=sparse_rows.dtype)
         return out
+
+
+def _dense_rows(matrix: sp.csr_matrix, rows: np.ndarray) -> np.ndarray:
+    """``matrix[rows].toarray()`` (float64), scattered straight from the CSR arrays."""
+    if not matrix.has_canonical_format:  # duplicate entries: let scipy sum them
+        return matrix[rows].toarray().astype(np.float64)
+    starts = matrix.indptr[rows].astype(np.int64)
+    lengths = matrix.indptr[rows + 1] - starts
+    out = np.zeros((len(rows), matrix.shape[1]))
+    if lengths.sum():
+        shift = starts - np.r_[0, np.cumsum(lengths)[:-1]]
+        entries = np.arange(lengths.sum(), dtype=np.int64)
+        entries += np.repeat(shift, lengths)
+        flat = np.repeat(np.arange(len(rows), dtype=np.int64) * matrix.shape[1], lengths)
+        flat += matrix.indices[entries]
+        out.ravel()[flat] = matrix.data[entries]
+    return out
 
 
 def is_paired(assignments: np.ndarray) -> bool:
