@@ -368,7 +368,7 @@ class SideCounts:
         sparse = np.flatnonzero(~self.dense_columns[lo:hi])
         dense_rows, slices, base, sparse_rows = None, None, None, None
         if len(dense):
-            dense_rows = _dense_rows(self.matrix, lo + dense)
+            dense_rows = _dense_rows(self.matrix, lo, hi, dense)
             if self.paired:
                 half = dense_rows.shape[1] // 2
                 base = dense_rows[:, :half].sum(axis=1)
@@ -402,21 +402,15 @@ class SideCounts:
         return out
 
 
-def _dense_rows(matrix: sp.csr_matrix, rows: np.ndarray) -> np.ndarray:
-    """``matrix[rows].toarray()`` (float64), scattered straight from the CSR arrays."""
-    if not matrix.has_canonical_format:  # duplicate entries: let scipy sum them
-        return matrix[rows].toarray().astype(np.float64)
-    starts = matrix.indptr[rows].astype(np.int64)
-    lengths = matrix.indptr[rows + 1] - starts
-    out = np.zeros((len(rows), matrix.shape[1]))
-    if lengths.sum():
-        shift = starts - np.r_[0, np.cumsum(lengths)[:-1]]
-        entries = np.arange(lengths.sum(), dtype=np.int64)
-        entries += np.repeat(shift, lengths)
-        flat = np.repeat(np.arange(len(rows), dtype=np.int64) * matrix.shape[1], lengths)
-        flat += matrix.indices[entries]
-        out.ravel()[flat] = matrix.data[entries]
-    return out
+def _dense_rows(matrix: sp.csr_matrix, lo: int, hi: int, rows: np.ndarray) -> np.ndarray:
+    """``matrix[lo:hi][rows].toarray()`` as float64, through a view of the CSR arrays (no copy
+    of the rows lo:hi)."""
+    a, b = matrix.indptr[lo], matrix.indptr[hi]
+    view = sp.csr_matrix((matrix.data[a:b], matrix.indices[a:b], matrix.indptr[lo:hi + 1] - a),
+                         shape=(hi - lo, matrix.shape[1]), copy=False)
+    if len(rows) < hi - lo:
+        view = view[rows]
+    return view.toarray().astype(np.float64, copy=False)
 
 
 def is_paired(assignments: np.ndarray) -> bool:

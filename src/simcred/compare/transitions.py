@@ -103,17 +103,23 @@ def _order(state: np.ndarray, unit: np.ndarray) -> np.ndarray:
 def _set_transitions(values, time, offsets, codes, history, out_j, in_j):
     """One set's (state, run, covariates, response rate) per transition."""
     lengths = np.diff(offsets)
-    run_of_row = np.repeat(np.arange(len(lengths)), lengths)
-    position = np.arange(len(values)) - np.repeat(offsets[:-1], lengths)
-    rows = np.flatnonzero((position >= history - 1) & (position < np.repeat(lengths, lengths) - 1))
-    state_at_row = np.full(len(values), -1, dtype=np.int64)
-    state_at_row[position >= history - 1] = codes  # encode() keeps exactly these rows
+    coded = np.maximum(lengths - (history - 1), 0)  # rows from step history - 1 on: encoded
+    kept = np.maximum(coded - 1, 0)  # of those, all but a run's last row start a transition
+    has = kept > 0
+    mark = np.zeros(len(values) + 1, dtype=np.int8)
+    mark[(offsets[:-1] + history - 1)[has]] = 1
+    mark[(offsets[1:] - 1)[has]] = -1
+    rows = np.flatnonzero(np.cumsum(mark[:-1], dtype=np.int8))
+    code_kept = np.ones(len(codes), dtype=bool)  # encode() keeps exactly the coded rows
+    code_kept[np.cumsum(coded)[coded > 0] - 1] = False
+    state = np.asarray(codes)[code_kept].astype(np.int64, copy=False)
+    run = np.repeat(np.arange(len(lengths)), kept)
     after = rows + 1
     dt = time[after] - time[rows]
     now, then = np.take(values, rows, axis=0), np.take(values, after, axis=0)
     rate = (then[:, out_j] - now[:, out_j]) / dt[:, None]
     covariates = np.hstack([now, then[:, in_j]])
-    return state_at_row[rows], run_of_row[rows], covariates, rate
+    return state, run, covariates, rate
 
 
 def adjusted(state: np.ndarray, covariates: np.ndarray, rate: np.ndarray) -> np.ndarray:
