@@ -368,7 +368,7 @@ class SideCounts:
         sparse = np.flatnonzero(~self.dense_columns[lo:hi])
         dense_rows, slices, base, sparse_rows = None, None, None, None
         if len(dense):
-            dense_rows = _dense_rows(self.matrix, lo, hi, dense)
+            dense_rows = _dense_rows(self.matrix, lo, hi, dense, paired=self.paired)
             if self.paired:
                 half = dense_rows.shape[1] // 2
                 base = dense_rows[:, :half].sum(axis=1)
@@ -402,14 +402,19 @@ class SideCounts:
         return out
 
 
-def _dense_rows(matrix: sp.csr_matrix, lo: int, hi: int, rows: np.ndarray) -> np.ndarray:
-    """``matrix[lo:hi][rows].toarray()`` as float64, through a view of the CSR arrays (no copy
-    of the rows lo:hi)."""
+def _dense_rows(matrix: sp.csr_matrix, lo: int, hi: int, rows: np.ndarray,
+                paired: bool = False) -> np.ndarray:
+    """``matrix[lo:hi][rows].toarray()`` through a view of the CSR arrays (no copy of the rows
+    lo:hi): float32 where every entry is an integer below 2**24 (exact) and the rows are not
+    differenced (``paired``), float64 else."""
     a, b = matrix.indptr[lo], matrix.indptr[hi]
     view = sp.csr_matrix((matrix.data[a:b], matrix.indices[a:b], matrix.indptr[lo:hi + 1] - a),
                          shape=(hi - lo, matrix.shape[1]), copy=False)
     if len(rows) < hi - lo:
         view = view[rows]
+    if not paired and view.has_canonical_format and (view.nnz == 0 or (
+            np.abs(view.data).max() < 2**24 and (view.data == np.rint(view.data)).all())):
+        return view.astype(np.float32).toarray()
     return view.toarray().astype(np.float64, copy=False)
 
 
@@ -422,12 +427,14 @@ def is_paired(assignments: np.ndarray) -> bool:
 
 
 def _exact_slices(dense: np.ndarray) -> tuple[np.ndarray, list[tuple[int, int]]]:
-    """``dense`` (integer-valued float64) and slices of its columns (runs) in each of which every
+    """``dense`` (integer-valued) and slices of its columns (runs) in each of which every
     row's absolute sum is below 2**24: as float32, exact in products, if each slice's sum of
     per-run maxima stays below that; else float64 and one slice."""
     n_runs = dense.shape[1]
-    peak = np.abs(dense).max(axis=0) if n_runs and len(dense) else np.zeros(n_runs)
-    if n_runs == 0 or peak.max() >= 2**24:
+    peak = np.abs(dense).max(axis=0).astype(np.float64) if n_runs and len(dense) \
+        else np.zeros(n_runs)
+    if n_runs == 0 or peak.max() >= 2**24 or (
+            dense.dtype != np.float32 and not (dense == np.rint(dense)).all()):
         return dense, [(0, n_runs)]
     running = np.r_[0.0, np.cumsum(peak)]
     slices, u0 = [], 0
@@ -436,7 +443,7 @@ def _exact_slices(dense: np.ndarray) -> tuple[np.ndarray, list[tuple[int, int]]]
         u1 = max(u1, u0 + 1)
         slices.append((u0, u1))
         u0 = u1
-    return dense.astype(np.float32), slices
+    return dense.astype(np.float32, copy=False), slices
 
 
 def _block_chunks(bounds: np.ndarray, weights: np.ndarray, budget: int
