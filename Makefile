@@ -33,6 +33,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/reprocess.py
 	$(BIN)/python benchmarks/vary.py
 	$(BIN)/python benchmarks/sumo.py
+	$(BIN)/python benchmarks/response.py
 
 # pip install . (not editable) into a fresh venv; paper all + validate from outside the repo.
 check-wheel:
