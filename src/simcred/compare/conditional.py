@@ -15,6 +15,7 @@ occupancy and lengths p-values are exact under the same exchangeability as the r
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -25,6 +26,7 @@ from simcred.compare.discretize import StateSpace
 from simcred.compare.effect import EffectSummary, response_effects
 from simcred.compare.kernels import Kernel
 from simcred.compare.mmd import Estimator, MMDTestResult
+from simcred.compare.paired_runs import paired_statistics, run_summaries, tippett
 from simcred.compare.response import ResponseOutcome, response_test
 from simcred.compare.result import (
     ChainVerdict,
@@ -100,6 +102,8 @@ def response_comparison(parts, design: Design, space: StateSpace, options: Compa
     outcome = response_test(data, design.n_units, assignments,
                             stream(options.seed, RESPONSE_KEY))
     start, scenario = scenario_tests(parts, design, space, options, assignments)
+    if design.kind is DesignKind.PAIRS:
+        outcome = with_paired_runs(outcome, parts, design, options, assignments)
     rate_units = {name: f"{units[name]}/s" if units.get(name) else "1/s"
                   for name in data.response}
     effect = response_effects(data, design, options.bootstrap, options.alpha, INTERVAL_LEVEL,
@@ -110,6 +114,22 @@ def response_comparison(parts, design: Design, space: StateSpace, options: Compa
         options.inputs, data.response, outcome.bandwidth, scenario, effect,
         _warnings(design, options, outcome))
     return _comparison(outcome, start, space, options, inputs, analysis)
+
+
+def with_paired_runs(outcome: ResponseOutcome, parts, design: Design,
+                     options: ComparisonOptions, assignments: np.ndarray) -> ResponseOutcome:
+    """The chain verdict of a paired design: the state-conditional statistic and the pairs'
+    run summaries (:mod:`simcred.compare.paired_runs`), combined by Tippett's rule over the
+    same assignments (exact under the pair flips)."""
+    response = [options.features.index(n) for n in options.features if n not in options.inputs]
+    summaries = np.empty((design.n_units, 6 * len(response)))
+    summaries[design.unit_of_run] = np.vstack([run_summaries(p[0][:, response], p[2])
+                                               for p in parts])
+    runs = paired_statistics(summaries, design.units_a, assignments)
+    chain = tippett(outcome.chain_null, runs)
+    pvalue = float(exceedance_pvalues(chain[:, None], chain[:1])[0])
+    return dataclasses.replace(outcome, chain_statistic=float(chain[0]), chain_pvalue=pvalue,
+                               chain_null=chain)
 
 
 def scenario_tests(parts, design: Design, space: StateSpace, options: ComparisonOptions,
@@ -198,7 +218,9 @@ def _comparison(outcome: ResponseOutcome, start: MMDTestResult, space: StateSpac
             int(outcome.m[i]), int(outcome.n[i]), float(outcome.statistic[i]),
             bool(rejected[i]), pvalue=float(outcome.pvalue[i]),
             n_resamples=outcome.permutations, adjusted_pvalue=float(outcome.adjusted[i]))))
-    chain = ChainVerdict("response", "sum", outcome.chain_statistic, outcome.chain_pvalue,
+    combine = "pooled states + paired runs (Tippett)" \
+        if analysis.design.kind == DesignKind.PAIRS.value else "pooled states"
+    chain = ChainVerdict("response", combine, outcome.chain_statistic, outcome.chain_pvalue,
                          outcome.chain_pvalue <= options.alpha, outcome.permutations,
                          int(outcome.in_family.sum()))
     return Comparison(options, inputs, space, start, False, tuple(tested), tuple(untestable),

@@ -99,6 +99,7 @@ class ResponseOutcome:
     chain_pvalue: float
     permutations: int
     bandwidth: tuple[float, ...]
+    chain_null: np.ndarray | None = None  # the chain statistic of every assignment (row 0 observed)
 
     def rejected(self, alpha: float) -> np.ndarray:
         """Per-state verdicts, gatekept by the chain verdict."""
@@ -272,7 +273,7 @@ def response_test(data: Transitions, n_units: int, assignments: np.ndarray,
         adjusted=adjusted.reshape(per_state).min(axis=1),
         in_family=in_family.reshape(per_state).any(axis=1), chain_statistic=float(chain[0]),
         chain_pvalue=float(exceedance_pvalues(chain[:, None], chain[:1])[0]),
-        permutations=len(assignments) - 1, bandwidth=kernel.bandwidth)
+        permutations=len(assignments) - 1, bandwidth=kernel.bandwidth, chain_null=chain)
 
 
 def assignment_statistics(sums: RunCounts, assignments: np.ndarray, n_features: int,
