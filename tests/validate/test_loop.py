@@ -226,3 +226,16 @@ def test_two_condition_variables(tmp_path):
     out.mkdir()
     html = write_validation_report(result, verdict_document(result, inputs), out).read_text()
     assert html.count("data:image/png;base64,") == 1 + 4
+
+
+def test_rule_distance_never_accepts_a_cell_whose_test_rejects(tmp_path):
+    """Issue 22: with ``rule: distance`` a cell was valid whenever its distance met d_max, even
+    where the chain test rejected (SUMO IDM at 17.5-20 m/s: VALID at p = 0.005)."""
+    path = write_universe(tmp_path, acceptance={"rule": "distance", "d_max": 1.0})
+    code, verdict = _run(path, tmp_path / "out")
+    cells = verdict["domains"]["sim"]["cells"]
+    rejected = [c for c in cells if c["chain_pvalue"] <= 0.05]
+    assert [c["label"] for c in rejected] == ["20 ≤ v < 25", "25 ≤ v ≤ 30"]
+    assert all(c["status"] == "not valid" and "never valid" in c["reason"] for c in rejected)
+    assert all(c["status"] == "valid" for c in cells if c["chain_pvalue"] > 0.05)
+    assert code == 1 and verdict["verdict"] == "not valid"
