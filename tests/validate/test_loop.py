@@ -36,7 +36,8 @@ def test_not_valid_above_the_switch(tmp_path):
     assert code == 1 and verdict["verdict"] == "not valid"
     cells = verdict["domains"]["sim"]["cells"]
     assert [c["status"] for c in cells] == ["valid"] * 3 + ["not valid"] * 2
-    assert verdict["candidates"]["sim"]["test_case_cells"] == [1, 2, 3, 4]
+    # 10 <= v <= 25 ends at the edge 25: the cell 25-30 is not part of it (issue 22)
+    assert verdict["candidates"]["sim"]["test_case_cells"] == [1, 2, 3]
 
 
 def test_valid_below_the_switch_and_cheapest_by_brute_force(tmp_path, capsys):
@@ -239,3 +240,45 @@ def test_rule_distance_never_accepts_a_cell_whose_test_rejects(tmp_path):
     assert all(c["status"] == "not valid" and "never valid" in c["reason"] for c in rejected)
     assert all(c["status"] == "valid" for c in cells if c["chain_pvalue"] > 0.05)
     assert code == 1 and verdict["verdict"] == "not valid"
+
+
+def test_the_distance_bound_is_per_cell(tmp_path):
+    """Issue 22: one global bound (the largest distance of any valid cell) decided the test
+    case, so a cell outside it (here 15-20 m/s, distance 0.25) made 10-15 m/s NOT VALID at
+    max_distance 0.1 although its own cell measured 0."""
+    path = write_universe(tmp_path, test_case={"conditions": "10 <= v < 15",
+                                               "max_distance": 0.1})
+    code, verdict = _run(path, tmp_path / "out")
+    distances = {c["label"]: c["distance"] for c in verdict["domains"]["sim"]["cells"]}
+    assert distances["10 ≤ v < 15"] == 0 and distances["15 ≤ v < 20"] == 0.25
+    assert code == 0 and verdict["verdict"] == "valid"
+    guarantee = yaml.safe_load((tmp_path / "out" / "contracts.yaml").read_text())[
+        "models"]["sim"]["contract"]["guarantee"]
+    assert guarantee == ("(5 <= v <= 15 implies distance <= 0) and "
+                         "(15 <= v <= 20 implies distance <= 0.25)")
+    # the cell that does reach into the test case still counts, with its own distance
+    path = write_universe(tmp_path, test_case={"conditions": "12 <= v <= 18",
+                                               "max_distance": 0.1})
+    code, verdict = _run(path, tmp_path / "out2")
+    assert code == 1 and verdict["candidates"]["sim"]["reasons"] == [
+        "distance 0.25 in 15 ≤ v < 20 exceeds the required 0.1"]
+
+
+def test_a_test_case_ending_at_an_edge_does_not_pull_in_the_next_cell(tmp_path):
+    """Issue 22: ``v <= 20`` met the cell 20-25 at the single point 20, which made the test case
+    NOT VALID although the learned contract (5 <= v <= 20) covers it."""
+    path = write_universe(tmp_path, test_case={"conditions": "10 <= v <= 20",
+                                               "max_distance": 0.5})
+    code, verdict = _run(path, tmp_path / "out")
+    assert verdict["candidates"]["sim"]["test_case_cells"] == [1, 2]
+    assert code == 0 and verdict["verdict"] == "valid"
+    assert verdict["candidates"]["sim"]["refinement"]["verdict"] == "holds"
+    # starting at the edge: only the cells above it
+    path = write_universe(tmp_path, test_case={"conditions": "20 <= v <= 25"})
+    code, verdict = _run(path, tmp_path / "out2")
+    assert verdict["candidates"]["sim"]["test_case_cells"] == [3]
+    assert code == 1
+    # a test case on the edge itself meets the two closed cells that share it
+    path = write_universe(tmp_path, test_case={"conditions": "v == 20"})
+    _, verdict = _run(path, tmp_path / "out3")
+    assert verdict["candidates"]["sim"]["test_case_cells"] == [2, 3]
