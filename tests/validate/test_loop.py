@@ -282,3 +282,37 @@ def test_a_test_case_ending_at_an_edge_does_not_pull_in_the_next_cell(tmp_path):
     path = write_universe(tmp_path, test_case={"conditions": "v == 20"})
     _, verdict = _run(path, tmp_path / "out3")
     assert verdict["candidates"]["sim"]["test_case_cells"] == [2, 3]
+
+
+def test_learned_contracts_work_with_monitor(tmp_path, capsys):
+    """Issue 22: ``simcred monitor`` refused the learned contracts.yaml (no run carries the
+    ``distance`` signal). The library marks it ``observed: false``; the monitor checks the
+    domains and names the guarantee clauses it cannot check."""
+    _run(write_universe(tmp_path), tmp_path / "out")
+    capsys.readouterr()
+    library = tmp_path / "out" / "contracts.yaml"
+    code = run(["monitor", str(library), str(tmp_path / "sim.parquet"), "--setup",
+                "simulation=sim", "--json"])
+    report = json.loads(capsys.readouterr().out)
+    assert code == 1 and report["violations"]  # the candidate's runs leave 5 <= v <= 20
+    assert {v["kind"] for v in report["violations"]} == {"assumption"}
+    assert report["not_monitored"] == ["sim: 5 <= v and v <= 15 implies distance <= 0",
+                                       "sim: 15 <= v and v <= 20 implies distance <= 0.25"]
+    assert run(["-q", "monitor", str(library), str(tmp_path / "sim.parquet"),
+                "--test-case", "test_case"]) == 2  # no valid setup to monitor: named, exit 2
+
+
+def test_an_empty_learned_library_is_a_verdict(tmp_path, capsys):
+    """Issue 22: ``contracts configure`` exited 2 (bad input) on learned contracts without a
+    valid candidate; no setup is a verdict: fails, exit 1, with the reason."""
+    path = write_universe(tmp_path, min_data={"runs": 10_000, "samples": 200})
+    code, _ = _run(path, tmp_path / "out")
+    assert code == 3
+    library = str(tmp_path / "out" / "contracts.yaml")
+    assert yaml.safe_load((tmp_path / "out" / "contracts.yaml").read_text())["models"] == {}
+    assert run(["contracts", "check", library]) == 0
+    capsys.readouterr()
+    assert run(["contracts", "configure", library, "--test-case", "test_case", "--json"]) == 1
+    result = json.loads(capsys.readouterr().out)
+    assert result["status"] == "fails" and result["setup"] is None
+    assert "component 'simulation' has no model" in result["reason"]
