@@ -141,3 +141,16 @@ def test_tolerance_absorbs_rounding_on_a_domain_boundary():
     assert [(v.first_step, v.last_step) for v in exact.violations] == [(1, 1), (3, 3)]
     tolerant = monitor(traces, domain, tolerance=1e-9)
     assert [(v.first_step, v.last_step) for v in tolerant.violations] == [(3, 3)]
+
+
+def test_unobserved_variables_are_named_not_checked():
+    traces = TraceSet.from_runs([{"t": [0, 1, 2], "v": [1, 2, 5]}])
+    contract = Contract.from_strings("v <= 3", "err <= 1 and v >= 0")
+    report = monitor(traces, {"M": contract}, unobserved=frozenset({"err"}))
+    assert report.not_monitored == ("M: err <= 1",)
+    assert [(v.kind, v.clause, v.first_step) for v in report.violations] == [
+        ("assumption", "v <= 3", 2)]
+    assert report.clauses == 2
+    with pytest.raises(SimcredError, match="observed: false"):
+        monitor(traces, {"M": Contract.from_strings("err <= 3", "v >= 0")},
+                unobserved=frozenset({"err"}))

@@ -46,3 +46,17 @@ def test_unknown_is_never_valid():
     result = validate(spec, Inputs(reference, {"sim": candidate}, ()))
     assert {c.status.value for c in result.domains["sim"].cells} == {"unknown"}
     assert result.verdict == "inconclusive" and result.exit_code == 3
+
+
+def test_the_binomial_tail_quoted_in_the_docs():
+    """Issue 22: docs/validate.md gave P(X ≥ 7 | 60, 0.05) ≈ 0.12; it is 0.030."""
+    import re
+    from pathlib import Path
+
+    from scipy.stats import binom
+
+    text = (Path(__file__).resolve().parents[2] / "docs" / "validate.md").read_text()
+    quoted = re.findall(r"P\(X ≥ (\d+) \| n = (\d+), p = ([\d.]+)\) [=≈] ([\d.]+)", text)
+    assert quoted
+    for k, n, p, value in quoted:
+        assert round(binom.sf(int(k) - 1, int(n), float(p)), 3) == float(value)

@@ -36,7 +36,8 @@ def test_not_valid_above_the_switch(tmp_path):
     assert code == 1 and verdict["verdict"] == "not valid"
     cells = verdict["domains"]["sim"]["cells"]
     assert [c["status"] for c in cells] == ["valid"] * 3 + ["not valid"] * 2
-    assert verdict["candidates"]["sim"]["test_case_cells"] == [1, 2, 3, 4]
+    # 10 <= v <= 25 ends at the edge 25: the cell 25-30 is not part of it (issue 22)
+    assert verdict["candidates"]["sim"]["test_case_cells"] == [1, 2, 3]
 
 
 def test_valid_below_the_switch_and_cheapest_by_brute_force(tmp_path, capsys):
@@ -226,3 +227,92 @@ def test_two_condition_variables(tmp_path):
     out.mkdir()
     html = write_validation_report(result, verdict_document(result, inputs), out).read_text()
     assert html.count("data:image/png;base64,") == 1 + 4
+
+
+def test_rule_distance_never_accepts_a_cell_whose_test_rejects(tmp_path):
+    """Issue 22: with ``rule: distance`` a cell was valid whenever its distance met d_max, even
+    where the chain test rejected (SUMO IDM at 17.5-20 m/s: VALID at p = 0.005)."""
+    path = write_universe(tmp_path, acceptance={"rule": "distance", "d_max": 1.0})
+    code, verdict = _run(path, tmp_path / "out")
+    cells = verdict["domains"]["sim"]["cells"]
+    rejected = [c for c in cells if c["chain_pvalue"] <= 0.05]
+    assert [c["label"] for c in rejected] == ["20 ≤ v < 25", "25 ≤ v ≤ 30"]
+    assert all(c["status"] == "not valid" and "never valid" in c["reason"] for c in rejected)
+    assert all(c["status"] == "valid" for c in cells if c["chain_pvalue"] > 0.05)
+    assert code == 1 and verdict["verdict"] == "not valid"
+
+
+def test_the_distance_bound_is_per_cell(tmp_path):
+    """Issue 22: one global bound (the largest distance of any valid cell) decided the test
+    case, so a cell outside it (here 15-20 m/s, distance 0.25) made 10-15 m/s NOT VALID at
+    max_distance 0.1 although its own cell measured 0."""
+    path = write_universe(tmp_path, test_case={"conditions": "10 <= v < 15",
+                                               "max_distance": 0.1})
+    code, verdict = _run(path, tmp_path / "out")
+    distances = {c["label"]: c["distance"] for c in verdict["domains"]["sim"]["cells"]}
+    assert distances["10 ≤ v < 15"] == 0 and distances["15 ≤ v < 20"] == 0.25
+    assert code == 0 and verdict["verdict"] == "valid"
+    guarantee = yaml.safe_load((tmp_path / "out" / "contracts.yaml").read_text())[
+        "models"]["sim"]["contract"]["guarantee"]
+    assert guarantee == ("(5 <= v <= 15 implies distance <= 0) and "
+                         "(15 <= v <= 20 implies distance <= 0.25)")
+    # the cell that does reach into the test case still counts, with its own distance
+    path = write_universe(tmp_path, test_case={"conditions": "12 <= v <= 18",
+                                               "max_distance": 0.1})
+    code, verdict = _run(path, tmp_path / "out2")
+    assert code == 1 and verdict["candidates"]["sim"]["reasons"] == [
+        "distance 0.25 in 15 ≤ v < 20 exceeds the required 0.1"]
+
+
+def test_a_test_case_ending_at_an_edge_does_not_pull_in_the_next_cell(tmp_path):
+    """Issue 22: ``v <= 20`` met the cell 20-25 at the single point 20, which made the test case
+    NOT VALID although the learned contract (5 <= v <= 20) covers it."""
+    path = write_universe(tmp_path, test_case={"conditions": "10 <= v <= 20",
+                                               "max_distance": 0.5})
+    code, verdict = _run(path, tmp_path / "out")
+    assert verdict["candidates"]["sim"]["test_case_cells"] == [1, 2]
+    assert code == 0 and verdict["verdict"] == "valid"
+    assert verdict["candidates"]["sim"]["refinement"]["verdict"] == "holds"
+    # starting at the edge: only the cells above it
+    path = write_universe(tmp_path, test_case={"conditions": "20 <= v <= 25"})
+    code, verdict = _run(path, tmp_path / "out2")
+    assert verdict["candidates"]["sim"]["test_case_cells"] == [3]
+    assert code == 1
+    # a test case on the edge itself meets the two closed cells that share it
+    path = write_universe(tmp_path, test_case={"conditions": "v == 20"})
+    _, verdict = _run(path, tmp_path / "out3")
+    assert verdict["candidates"]["sim"]["test_case_cells"] == [2, 3]
+
+
+def test_learned_contracts_work_with_monitor(tmp_path, capsys):
+    """Issue 22: ``simcred monitor`` refused the learned contracts.yaml (no run carries the
+    ``distance`` signal). The library marks it ``observed: false``; the monitor checks the
+    domains and names the guarantee clauses it cannot check."""
+    _run(write_universe(tmp_path), tmp_path / "out")
+    capsys.readouterr()
+    library = tmp_path / "out" / "contracts.yaml"
+    code = run(["monitor", str(library), str(tmp_path / "sim.parquet"), "--setup",
+                "simulation=sim", "--json"])
+    report = json.loads(capsys.readouterr().out)
+    assert code == 1 and report["violations"]  # the candidate's runs leave 5 <= v <= 20
+    assert {v["kind"] for v in report["violations"]} == {"assumption"}
+    assert report["not_monitored"] == ["sim: 5 <= v and v <= 15 implies distance <= 0",
+                                       "sim: 15 <= v and v <= 20 implies distance <= 0.25"]
+    assert run(["-q", "monitor", str(library), str(tmp_path / "sim.parquet"),
+                "--test-case", "test_case"]) == 2  # no valid setup to monitor: named, exit 2
+
+
+def test_an_empty_learned_library_is_a_verdict(tmp_path, capsys):
+    """Issue 22: ``contracts configure`` exited 2 (bad input) on learned contracts without a
+    valid candidate; no setup is a verdict: fails, exit 1, with the reason."""
+    path = write_universe(tmp_path, min_data={"runs": 10_000, "samples": 200})
+    code, _ = _run(path, tmp_path / "out")
+    assert code == 3
+    library = str(tmp_path / "out" / "contracts.yaml")
+    assert yaml.safe_load((tmp_path / "out" / "contracts.yaml").read_text())["models"] == {}
+    assert run(["contracts", "check", library]) == 0
+    capsys.readouterr()
+    assert run(["contracts", "configure", library, "--test-case", "test_case", "--json"]) == 1
+    result = json.loads(capsys.readouterr().out)
+    assert result["status"] == "fails" and result["setup"] is None
+    assert "component 'simulation' has no model" in result["reason"]

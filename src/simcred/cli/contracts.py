@@ -265,7 +265,7 @@ def monitor_runs(
     else:
         models = _setup_models(lib, setup)
     contracts = {m: lib.contract(m) for m in models}
-    report = monitor(TraceSet.read(runs), contracts)
+    report = monitor(TraceSet.read(runs), contracts, unobserved=lib.unobserved)
     if out is not None:
         from simcred.outputs import write_atomic
 
@@ -282,6 +282,8 @@ def monitor_runs(
                           f"{v.first_step}–{v.last_step}", f"{v.t_start:g}–{v.t_end:g}",
                           f"{v.margin:.4g}")
         out_console.print(table)
+        for clause in report.not_monitored:
+            out_console.print(escape(f"not monitored (a variable no run carries): {clause}"))
     raise typer.Exit(0 if report.passed else 1)
 
 

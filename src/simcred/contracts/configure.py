@@ -88,7 +88,14 @@ def configure(library: Library, test_case: str, *, fixed: dict[str, str] | None 
     if search not in ("auto", "cegis"):
         raise LibraryError(f"search must be 'auto' or 'cegis', got {search!r}")
     target = library.test_case(test_case)
-    choices = _choices(library, library.components(), fixed or {})
+    fixed = fixed or {}
+    empty = [c for c in library.components() if not library.candidates(c) and c not in fixed]
+    if empty:  # no setup exists: a verdict (fails), not a malformed library
+        return Configuration(test_case, Status.FAILS, None, None, None, 0, [],
+                             f"no setup refines the test case: component '{empty[0]}' has no "
+                             "model (an empty library, e.g. learned contracts without a valid "
+                             "candidate)", "none (no setup to search)")
+    choices = _choices(library, library.components(), fixed)
     problem = interval_problem(library, target, choices) if search == "auto" else None
     if problem is not None:
         result = _by_intervals(library, test_case, target, choices, problem, timeout_ms)

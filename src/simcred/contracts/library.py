@@ -46,8 +46,13 @@ class _Strict(BaseModel):
 
 
 class VariableSpec(_Strict):
+    """A variable; ``observed: false`` marks one that recorded runs do not carry (a metric such
+    as the learned contracts' ``distance``): monitors check the clauses they can evaluate and
+    name the guarantee clauses over it as not monitorable."""
+
     type: Literal["real", "int", "bool"] = "real"
     unit: str = Field("dimensionless", max_length=64)
+    observed: bool = True
 
 
 class ContractSpec(_Strict):
@@ -148,6 +153,11 @@ class Library:
     @property
     def types(self) -> dict[str, str]:
         return {name: v.type for name, v in self.spec.variables.items()}
+
+    @property
+    def unobserved(self) -> frozenset[str]:
+        """Variables no recorded run carries (``observed: false``)."""
+        return frozenset(n for n, v in self.spec.variables.items() if not v.observed)
 
     @property
     def units(self) -> dict[str, str]:

@@ -44,6 +44,7 @@ class MonitorReport:
     samples: int
     clauses: int
     violations: tuple[Violation, ...]
+    not_monitored: tuple[str, ...] = ()  # "contract: clause" over variables no run carries
 
     @property
     def passed(self) -> bool:
@@ -52,24 +53,35 @@ class MonitorReport:
     def to_json(self) -> str:
         body = {"source": self.source, "runs": self.runs, "samples": self.samples,
                 "clauses_checked": self.clauses, "passed": self.passed,
-                "violations": [asdict(v) for v in self.violations]}
+                "violations": [asdict(v) for v in self.violations],
+                "not_monitored": list(self.not_monitored)}
         return dumps(envelope("monitor_report", body))
 
 
-def monitor(traces: TraceSet, contracts: Mapping[str, Contract], *, tolerance: float = 0.0
-            ) -> MonitorReport:
+def monitor(traces: TraceSet, contracts: Mapping[str, Contract], *, tolerance: float = 0.0,
+            unobserved: frozenset[str] = frozenset()) -> MonitorReport:
     """Evaluate every clause of ``contracts`` over ``traces`` (signals named as the variables).
 
     A sample violates a clause where the clause is false and its margin is below
     ``-tolerance`` (default 0: every violation counts; a small tolerance absorbs rounding in
     signals that sit exactly on a domain's boundary, e.g. accelerations by differentiation).
+
+    ``unobserved``: variables no run carries (a library's ``observed: false``, e.g. the learned
+    contracts' ``distance``). Guarantee clauses over them cannot be monitored: they are named in
+    ``not_monitored`` instead of checked; an assumption clause over them is an error (the
+    validity domain itself could not be checked).
     """
-    columns = _columns(traces, contracts)
+    skipped = tuple(f"{name}: {to_text(clause)}" for name, contract in contracts.items()
+                    for kind, clause, _ in _clauses(contract)
+                    if kind == "guarantee" and variables(clause) & unobserved)
+    columns = _columns(traces, contracts, unobserved)
     timeline = Timeline(np.asarray(traces.time, dtype=float), np.asarray(traces.offsets))
     found: list[Violation] = []
     clauses = 0
     for name, contract in contracts.items():
         for kind, clause, checked in _clauses(contract):
+            if kind == "guarantee" and variables(clause) & unobserved:
+                continue
             clauses += 1
             holds = np.broadcast_to(evaluate(checked, columns, timeline), (traces.n_rows,))
             if holds.all():
@@ -79,7 +91,8 @@ def monitor(traces: TraceSet, contracts: Mapping[str, Contract], *, tolerance: f
             violated = ~holds & ~(margins >= -tolerance) if tolerance > 0 else ~holds
             if violated.any():
                 found += _segments(traces, name, kind, clause, violated, margins)
-    return MonitorReport(traces.source, traces.n_runs, traces.n_rows, clauses, tuple(found))
+    return MonitorReport(traces.source, traces.n_runs, traces.n_rows, clauses, tuple(found),
+                         skipped)
 
 
 def _clauses(contract: Contract):
@@ -91,13 +104,23 @@ def _clauses(contract: Contract):
         yield "guarantee", clause, implies(contract.assumption, clause)
 
 
-def _columns(traces: TraceSet, contracts: Mapping[str, Contract]) -> dict[str, np.ndarray]:
-    needed = sorted(set().union(*(c.variables for c in contracts.values())))
-    missing = [n for n in needed if n not in traces.signals and n != "t"]
+def _columns(traces: TraceSet, contracts: Mapping[str, Contract],
+             unobserved: frozenset[str] = frozenset()) -> dict[str, np.ndarray]:
+    """The signals the checked clauses need (guarantee clauses over ``unobserved`` variables
+    are not checked; an assumption over one is an error)."""
+    needed: set[str] = set()
+    for contract in contracts.values():
+        for kind, clause, checked in _clauses(contract):
+            if kind == "assumption" or not variables(clause) & unobserved:
+                needed |= variables(checked)
+    needed_sorted = sorted(needed)
+    missing = [n for n in needed_sorted if n not in traces.signals and n != "t"]
     if missing:
+        why = (" (declared observed: false, but a validity domain uses it)"
+               if missing[0] in unobserved else "")
         raise SimcredError(f"{traces.source}: no signal '{missing[0]}' for the contracts' "
-                           f"variable (signals are: {', '.join(traces.signals)})")
-    return {n: traces.column(n) for n in needed}
+                           f"variable{why} (signals are: {', '.join(traces.signals)})")
+    return {n: traces.column(n) for n in needed_sorted}
 
 
 def _segments(traces: TraceSet, name: str, kind: str, clause: Expr, violated: np.ndarray,

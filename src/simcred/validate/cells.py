@@ -66,6 +66,12 @@ class Grid:
                          f"{_exact(hi)}")
         return " and ".join(parts)
 
+    def interior(self, flat: int) -> str:
+        """The open box of the cell (``lo < v < hi`` per variable) as a contract assertion: the
+        part of the cell no other cell shares."""
+        return " and ".join(f"{_exact(lo)} < {self.variables[j]} < {_exact(hi)}"
+                            for j, (lo, hi) in enumerate(self.bounds(flat)))
+
     def cells_of(self, traces: TraceSet) -> np.ndarray:
         """Flat cell index of every row of ``traces`` (``OUTSIDE`` beyond the edges)."""
         index = np.zeros(traces.n_rows, dtype=np.int64)

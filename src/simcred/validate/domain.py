@@ -6,8 +6,9 @@ the cell are compared with the reference's segments in the cell by the run-level
 dependence of samples within a segment does not inflate the level). A cell is
 
 * ``unknown`` when either side has fewer segments or samples than ``min_data`` — never valid;
-* ``not valid`` when the acceptance rule fails (chain test rejected at alpha, or distance above
-  ``d_max``);
+* ``not valid`` when the chain test rejects at alpha (under every acceptance rule: a cell whose
+  test rejects is never accepted), or, under ``rule: distance``, when the distance is above
+  ``d_max``;
 * ``valid`` otherwise.
 
 "Valid" means *no difference detected with at least min_data on each side*; it is not an
@@ -127,6 +128,10 @@ def _cell(spec: ValidationSpec, grid: Grid, reference: Segments, candidate: Segm
         ok = not chain.rejected
         reason = (f"chain test p = {chain.pvalue:.3g} {'>' if ok else '≤'} alpha = "
                   f"{options.alpha:g}")
+    elif chain.rejected:  # a cell whose test rejects is never accepted, whatever the rule
+        ok = False
+        reason = (f"chain test p = {chain.pvalue:.3g} ≤ alpha = {options.alpha:g} (a cell "
+                  "whose test rejects is never valid, whatever d_max)")
     else:
         ok = distance is not None and distance <= spec.acceptance.d_max
         reason = f"distance {distance:.3g} {'≤' if ok else '>'} d_max = {spec.acceptance.d_max:g}"

@@ -5,9 +5,15 @@ metric ``distance`` (the calibrated distance of the comparison, dimensionless). 
 with at least one valid cell becomes a model of it (seed 003: the model's contract is its validity
 domain)::
 
-    assumption = cell_1 or cell_2 or ...     (the valid cells, closed intervals)
-    guarantee  = distance <= d               (the largest distance measured in those cells)
+    assumption = cell_1 or cell_2 or ...                  (the valid cells, closed intervals)
+    guarantee  = (cell_1 implies distance <= d_1) and ... (the distance measured in each cell)
 
+The guarantee is per cell, so a refinement check against a test case sees only the distances of
+the cells its conditions reach (a global bound would let a cell outside the test case decide it).
+Adjacent cells with the same distance share one clause; when every valid cell has the same
+distance the guarantee is simply ``distance <= d``. Cells are closed boxes here: at an edge two
+adjacent cells meet, and a test case ending at an edge (``v <= 20``) is covered by the cell on
+its side (the loop counts a cell for a test case only where the cell's interior meets it).
 The test case assumes its operating conditions and requires ``distance <= max_distance``.
 Candidates without a valid cell have an empty domain; an empty assumption is vacuous (the library
 refuses it), so they are left out of the library and named in the verdict.
@@ -30,7 +36,8 @@ TEST_CASE = "test_case"
 def library_dict(spec: ValidationSpec, domains: dict[str, Domain]) -> dict[str, Any]:
     """The contracts library (as YAML-ready data) of the learned domains (module docs)."""
     variables = {name: {"type": "real", "unit": c.unit} for name, c in spec.conditions.items()}
-    variables[METRIC] = {"type": "real", "unit": "dimensionless"}
+    # no run carries the distance: monitors check the domains and name the guarantee unchecked
+    variables[METRIC] = {"type": "real", "unit": "dimensionless", "observed": False}
     models = {}
     for name, domain in domains.items():
         valid = domain.with_status(CellStatus.VALID)
@@ -41,8 +48,7 @@ def library_dict(spec: ValidationSpec, domains: dict[str, Domain]) -> dict[str, 
         models[name] = {
             "implements": COMPONENT,
             "cost": spec.candidates[name].cost,
-            "contract": {"assumption": assumption,
-                         "guarantee": f"{METRIC} <= {number(domain.bound)}"},
+            "contract": {"assumption": assumption, "guarantee": guarantee(domain)},
             "description": f"learned: {len(valid)} valid cells of {domain.grid.n_cells}",
         }
     return {
@@ -60,15 +66,41 @@ def domain_parts(domain: Domain) -> list[str]:
     """The valid cells as closed boxes; with one condition variable, runs of adjacent valid
     cells are merged into one interval (the same set, shorter text)."""
     valid = [c.cell for c in domain.with_status(CellStatus.VALID)]
-    grid = domain.grid
-    if len(grid.variables) > 1:
-        return [grid.assertion(c) for c in valid]
+    return _boxes(domain, [[c] for c in valid] if len(domain.grid.variables) > 1
+                  else _runs(valid, lambda a, b: True))
+
+
+def guarantee(domain: Domain) -> str:
+    """The per-cell guarantee (module docs): ``distance <= d`` if every valid cell measured the
+    same ``d``, else one implication per run of adjacent valid cells with the same distance."""
+    valid = domain.with_status(CellStatus.VALID)
+    distance = {c.cell: c.distance for c in valid}
+    if len(set(distance.values())) == 1:
+        return f"{METRIC} <= {number(valid[0].distance)}"
+    cells = [c.cell for c in valid]
+    runs = ([[c] for c in cells] if len(domain.grid.variables) > 1
+            else _runs(cells, lambda a, b: distance[a] == distance[b]))
+    return " and ".join(f"({box} implies {METRIC} <= {number(distance[run[0]])})"
+                        for box, run in zip(_boxes(domain, runs), runs, strict=True))
+
+
+def _runs(cells: list[int], same) -> list[list[int]]:
+    """Runs of adjacent cells (one condition variable) for which ``same`` holds pairwise."""
     runs: list[list[int]] = []
-    for c in valid:
-        if runs and runs[-1][-1] == c - 1:
+    for c in cells:
+        if runs and runs[-1][-1] == c - 1 and same(runs[-1][-1], c):
             runs[-1].append(c)
         else:
             runs.append([c])
+    return runs
+
+
+def _boxes(domain: Domain, runs: list[list[int]]) -> list[str]:
+    """Each run of cells as one closed box (a run has one cell when there are several
+    condition variables)."""
+    grid = domain.grid
+    if len(grid.variables) > 1:
+        return [grid.assertion(r[0]) for r in runs]
     edges, name = grid.edges[0], grid.variables[0]
     return [f"{number(edges[r[0]])} <= {name} <= {number(edges[r[-1] + 1])}" for r in runs]
 

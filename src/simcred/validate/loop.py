@@ -5,8 +5,9 @@ Verdict of a candidate for the test case (its operating conditions, ``test_case.
 
 * ``valid`` — its learned contract refines the test case's (z3 proof): every operating point of
   the test case lies in a valid cell and the measured distance bound meets ``max_distance``;
-* ``not valid`` — a cell that meets the test case's conditions is not valid, or the measured
-  bound exceeds ``max_distance``;
+* ``not valid`` — a cell that meets the test case's conditions is not valid, or the distance
+  measured in such a cell exceeds ``max_distance`` (per cell: cells outside the test case do
+  not count);
 * ``inconclusive`` — otherwise: the test case reaches cells without enough data (unknown) or
   beyond the grid.
 
@@ -149,14 +150,20 @@ def _check_signals(spec: ValidationSpec, inputs: Inputs) -> None:
 
 
 def _relevant_cells(grid: Grid, target: Contract, library: Library) -> tuple[int, ...]:
-    """Cells (half-open, as rows are assigned) that meet the test case's conditions."""
-    out = []
-    for cell in range(grid.n_cells):
-        box = parse(grid.assertion(cell, half_open=True), declared=library.spec.variables)
-        disjoint = valid([box], negate(target.assumption), types=library.types)
-        if disjoint.status is not Status.HOLDS:
-            out.append(cell)
-    return tuple(out)
+    """Cells whose interior meets the test case's conditions: a test case that ends at an edge
+    (``v <= 20``) does not reach the cell beyond it, as the learned contracts' closed cells say.
+    Only a test case that meets no cell's interior (``v == 20``) counts the closed cells it
+    touches."""
+    for text in (grid.interior, grid.assertion):
+        out = []
+        for cell in range(grid.n_cells):
+            box = parse(text(cell), declared=library.spec.variables)
+            disjoint = valid([box], negate(target.assumption), types=library.types)
+            if disjoint.status is not Status.HOLDS:
+                out.append(cell)
+        if out:
+            return tuple(out)
+    return ()
 
 
 def _configuration(library: Library) -> dict[str, Any] | None:
@@ -214,10 +221,11 @@ def _candidate_verdict(name: str, domain: Domain, relevant: tuple[int, ...], lib
         return CandidateVerdict(name, VALID, (f"valid in all {len(cells)} cells of the test "
                                               "case; its learned contract refines the test "
                                               "case (z3)",), relevant, proof)
-    if not bad and not unknown and proof is not None \
-            and domain.bound > required:
-        bad_bound = f"measured distance bound {domain.bound:g} exceeds the required one"
-        return CandidateVerdict(name, NOT_VALID, (bad_bound,), relevant, proof)
+    too_far = [c for c in cells if c.status is CellStatus.VALID and c.distance > required]
+    if not bad and not unknown and proof is not None and too_far:
+        return CandidateVerdict(name, NOT_VALID, tuple(
+            f"distance {c.distance:g} in {c.label} exceeds the required {required:g}"
+            for c in too_far), relevant, proof)
     if beyond:
         reasons.append(beyond)
     if not cells:

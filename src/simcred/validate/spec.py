@@ -125,7 +125,8 @@ class ComparisonSpec(_Strict):
 
 class AcceptanceSpec(_Strict):
     """When a cell with enough data is valid: the chain-level test does not reject at the
-    comparison's alpha (``chain``), or the distance is at most ``d_max`` (``distance``)."""
+    comparison's alpha (``chain``), or in addition the distance is at most ``d_max``
+    (``distance``; a cell whose test rejects is never valid, whatever ``d_max``)."""
 
     rule: Literal["chain", "distance"] = "chain"
     d_max: float | None = Field(default=None, ge=0, le=1, allow_inf_nan=False)
