@@ -278,3 +278,16 @@ def test_interval_covers_the_variance_defect():
         dv = next(f for f in effect.features if f.feature == "dv")
         hits += dv.low <= truth <= dv.high
     assert hits >= 0.85 * reps  # 0.9475 measured over 400 replications
+
+
+def test_no_estimable_state_is_not_a_zero_deviation():
+    """Too few transitions per state for the effect: NaN (null) and a warning, never 0."""
+    rng = np.random.default_rng(0)
+    a, b = _set(rng, 3, 6), _set(rng, 3, 6)
+    result = compare(a, b, features=["x", "u"], test="response", bins=3, permutations=19,
+                     seed=1, bootstrap=20, margin=1.0)
+    effect = result.response.effect
+    assert effect.states == 0 and effect.equivalent is False
+    assert all(np.isnan(f.estimate) and f.equivalent is False for f in effect.features)
+    assert any("cannot be estimated" in w for w in result.response.warnings)
+    assert json.loads(result.to_json())["response"]["effect"]["features"][0]["estimate"] is None

@@ -255,9 +255,10 @@ def _response_rows(table: Table, result) -> None:
         equivalence = "" if f.margin is None else \
             (f"; equivalent within {f.margin:g}" if f.equivalent
              else f"; NOT shown equivalent within {f.margin:g}")
-        table.add_row(f"deviation of d{f.feature}/dt [{f.unit}]",
-                      f"{f.estimate:.3g} ({100 * effect.level:.0f} % CI {f.low:.3g}–{f.high:.3g}; "
-                      f"detectable {f.mde:.3g}){equivalence}")
+        value = "not estimable (see the warning)" if effect.states == 0 else \
+            (f"{f.estimate:.3g} ({100 * effect.level:.0f} % CI {f.low:.3g}–{f.high:.3g}; "
+             f"detectable {f.mde:.3g})")
+        table.add_row(f"deviation of d{f.feature}/dt [{f.unit}]", value + equivalence)
     for test in analysis.scenario:
         table.add_row(f"{test.name} law (not part of the verdict)",
                       f"{'differs' if test.rejected else 'no difference shown'}, "

@@ -23,7 +23,7 @@ import scipy.sparse as sp
 
 from simcred.compare.design import Design, DesignKind
 from simcred.compare.discretize import StateSpace
-from simcred.compare.effect import EffectSummary, response_effects
+from simcred.compare.effect import MIN_TRANSITIONS, EffectSummary, response_effects
 from simcred.compare.kernels import Kernel
 from simcred.compare.mmd import Estimator, MMDTestResult
 from simcred.compare.paired_runs import paired_statistics, run_summaries, tippett
@@ -112,7 +112,7 @@ def response_comparison(parts, design: Design, space: StateSpace, options: Compa
         DesignInfo(design.kind.value, design.key, design.units_a,
                    design.n_units - design.units_a, design.smallest_pvalue),
         options.inputs, data.response, outcome.bandwidth, scenario, effect,
-        _warnings(design, options, outcome))
+        _warnings(design, options, outcome, effect))
     return _comparison(outcome, start, space, options, inputs, analysis)
 
 
@@ -190,8 +190,8 @@ def _lengths_test(parts, design: Design, assignments: np.ndarray, alpha: float) 
     return NamedTest("lengths", float(stat[0]), pvalue, pvalue <= alpha)
 
 
-def _warnings(design: Design, options: ComparisonOptions, outcome: ResponseOutcome
-              ) -> tuple[str, ...]:
+def _warnings(design: Design, options: ComparisonOptions, outcome: ResponseOutcome,
+              effect: EffectSummary) -> tuple[str, ...]:
     out = []
     floor = max(design.smallest_pvalue, 1.0 / (options.permutations + 1))
     if floor > options.alpha:
@@ -201,7 +201,11 @@ def _warnings(design: Design, options: ComparisonOptions, outcome: ResponseOutco
                    f"p-value is {floor:.3g} ({what}, {options.permutations} permutations); "
                    "'no difference shown' means nothing here")
     if not outcome.in_family.any():
-        out.append("no state is visited by both sets: the response law could not be compared")
+        out.append("no state is visited by both sets with a response that varies: the response "
+                   "law could not be compared")
+    if effect.states == 0:
+        out.append(f"no state has {MIN_TRANSITIONS} transitions on both sides: the deviation "
+                   "cannot be estimated (this is not 'no deviation'); use fewer bins or more runs")
     return tuple(out)
 
 

@@ -84,7 +84,8 @@ class FeatureEffect:
 
 @dataclass(frozen=True, slots=True)
 class EffectSummary:
-    """Effects of all response features; ``equivalent``: every margin met (None: no margin)."""
+    """Effects of all response features; ``equivalent``: every margin met (None: no margin).
+    ``states``: how many states entered (0: not estimable, every estimate NaN)."""
 
     level: float
     replicates: int
@@ -123,6 +124,10 @@ def response_effects(data: Transitions, design: Design, replicates: int, alpha: 
     observed = _side_sums(sums.matrix, np.ones((design.n_units, 1)), in_a, width)
     keep = (observed[:, 0, 0] >= MIN_TRANSITIONS).all(axis=-1)
     boot = _side_sums(sums.matrix, design.resamples(replicates, rng), in_a, width)
+    if not keep.any():  # nothing to estimate from: say so, never "no deviation"
+        return EffectSummary(level, replicates, 0, tuple(
+            _not_estimable(name, units.get(name, ""), dict(margins).get(name))
+            for name in data.response), False if margins else None)
     estimate, shift = _effects(observed[keep])
     boot_estimate, boot_shift = _effects(boot[keep])
     features = _feature_effects(data.response, estimate[:, 0], shift[:, 0], boot_estimate,
@@ -130,6 +135,14 @@ def response_effects(data: Transitions, design: Design, replicates: int, alpha: 
     verdicts = [f.equivalent for f in features if f.equivalent is not None]
     return EffectSummary(level, replicates, int(keep.sum()), features,
                          all(verdicts) if verdicts else None)
+
+
+def _not_estimable(name: str, unit: str, margin: float | None) -> FeatureEffect:
+    """No state has ``MIN_TRANSITIONS`` on both sides: every number is NaN (null in JSON) and a
+    margin is not shown to hold."""
+    nan = float("nan")
+    return FeatureEffect(name, unit, nan, nan, nan, nan, nan, nan, nan, nan, nan, margin,
+                         None if margin is None else False)
 
 
 def _side_sums(matrix, weights: np.ndarray, in_a: np.ndarray, width: int) -> np.ndarray:
