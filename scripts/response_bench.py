@@ -91,21 +91,10 @@ def response(d: Design, seed: int) -> float:
                    bins=4, bootstrap=20).chain.pvalue
 
 
-
-def _response_chain(chain: str) -> Callable[[Design, int], float]:
-    def method(d: Design, seed: int) -> float:
-        from simcred.compare import response as module
-
-        module.CHAIN = chain
-        return response(d, seed)
-    return method
-
-
 METHODS: dict[str, Callable[[Design, int], float]] = {
     "energy": energy,
     "runs": runs,
     "response": response,
-    **{f"response_{c}": _response_chain(c) for c in ("states", "pooled", "smooth")},
 }
 
 
