@@ -41,7 +41,7 @@ References
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -62,9 +62,10 @@ class FeatureEffect:
     """The response deviation of one feature, its interval and what the data could detect.
 
     ``estimate``: bias-corrected (``2Ê − mean(E*)``, at least 0); ``plugin``: ``Ê`` itself;
-    ``low``/``high``: basic bootstrap interval; ``upper``: one-sided ``1 − α`` upper bound (the
-    equivalence test's); ``shift``: signed mean bias with its interval; ``mde``: detectable
-    uniform shift.
+    ``low``/``high``: basic bootstrap interval; ``upper``/``lower``: one-sided ``1 − α`` bounds
+    (``upper`` is the equivalence test's); ``shift``: signed mean bias with its interval;
+    ``mde``: detectable uniform shift. ``replicates``: the bootstrap estimates ``E*`` (not
+    written to JSON), from which :meth:`bounds` gives one-sided bounds at any other level.
     """
 
     feature: str
@@ -80,6 +81,18 @@ class FeatureEffect:
     mde: float
     margin: float | None = None
     equivalent: bool | None = None
+    lower: float = float("nan")
+    replicates: np.ndarray = field(default_factory=lambda: np.empty(0), repr=False,
+                                   compare=False)
+
+    def bounds(self, alpha: float) -> tuple[float, float]:
+        """One-sided ``1 − alpha`` lower and upper bounds (basic bootstrap, clamped at 0);
+        NaN when not estimable."""
+        if len(self.replicates) == 0 or not np.isfinite(self.plugin):
+            return float("nan"), float("nan")
+        q_low, q_high = np.quantile(self.replicates, [alpha, 1 - alpha])
+        return (float(max(2 * self.plugin - q_high, 0.0)),
+                float(max(2 * self.plugin - q_low, 0.0)))
 
 
 @dataclass(frozen=True, slots=True)
@@ -182,16 +195,19 @@ def _feature_effects(names, estimate, shift, boot_estimate, boot_shift, alpha, l
     z = norm.ppf(1 - alpha / 2) + norm.ppf(POWER)
     out = []
     for j, name in enumerate(names):
-        q_lo, q_hi, q_alpha = np.quantile(boot_estimate[j], [tail, 1 - tail, alpha])
+        q_lo, q_hi = np.quantile(boot_estimate[j], [tail, 1 - tail])
         s_lo, s_hi = np.quantile(boot_shift[j], [tail, 1 - tail])
-        upper = max(2 * estimate[j] - q_alpha, 0.0)
+        replicates = np.sort(boot_estimate[j])
         margin = margins.get(name)
         corrected = max(2 * estimate[j] - boot_estimate[j].mean(), 0.0)
-        out.append(FeatureEffect(
+        effect = FeatureEffect(
             name, units.get(name, ""), float(corrected), float(estimate[j]),
             float(max(2 * estimate[j] - q_hi, 0.0)), float(max(2 * estimate[j] - q_lo, 0.0)),
-            float(upper), float(shift[j]),
+            float("nan"), float(shift[j]),
             float(2 * shift[j] - s_hi), float(2 * shift[j] - s_lo),
             float(z * boot_shift[j].std(ddof=1)) if boot_shift.shape[1] > 1 else float("nan"),
-            margin, None if margin is None else bool(upper < margin)))
+            margin, None, replicates=replicates)
+        lower, upper = effect.bounds(alpha)
+        out.append(replace(effect, upper=upper, lower=lower,
+                           equivalent=None if margin is None else bool(upper < margin)))
     return tuple(out)

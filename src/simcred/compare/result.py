@@ -214,7 +214,7 @@ class Comparison:
         if self.relevance is not None:
             body["relevance"] = [asdict(r) for r in self.relevance]
         if self.response is not None:
-            body = _after(body, "chain", "response", asdict(self.response))
+            body = _after(body, "chain", "response", _without_replicates(asdict(self.response)))
         return envelope("comparison", body)
 
     def to_json(self) -> str:
@@ -262,3 +262,11 @@ def _test_dict(result: MMDTestResult) -> dict[str, Any]:
     if result.adjusted_pvalue is not None:
         out["adjusted_pvalue"] = result.adjusted_pvalue
     return out
+
+
+def _without_replicates(response: dict[str, Any]) -> dict[str, Any]:
+    """The response analysis without the bootstrap replicates (kept in memory for bounds at
+    other levels, not written)."""
+    effect = response["effect"]
+    features = [{k: v for k, v in f.items() if k != "replicates"} for f in effect["features"]]
+    return {**response, "effect": {**effect, "features": features}}
