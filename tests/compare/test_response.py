@@ -143,9 +143,29 @@ def test_design_units():
     assert paired.smallest_pvalue == 2.0**-9
 
 
+def test_pairs_of_several_runs_flip_together():
+    """A pair member may hold several runs (segments of one replayed run): the runs sharing a
+    key form one unit on their side, and a flip moves them together."""
+    rng = np.random.default_rng(3)
+    keys = ["p0", "p0", "p1", "p2", "p2", "p2"]
+    info = {f"r{i:03d}": {"source_run": k} for i, k in enumerate(keys)}
+    a = _set(rng, 6, 5, info=info)
+    b_keys = ["p2", "p1", "p1", "p0"]
+    b = _set(rng, 4, 5, info={f"r{i:03d}": {"source_run": k} for i, k in enumerate(b_keys)})
+    design = build_design(a, b, pair_by="source_run")
+    assert design.units_a == 3 and design.n_units == 6
+    assert design.unit_of_run.tolist() == [0, 0, 1, 2, 2, 2, 5, 4, 4, 3]
+    rows = design.assignments(40, np.random.default_rng(0))
+    runs = rows[:, design.unit_of_run]
+    assert (runs[:, 0] == runs[:, 1]).all() and (runs[:, 6] != runs[:, 3]).all()
+    result = compare(a, b, features=["x", "u"], test="response", pair_by="source_run",
+                     permutations=19, seed=0, bootstrap=50)
+    assert result.response.design.units_a == 3
+
+
 @pytest.mark.parametrize("case, message", [
     ("missing", "has no partner for 'r004'"),
-    ("duplicate", "repeats the pair key"),
+    ("duplicate", "at least 2 pairs are needed, got 1"),
     ("group_absent", "group-by 'driver': <memory> has no per-run facts"),
     ("margin", "must be a number > 0"),
     ("both", "cannot be combined"),

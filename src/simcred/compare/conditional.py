@@ -122,14 +122,25 @@ def with_paired_runs(outcome: ResponseOutcome, parts, design: Design,
     run summaries (:mod:`simcred.compare.paired_runs`), combined by Tippett's rule over the
     same assignments (exact under the pair flips)."""
     response = [options.features.index(n) for n in options.features if n not in options.inputs]
-    summaries = np.empty((design.n_units, 6 * len(response)))
-    summaries[design.unit_of_run] = np.vstack([run_summaries(p[0][:, response], p[2])
-                                               for p in parts])
-    runs = paired_statistics(summaries, design.units_a, assignments)
+    per_run = np.vstack([run_summaries(p[0][:, response], p[2]) for p in parts])
+    runs = paired_statistics(unit_means(per_run, parts, design), design.units_a, assignments)
     chain = tippett(outcome.chain_null, runs)
     pvalue = float(exceedance_pvalues(chain[:, None], chain[:1])[0])
     return dataclasses.replace(outcome, chain_statistic=float(chain[0]), chain_pvalue=pvalue,
                                chain_null=chain)
+
+
+def unit_means(per_run: np.ndarray, parts, design: Design) -> np.ndarray:
+    """(units, columns) length-weighted means of the runs' rows of ``per_run`` over each unit
+    (a member of a pair may hold several runs: the segments of one replayed run)."""
+    if np.bincount(design.unit_of_run, minlength=design.n_units).max() == 1:
+        out = np.empty_like(per_run)
+        out[design.unit_of_run] = per_run
+        return out
+    lengths = np.concatenate([np.diff(p[2]) for p in parts]).astype(np.float64)
+    weight = sp.csr_matrix((lengths, (design.unit_of_run, np.arange(len(lengths)))),
+                           shape=(design.n_units, len(lengths)))
+    return np.asarray(weight @ per_run) / np.asarray(weight.sum(axis=1))
 
 
 def scenario_tests(parts, design: Design, space: StateSpace, options: ComparisonOptions,

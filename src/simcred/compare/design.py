@@ -11,7 +11,9 @@ Three designs [1], [2]:
   (the smallest p-value is ``1 / C(units, units_A)``).
 * **pairs** (``pair_by``): candidate unit *i* replays the scenario of reference unit *i*; under
   H0 the two members of a pair are exchangeable *within* the pair, so the null flips each pair
-  independently (``2^pairs`` assignments). Scenarios may differ arbitrarily between pairs.
+  independently (``2^pairs`` assignments). Scenarios may differ arbitrarily between pairs. A
+  member may hold several runs (all runs of a set with the pair's key, e.g. the segments cut
+  from one replayed run): whole members are flipped.
 
 A unit key is ``"run_id"`` (the run's own id) or a key of the per-run facts
 ``metadata["run_info"][run_id]``. Intervals resample units with replacement within each side
@@ -28,7 +30,7 @@ References
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass
 from enum import StrEnum
 
@@ -115,7 +117,7 @@ def build_design(a: TraceSet, b: TraceSet, *, pair_by: str | None = None,
     """The design of comparing ``a`` with ``b``; one-line error on keys that do not fit."""
     if pair_by is not None and group_by is not None:
         raise OptionError("pair-by and group-by cannot be combined: pair whole groups by giving "
-                          "each pair's runs one run id, or choose one design")
+                          "each group's runs one pair key, or choose one design")
     if pair_by is not None:
         return _paired(a, b, pair_by)
     if group_by is not None:
@@ -164,32 +166,18 @@ def _grouped(a: TraceSet, b: TraceSet, key: str) -> Design:
 
 def _paired(a: TraceSet, b: TraceSet, key: str) -> Design:
     keys_a, keys_b = unit_keys(a, key, "pair-by"), unit_keys(b, key, "pair-by")
-    for traces, keys in ((a, keys_a), (b, keys_b)):
-        _check_unique(traces, keys, key)
+    names = sorted(set(keys_a), key=keys_a.index)  # pairs in order of first appearance in A
     set_a, set_b = set(keys_a), set(keys_b)
-    missing_b = [k for k in keys_a if k not in set_b]
-    missing_a = [k for k in keys_b if k not in set_a]
+    missing_b = [k for k in names if k not in set_b]
+    missing_a = sorted({k for k in keys_b if k not in set_a}, key=keys_b.index)
     if missing_b or missing_a:
         where, k = (b.source, missing_b[0]) if missing_b else (a.source, missing_a[0])
         raise OptionError(f"pair-by {key!r}: {where} has no partner for {k!r} "
                           f"({len(missing_b) + len(missing_a)} unmatched)")
-    if len(keys_a) < 2:
-        raise OptionError(f"pair-by {key!r}: at least 2 pairs are needed, got {len(keys_a)}")
-    unit_of_run = np.r_[np.arange(len(keys_a)), len(keys_a) + _partner_index(keys_a, keys_b)]
-    labels = tuple(f"A:{k}" for k in keys_a) + tuple(f"B:{k}" for k in keys_a)
-    return Design(DesignKind.PAIRS, key, unit_of_run, len(keys_a), labels)
-
-
-def _partner_index(keys_a: Sequence[str], keys_b: Sequence[str]) -> np.ndarray:
-    """For each of B's runs, the position of its partner in A."""
-    position_a = {k: i for i, k in enumerate(keys_a)}
-    return np.array([position_a[k] for k in keys_b], dtype=np.int64)
-
-
-def _check_unique(traces: TraceSet, keys: Sequence[str], key: str) -> None:
-    seen: set[str] = set()
-    for run, value in zip(traces.run_ids, keys, strict=True):
-        if value in seen:
-            raise OptionError(f"pair-by {key!r}: {traces.source}, run {run!r} repeats the pair "
-                              f"key {value!r}; each pair needs exactly one run per set")
-        seen.add(value)
+    if len(names) < 2:
+        raise OptionError(f"pair-by {key!r}: at least 2 pairs are needed, got {len(names)}")
+    position = {k: i for i, k in enumerate(names)}
+    unit_of_run = np.r_[[position[k] for k in keys_a],
+                        [len(names) + position[k] for k in keys_b]].astype(np.int64)
+    labels = tuple(f"A:{k}" for k in names) + tuple(f"B:{k}" for k in names)
+    return Design(DesignKind.PAIRS, key, unit_of_run, len(names), labels)
