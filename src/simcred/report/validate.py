@@ -1,10 +1,12 @@
 """The report of one validation (``simcred validate``): one self-contained HTML page.
 
-Verdict first, in words; then the validity-domain map (the operating space coloured valid / not
-valid / unknown, with the data counts per cell), the per-cell results, per-cell state maps of the
-comparisons, the configuration and the monitors' findings, and the provenance. Figures are PNGs
-embedded as data URIs (no timestamp in their metadata) and the CSS is inline, so the same
-validation gives the same bytes.
+Verdict first, in words; then what it rules out (tolerance, confidence, the error rates over the
+test case), the ranking of the candidates with intervals (a figure and a table), per candidate
+the validity-domain map (the operating space coloured valid / not valid / inconclusive /
+unknown, with the data counts and deviations per cell), the per-cell deviations and bounds,
+per-cell state maps, the configuration and the monitors' findings, and the provenance. Figures
+are PNGs embedded as data URIs (no timestamp in their metadata) and the CSS is inline, so the
+same validation gives the same bytes.
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ from simcred.validate.domain import CellStatus, Domain  # noqa: E402
 from simcred.validate.loop import Validation  # noqa: E402
 
 COLORS = {CellStatus.VALID: "#8fd18a", CellStatus.NOT_VALID: "#e3634f",
-          CellStatus.UNKNOWN: "#d6d6d6"}
+          CellStatus.INCONCLUSIVE: "#f2d27a", CellStatus.UNKNOWN: "#d6d6d6"}
 TEST_CASE_EDGE = "#1f4e9c"
 MAX_STATE_MAPS = 8  # per candidate: not-valid cells first, then valid ones, in cell order
 
@@ -42,6 +44,7 @@ def write_validation_report(result: Validation, document: dict[str, Any], out: P
         "document": document,
         "candidates": [_candidate(result, name, domain, figures)
                        for name, domain in result.domains.items()],
+        "ranking_figure": _uri(ranking_figure(result, figures / "ranking.png")),
         "provenance": json.dumps(document["provenance"], indent=1, ensure_ascii=False),
         "library": result.library_yaml(),
     }
@@ -65,6 +68,7 @@ def _candidate(result: Validation, name: str, domain: Domain, figures: Path) -> 
                                       result.spec.test_case.conditions,
                                       verdict.relevant_cells)),
         "cells": [c.to_dict() for c in domain.cells],
+        "design": domain.cells[0].design if domain.cells else "",
         "state_maps": [{"label": c.label, "status": c.status.value,
                         "uri": _uri(state_map(c.comparison,
                                               figures / f"{name}_cell{c.cell}_states.png"))}
@@ -102,9 +106,9 @@ def domain_map(domain: Domain, path: Path, conditions: str,
         if cell.cell in test_case_cells:
             ax.add_patch(plt.Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False,
                                        edgecolor=TEST_CASE_EDGE, linewidth=2.5, linestyle="--"))
-        text = f"{cell.status.value}\n{cell.reference_segments} / {cell.candidate_segments}"
-        if cell.distance is not None:
-            text += f"\nd = {cell.distance:.2f}"
+        text = f"{cell.status.value}\n{cell.reference_units} / {cell.candidate_units}"
+        if cell.bounds:
+            text += f"\nE/δ = {cell.worst():.2f}"
         ax.text((x0 + x1) / 2, (y0 + y1) / 2, text, ha="center", va="center", fontsize=7)
     ax.set_xlim(x_edges[0], x_edges[-1])
     ax.set_ylim(y_edges[0], y_edges[-1])
@@ -118,8 +122,29 @@ def domain_map(domain: Domain, path: Path, conditions: str,
                          label="meets the test case"))
     ax.legend(handles=handles, loc="upper center",
               bbox_to_anchor=(0.5, -0.25 if not two else -0.14), ncol=4, fontsize=8)
-    ax.set_title(f"{domain.candidate}: validity domain (segments reference / candidate per "
-                 f"cell); test case: {conditions}", fontsize=9)
+    ax.set_title(f"{domain.candidate}: validity domain (units reference / candidate per cell, "
+                 f"deviation / tolerance); test case: {conditions}", fontsize=9)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110, metadata=METADATA)
+    plt.close(fig)
+    return path
+
+
+def ranking_figure(result: Validation, path: Path) -> Path:
+    """Each candidate's score (largest deviation / tolerance over the test case) with its
+    simultaneous interval, best first, against the tolerance (1)."""
+    ranked = [r for r in result.ranking if r.score is not None]
+    fig, ax = plt.subplots(figsize=(7.5, 0.9 + 0.45 * max(len(ranked), 1)),
+                           constrained_layout=True)
+    for y, r in enumerate(ranked):
+        ax.plot([r.low, r.high], [y, y], color="#1f4e9c", linewidth=2.5)
+        ax.plot([r.score], [y], "o", color="#1f4e9c")
+    ax.axvline(1.0, color="#a8200d", linestyle="--", linewidth=1.2, label="tolerance")
+    ax.set_yticks(range(len(ranked)), [r.candidate for r in ranked])
+    ax.invert_yaxis()
+    ax.set_xlim(left=0)
+    ax.set_xlabel("largest response deviation / tolerance over the test case's cells")
+    ax.legend(loc="lower right", fontsize=8)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110, metadata=METADATA)
     plt.close(fig)

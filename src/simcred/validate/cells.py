@@ -4,10 +4,10 @@ A cell is a box: one interval per condition variable, ``[lo, hi)`` except the la
 variable, which is closed. Runs cross cells (a car following at 12 m/s accelerates to 18 m/s), so
 a run is not assigned to one cell as a whole: it is cut into *maximal segments* of consecutive
 samples that lie in the same cell, and segments shorter than ``min_length`` samples are dropped.
-Segments, not whole runs, are the units of the run-level comparison in a cell: a whole run would
-put transitions observed under other conditions into the cell. The price: two segments of one run
-that re-enters a cell are treated as exchangeable units although they are dependent (see
-docs/validate.md).
+A whole run would put transitions observed under other conditions into the cell. Each segment
+carries its run's per-run facts plus ``source_run`` (the run it was cut from), so that the
+segments of one run form one unit of the comparison's design: dependent segments are never
+treated as exchangeable units.
 """
 
 from __future__ import annotations
@@ -19,9 +19,11 @@ from fractions import Fraction
 import numpy as np
 
 from simcred.contracts.expr import decimal_text
-from simcred.traces import TraceSet, handed_over
+from simcred.traces import RUN_INFO, TraceSet, handed_over
 
 OUTSIDE = -1
+#: The per-run fact of a segment that names the run it was cut from.
+SOURCE_RUN = "source_run"
 
 
 @dataclass(frozen=True, slots=True)
@@ -126,10 +128,17 @@ def _subset(traces: TraceSet, parts: Sequence[tuple[int, int, str]], cell: int, 
             ) -> TraceSet:
     rows = np.concatenate([np.arange(a, b) for a, b, _ in parts])
     lengths = [b - a for a, b, _ in parts]
+    info = traces.metadata.get(RUN_INFO)
+    info = info if isinstance(info, Mapping) else {}
+    facts = {}
+    for a, _, name in parts:
+        run = traces.run_ids[int(np.searchsorted(traces.offsets, a, side="right")) - 1]
+        own = info.get(run)
+        facts[name] = {**(own if isinstance(own, Mapping) else {}), SOURCE_RUN: run}
     return TraceSet(traces.signals, handed_over(traces.time[rows]),
                     handed_over(traces.values[rows]),
                     np.concatenate([[0], np.cumsum(lengths)]), tuple(n for _, _, n in parts),
-                    dict(traces.metadata), f"{traces.source} [{grid.label(cell)}]")
+                    {**traces.metadata, RUN_INFO: facts}, f"{traces.source} [{grid.label(cell)}]")
 
 
 def _num(value: float) -> str:

@@ -1,23 +1,34 @@
-"""Validity domains learned from measurements: one calibrated comparison per cell.
+"""Validity domains learned from measurements: one response comparison per cell, decided on the
+size of the deviation, not on whether a difference was found.
 
 For every candidate and every cell of the operating-condition grid, the candidate's segments in
-the cell are compared with the reference's segments in the cell by the run-level comparison
-(:func:`simcred.compare.compare` with ``test="runs"``: whole segments are permuted, so the
-dependence of samples within a segment does not inflate the level). A cell is
+the cell are compared with the reference's by the response comparison
+(:func:`simcred.compare.compare` with ``test="response"``): the response law given the state,
+with the declared inputs conditioned on, on the design's units (pairs of replays, groups, or the
+runs the segments were cut from). For each feature with a tolerance ``δ`` it gives the response
+deviation ``E`` with bootstrap bounds. With ``K`` the number of cells of the test case and ``α``
+the comparison's level, a cell is
 
-* ``unknown`` when either side has fewer segments or samples than ``min_data`` — never valid;
-* ``not valid`` when the chain test rejects at alpha (under every acceptance rule: a cell whose
-  test rejects is never accepted), or, under ``rule: distance``, when the distance is above
-  ``d_max``;
-* ``valid`` otherwise.
+* ``valid`` when every ``E`` is shown below its ``δ``: the one-sided upper ``1 − α`` bound is
+  below ``δ``. VALID for the test case needs every one of its cells valid (an
+  intersection–union test: the probability of declaring valid a candidate that deviates by
+  ``δ`` or more in some cell is at most ``α``, without adjustment);
+* ``not valid`` when some ``E`` is shown above its ``δ``: the one-sided lower ``1 − α/K`` bound
+  is above ``δ`` (Bonferroni over the test case's cells: a candidate within tolerance in every
+  cell comes out not valid in at most ``α`` of cases, whatever the number of cells);
+* ``inconclusive`` otherwise: the data cannot place the deviation on either side of ``δ``;
+* ``unknown`` when either side has fewer design units or samples than ``min_data``.
 
-"Valid" means *no difference detected with at least min_data on each side*; it is not an
-equivalence test. The power that min_data buys is measured in docs/validate.md.
+Design: ``pairs`` (or, for a candidate made by a simulator command that replays the reference,
+its own run ids) pairs each reference run with its replay; ``groups`` makes drivers, recordings
+or vehicles the units; by default the units are the runs the segments were cut from. In a paired
+cell, runs whose partner has no segment in the cell are left out (counted in the reason).
 """
 
 from __future__ import annotations
 
 import zlib
+from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import StrEnum
 from typing import Any
@@ -25,48 +36,74 @@ from typing import Any
 import numpy as np
 
 from simcred.compare import Comparison, compare
-from simcred.traces import TraceSet
-from simcred.validate.cells import Grid, Segments, segments
+from simcred.compare.design import RUN_ID, unit_keys
+from simcred.compare.effect import FeatureEffect
+from simcred.traces import TraceSet, take
+from simcred.validate.cells import SOURCE_RUN, Grid, Segments, segments
 from simcred.validate.spec import ValidationSpec
 
 
 class CellStatus(StrEnum):
     VALID = "valid"
     NOT_VALID = "not valid"
+    INCONCLUSIVE = "inconclusive"
     UNKNOWN = "unknown"
+
+
+@dataclass(frozen=True, slots=True)
+class FeatureBounds:
+    """One feature's deviation in one cell against its tolerance: the estimate, the one-sided
+    bounds the decision uses (``upper`` at ``1 − α``, ``lower`` at ``1 − α/K``), the two-sided
+    95 % interval and the smallest uniform shift the data could detect (80 % power)."""
+
+    feature: str
+    unit: str
+    tolerance: float
+    estimate: float
+    lower: float
+    upper: float
+    low: float
+    high: float
+    detectable: float
 
 
 @dataclass(frozen=True, slots=True, eq=False)
 class CellResult:
-    """One candidate in one cell: data counts, the chain test, the distance, the status."""
+    """One candidate in one cell: data counts, the design, the deviations, the status."""
 
     cell: int
     index: tuple[int, ...]
     label: str
     status: CellStatus
     reason: str
-    reference_segments: int
+    reference_units: int
     reference_samples: int
-    candidate_segments: int
+    candidate_units: int
     candidate_samples: int
+    design: str = ""
     pvalue: float | None = None
-    statistic: float | None = None
-    distance: float | None = None
+    bounds: tuple[FeatureBounds, ...] = ()
     seed: int | None = None
-    baseline: tuple[float, float] | None = None
     comparison: Comparison | None = None
+
+    def worst(self) -> float:
+        """The largest estimate relative to its tolerance (NaN when not compared)."""
+        ratios = [b.estimate / b.tolerance for b in self.bounds]
+        return max(ratios) if ratios else float("nan")
 
     def to_dict(self) -> dict[str, Any]:
         return {"cell": self.cell, "index": list(self.index), "label": self.label,
                 "status": self.status.value, "reason": self.reason,
-                "reference": {"segments": self.reference_segments,
-                              "samples": self.reference_samples},
-                "candidate": {"segments": self.candidate_segments,
-                              "samples": self.candidate_samples},
-                "chain_pvalue": self.pvalue, "chain_statistic": self.statistic,
-                "distance": self.distance,
-                "baseline": None if self.baseline is None else list(self.baseline),
-                "seed": self.seed}
+                "reference": {"units": self.reference_units, "samples": self.reference_samples},
+                "candidate": {"units": self.candidate_units, "samples": self.candidate_samples},
+                "design": self.design, "difference_pvalue": self.pvalue,
+                "deviation": [_bounds_dict(b) for b in self.bounds], "seed": self.seed}
+
+
+def _bounds_dict(b: FeatureBounds) -> dict[str, Any]:
+    return {"feature": b.feature, "unit": b.unit, "tolerance": b.tolerance,
+            "estimate": b.estimate, "lower": b.lower, "upper": b.upper,
+            "interval_95": [b.low, b.high], "detectable_shift": b.detectable}
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -80,17 +117,27 @@ class Domain:
     def with_status(self, status: CellStatus) -> tuple[CellResult, ...]:
         return tuple(c for c in self.cells if c.status is status)
 
-    @property
-    def bound(self) -> float | None:
-        """The largest distance measured in a valid cell (the learned guarantee), None if no
-        cell is valid."""
-        valid = [c.distance for c in self.with_status(CellStatus.VALID)]
-        return max(valid) if valid else None
-
     def to_dict(self) -> dict[str, Any]:
         return {"candidate": self.candidate,
                 "counts": {s.value: len(self.with_status(s)) for s in CellStatus},
-                "distance_bound": self.bound, "cells": [c.to_dict() for c in self.cells]}
+                "cells": [c.to_dict() for c in self.cells]}
+
+
+@dataclass(frozen=True, slots=True)
+class CellRule:
+    """What every cell's decision shares: the level, the Bonferroni family (the test case's
+    cells) and how the candidate's runs are paired or grouped."""
+
+    alpha: float
+    family: int
+    pair_by: str | None
+    group_by: str | None
+
+    @property
+    def design(self) -> str:
+        if self.pair_by is not None:
+            return f"pairs by {_user_key(self.pair_by)}"
+        return f"groups by {_user_key(self.group_by)}"
 
 
 def cell_seed(seed: int, candidate: str, cell: int) -> int:
@@ -99,54 +146,130 @@ def cell_seed(seed: int, candidate: str, cell: int) -> int:
     return int(sequence.generate_state(1, np.uint64)[0] >> np.uint64(1))
 
 
+def cell_rule(spec: ValidationSpec, family: int, replay: bool) -> CellRule:
+    """The design of one candidate's cells (module docs): declared pairs or groups, pairs by
+    run for a replay, else the runs the segments were cut from as groups."""
+    alpha = spec.comparison.alpha
+    family = max(family, 1)
+    if spec.pairs is not None:
+        return CellRule(alpha, family, _segment_key(spec.pairs.by), None)
+    if spec.groups is not None:
+        return CellRule(alpha, family, None, _segment_key(spec.groups.by))
+    if replay:
+        return CellRule(alpha, family, SOURCE_RUN, None)
+    return CellRule(alpha, family, None, SOURCE_RUN)
+
+
+def _segment_key(key: str) -> str:
+    """A user's per-run key as a key of the segments' facts (``run_id`` is the source run)."""
+    return SOURCE_RUN if key == RUN_ID else key
+
+
+def _user_key(key: str | None) -> str:
+    return "run" if key == SOURCE_RUN else str(key)
+
+
 def learn_domain(spec: ValidationSpec, grid: Grid, reference: Segments, candidate: TraceSet,
-                 name: str) -> Domain:
+                 name: str, rule: CellRule) -> Domain:
     """Compare ``candidate`` with the reference in every cell of ``grid`` (module docs)."""
     mine = segments(candidate, grid, spec.segments.min_length)
-    return Domain(name, grid, tuple(_cell(spec, grid, reference, mine, name, c)
+    return Domain(name, grid, tuple(_cell(spec, grid, reference, mine, name, c, rule)
                                     for c in range(grid.n_cells)))
 
 
 def _cell(spec: ValidationSpec, grid: Grid, reference: Segments, candidate: Segments,
-          name: str, cell: int) -> CellResult:
-    counts = (reference.runs(cell), reference.samples(cell), candidate.runs(cell),
-              candidate.samples(cell))
+          name: str, cell: int, rule: CellRule) -> CellResult:
     head = (cell, grid.index(cell), grid.label(cell))
+    if cell not in reference.by_cell or cell not in candidate.by_cell:
+        counts = (_units(reference, cell, rule), reference.samples(cell),
+                  _units(candidate, cell, rule), candidate.samples(cell))
+        return CellResult(*head, CellStatus.UNKNOWN, _too_little(spec, counts), *counts,
+                          rule.design)
+    ref, cand, dropped = _matched(reference.by_cell[cell], candidate.by_cell[cell], rule)
+    counts = (0, 0, 0, 0) if ref is None else (_count_units(ref, rule), ref.n_rows,
+                                                _count_units(cand, rule), cand.n_rows)
     short = _too_little(spec, counts)
     if short:
-        return CellResult(*head, CellStatus.UNKNOWN, short, *counts)
+        return CellResult(*head, CellStatus.UNKNOWN, short + dropped, *counts, rule.design)
     options = spec.comparison
     seed = cell_seed(options.seed, name, cell)
-    result = compare(reference.by_cell[cell], candidate.by_cell[cell], features=spec.features,
-                     bins=options.bins, kernel=options.kernel, test="runs", alpha=options.alpha,
-                     permutations=options.permutations, seed=seed,
-                     multiplicity=options.multiplicity, chain=options.chain,
-                     resample=options.resample, baseline=options.baseline)
-    chain = result.chain
-    distance = result.distance
-    if spec.acceptance.rule == "chain":
-        ok = not chain.rejected
-        reason = (f"chain test p = {chain.pvalue:.3g} {'>' if ok else '≤'} alpha = "
-                  f"{options.alpha:g}")
-    elif chain.rejected:  # a cell whose test rejects is never accepted, whatever the rule
-        ok = False
-        reason = (f"chain test p = {chain.pvalue:.3g} ≤ alpha = {options.alpha:g} (a cell "
-                  "whose test rejects is never valid, whatever d_max)")
-    else:
-        ok = distance is not None and distance <= spec.acceptance.d_max
-        reason = f"distance {distance:.3g} {'≤' if ok else '>'} d_max = {spec.acceptance.d_max:g}"
-    status = CellStatus.VALID if ok else CellStatus.NOT_VALID
-    baseline = None if result.baseline is None else (result.baseline.low, result.baseline.high)
-    return CellResult(*head, status, reason, *counts, float(chain.pvalue),
-                      float(chain.statistic), distance, seed, baseline, result)
+    result = compare(ref, cand, features=spec.features, inputs=spec.inputs, test="response",
+                     bins=options.bins, alpha=options.alpha, permutations=options.permutations,
+                     bootstrap=options.bootstrap, seed=seed, resample=options.resample,
+                     pair_by=rule.pair_by, group_by=rule.group_by,
+                     margin=dict(spec.test_case.tolerance))
+    effects = {f.feature: f for f in result.response.effect.features}
+    bounds = tuple(_feature_bounds(effects[n], delta, rule)
+                   for n, delta in spec.test_case.tolerance.items())
+    status, reason = _decide(bounds, rule)
+    return CellResult(*head, status, reason + dropped, *counts, rule.design,
+                      float(result.chain.pvalue), bounds, seed, result)
+
+
+def _feature_bounds(effect: FeatureEffect, tolerance: float, rule: CellRule) -> FeatureBounds:
+    lower = effect.bounds(rule.alpha / rule.family)[0]
+    upper = effect.bounds(rule.alpha)[1]
+    return FeatureBounds(effect.feature, effect.unit, tolerance, effect.estimate, lower, upper,
+                         effect.low, effect.high, effect.mde)
+
+
+def _decide(bounds: Sequence[FeatureBounds], rule: CellRule) -> tuple[CellStatus, str]:
+    """Valid when every upper bound is below its tolerance, not valid when some lower bound is
+    above it, inconclusive otherwise; not estimable counts as not shown."""
+    confidence = f"{100 * (1 - rule.alpha):g} %"
+    family = f"{100 * (1 - rule.alpha / rule.family):.4g} %"
+    above = [b for b in bounds if b.lower > b.tolerance]
+    if above:
+        return CellStatus.NOT_VALID, "; ".join(
+            f"{b.feature} deviates by more than {b.tolerance:g} {b.unit}: {b.estimate:.3g}, "
+            f"lower {family} bound {b.lower:.3g}" for b in above)
+    if all(b.upper < b.tolerance for b in bounds):
+        return CellStatus.VALID, "; ".join(
+            f"{b.feature} within {b.tolerance:g} {b.unit}: {b.estimate:.3g}, upper "
+            f"{confidence} bound {b.upper:.3g}" for b in bounds)
+    open_ = [b for b in bounds if not b.upper < b.tolerance]
+    return CellStatus.INCONCLUSIVE, "; ".join(
+        (f"{b.feature}: not estimable (no state visited enough by both sides)"
+         if not np.isfinite(b.estimate) else
+         f"{b.feature}: {b.estimate:.3g} {b.unit}, bounds {b.lower:.3g}–{b.upper:.3g} "
+         f"straddle the tolerance {b.tolerance:g}") for b in open_)
+
+
+def _matched(reference: TraceSet, candidate: TraceSet, rule: CellRule
+             ) -> tuple[TraceSet | None, TraceSet | None, str]:
+    """A paired cell keeps the runs whose key has segments on both sides (None: no pair)."""
+    if rule.pair_by is None:
+        return reference, candidate, ""
+    keys_r = unit_keys(reference, rule.pair_by, "pairs")
+    keys_c = unit_keys(candidate, rule.pair_by, "pairs")
+    common = set(keys_r) & set(keys_c)
+    keep_r = [i for i, k in enumerate(keys_r) if k in common]
+    keep_c = [i for i, k in enumerate(keys_c) if k in common]
+    left = (len(keys_r) - len(keep_r), len(keys_c) - len(keep_c))
+    if left == (0, 0):
+        return reference, candidate, ""
+    note = (f" ({left[0]} reference and {left[1]} candidate segments without a partner in the "
+            "cell left out)")
+    if not common:
+        return None, None, note
+    return take(reference, keep_r), take(candidate, keep_c), note
+
+
+def _units(segs: Segments, cell: int, rule: CellRule) -> int:
+    return _count_units(segs.by_cell[cell], rule) if cell in segs.by_cell else 0
+
+
+def _count_units(traces: TraceSet, rule: CellRule) -> int:
+    key = rule.pair_by or rule.group_by
+    return len(set(unit_keys(traces, key, "pairs" if rule.pair_by else "groups")))
 
 
 def _too_little(spec: ValidationSpec, counts: tuple[int, int, int, int]) -> str:
     need = spec.min_data
-    ref_runs, ref_samples, cand_runs, cand_samples = counts
-    for side, runs, samples in (("reference", ref_runs, ref_samples),
-                                ("candidate", cand_runs, cand_samples)):
-        if runs < need.runs or samples < need.samples:
-            return (f"too little data: {side} has {runs} segments / {samples} samples "
+    ref_units, ref_samples, cand_units, cand_samples = counts
+    for side, units, samples in (("reference", ref_units, ref_samples),
+                                 ("candidate", cand_units, cand_samples)):
+        if units < need.runs or samples < need.samples:
+            return (f"too little data: {side} has {units} units / {samples} samples "
                     f"(needs {need.runs} / {need.samples})")
     return ""

@@ -1,22 +1,22 @@
 """Learned validity domains as contracts: a contracts library the ``contracts`` commands accept.
 
-One component ``simulation`` reads the operating-condition variables and drives the validity
-metric ``distance`` (the calibrated distance of the comparison, dimensionless). Each candidate
-with at least one valid cell becomes a model of it (seed 003: the model's contract is its validity
-domain)::
+One component ``simulation`` reads the operating-condition variables and drives one validity
+metric per feature with a tolerance, ``deviation.<feature>`` (the response deviation of
+:mod:`simcred.compare.effect`, in the feature's unit per second). Each candidate with at least
+one valid cell becomes a model of it (seed 003: the model's contract is its validity domain)::
 
-    assumption = cell_1 or cell_2 or ...                  (the valid cells, closed intervals)
-    guarantee  = (cell_1 implies distance <= d_1) and ... (the distance measured in each cell)
+    assumption = cell_1 or cell_2 or ...              (the valid cells, closed intervals)
+    guarantee  = (cell_1 implies deviation.v <= u_1) and ...
 
-The guarantee is per cell, so a refinement check against a test case sees only the distances of
-the cells its conditions reach (a global bound would let a cell outside the test case decide it).
-Adjacent cells with the same distance share one clause; when every valid cell has the same
-distance the guarantee is simply ``distance <= d``. Cells are closed boxes here: at an edge two
-adjacent cells meet, and a test case ending at an edge (``v <= 20``) is covered by the cell on
-its side (the loop counts a cell for a test case only where the cell's interior meets it).
-The test case assumes its operating conditions and requires ``distance <= max_distance``.
-Candidates without a valid cell have an empty domain; an empty assumption is vacuous (the library
-refuses it), so they are left out of the library and named in the verdict.
+``u`` is the cell's upper confidence bound of the deviation (what the data showed), so the
+guarantee is per cell: a refinement check against a test case sees only the bounds of the cells
+its conditions reach. Adjacent cells with the same bounds share one clause; a single clause is
+written without the implication. Cells are closed boxes here: at an edge two adjacent cells meet,
+and a test case ending at an edge (``v <= 20``) is covered by the cell on its side (the loop
+counts a cell for a test case only where the cell's interior meets it). The test case assumes
+its operating conditions and requires ``deviation.<feature> <= tolerance`` for each feature.
+Candidates without a valid cell have an empty domain; an empty assumption is vacuous (the
+library refuses it), so they are left out of the library and named in the verdict.
 """
 
 from __future__ import annotations
@@ -25,19 +25,28 @@ from fractions import Fraction
 from typing import Any
 
 from simcred.contracts.expr import decimal_text
-from simcred.validate.domain import CellStatus, Domain
+from simcred.validate.domain import CellResult, CellStatus, Domain
 from simcred.validate.spec import ValidationSpec
 
 COMPONENT = "simulation"
-METRIC = "distance"
 TEST_CASE = "test_case"
 
 
-def library_dict(spec: ValidationSpec, domains: dict[str, Domain]) -> dict[str, Any]:
-    """The contracts library (as YAML-ready data) of the learned domains (module docs)."""
+def metric(feature: str) -> str:
+    """The contract variable of one feature's response deviation."""
+    return f"deviation.{feature}"
+
+
+def library_dict(spec: ValidationSpec, domains: dict[str, Domain],
+                 units: dict[str, str] | None = None) -> dict[str, Any]:
+    """The contracts library (as YAML-ready data) of the learned domains (module docs);
+    ``units``: each feature's unit (its deviation's unit is that per second)."""
+    units = units or {}
     variables = {name: {"type": "real", "unit": c.unit} for name, c in spec.conditions.items()}
-    # no run carries the distance: monitors check the domains and name the guarantee unchecked
-    variables[METRIC] = {"type": "real", "unit": "dimensionless", "observed": False}
+    # no run carries a deviation: monitors check the domains and name the guarantee unchecked
+    for feature in spec.test_case.tolerance:
+        variables[metric(feature)] = {"type": "real", "unit": _rate(units.get(feature)),
+                                      "observed": False}
     models = {}
     for name, domain in domains.items():
         valid = domain.with_status(CellStatus.VALID)
@@ -51,15 +60,21 @@ def library_dict(spec: ValidationSpec, domains: dict[str, Domain]) -> dict[str, 
             "contract": {"assumption": assumption, "guarantee": guarantee(domain)},
             "description": f"learned: {len(valid)} valid cells of {domain.grid.n_cells}",
         }
+    required = " and ".join(f"{metric(f)} <= {number(d)}"
+                            for f, d in spec.test_case.tolerance.items())
     return {
         "variables": variables,
-        "components": {COMPONENT: {"inputs": list(spec.conditions), "outputs": [METRIC]}},
+        "components": {COMPONENT: {"inputs": list(spec.conditions),
+                                   "outputs": [metric(f) for f in spec.test_case.tolerance]}},
         "models": models,
         "architecture": [COMPONENT],
         "test_cases": {TEST_CASE: {"assumption": spec.test_case.conditions,
-                                   "guarantee": f"{METRIC} <= "
-                                                f"{number(spec.test_case.max_distance)}"}},
+                                   "guarantee": required}},
     }
+
+
+def _rate(unit: str | None) -> str:
+    return f"{unit}/s" if unit and unit != "dimensionless" else "1/s"
 
 
 def domain_parts(domain: Domain) -> list[str]:
@@ -71,17 +86,25 @@ def domain_parts(domain: Domain) -> list[str]:
 
 
 def guarantee(domain: Domain) -> str:
-    """The per-cell guarantee (module docs): ``distance <= d`` if every valid cell measured the
-    same ``d``, else one implication per run of adjacent valid cells with the same distance."""
+    """The per-cell guarantee (module docs): the bounds alone if every valid cell showed the
+    same, else one implication per run of adjacent valid cells with the same bounds."""
     valid = domain.with_status(CellStatus.VALID)
-    distance = {c.cell: c.distance for c in valid}
-    if len(set(distance.values())) == 1:
-        return f"{METRIC} <= {number(valid[0].distance)}"
+    bounds = {c.cell: _bound_text(c) for c in valid}
+    if len(set(bounds.values())) == 1:
+        return bounds[valid[0].cell]
     cells = [c.cell for c in valid]
     runs = ([[c] for c in cells] if len(domain.grid.variables) > 1
-            else _runs(cells, lambda a, b: distance[a] == distance[b]))
-    return " and ".join(f"({box} implies {METRIC} <= {number(distance[run[0]])})"
+            else _runs(cells, lambda a, b: bounds[a] == bounds[b]))
+    return " and ".join(f"({box} implies {_grouped(bounds[run[0]])})"
                         for box, run in zip(_boxes(domain, runs), runs, strict=True))
+
+
+def _bound_text(cell: CellResult) -> str:
+    return " and ".join(f"{metric(b.feature)} <= {number(b.upper)}" for b in cell.bounds)
+
+
+def _grouped(text: str) -> str:
+    return f"({text})" if " and " in text else text
 
 
 def _runs(cells: list[int], same) -> list[list[int]]:

@@ -1,19 +1,21 @@
 """The user's loop (docs/validate.md): measurements → per-cell comparisons → learned domains →
 contracts → configuration → monitors → one verdict for the test case.
 
-Verdict of a candidate for the test case (its operating conditions, ``test_case.conditions``):
+Verdict of a candidate for the test case (its operating conditions, ``test_case.conditions``),
+from its cells that meet the test case (:mod:`simcred.validate.domain`):
 
-* ``valid`` — its learned contract refines the test case's (z3 proof): every operating point of
-  the test case lies in a valid cell and the measured distance bound meets ``max_distance``;
-* ``not valid`` — a cell that meets the test case's conditions is not valid, or the distance
-  measured in such a cell exceeds ``max_distance`` (per cell: cells outside the test case do
-  not count);
-* ``inconclusive`` — otherwise: the test case reaches cells without enough data (unknown) or
-  beyond the grid.
+* ``valid`` — every such cell is valid (each deviation shown below its tolerance) and its learned
+  contract refines the test case's (z3 proof). Wrongly valid with probability at most ``α``;
+* ``not valid`` — some such cell is not valid (a deviation shown above its tolerance at the
+  family level ``α/K``). Wrongly not valid with probability at most ``α``;
+* ``inconclusive`` — otherwise: a cell whose data place the deviation on neither side, a cell
+  without enough data, or conditions beyond the grid; the reasons say which and what the data
+  could detect.
 
 The overall verdict is ``valid`` when configuration finds a candidate (the cheapest whose contract
 refines the test case), ``not valid`` when every candidate is not valid, else ``inconclusive``.
-Exit codes 0 / 1 / 3.
+Exit codes 0 / 1 / 3. Candidates are ranked by their largest deviation relative to the tolerance
+over the test case's cells, with a simultaneous interval (:mod:`simcred.validate.ranking`).
 """
 
 from __future__ import annotations
@@ -32,9 +34,10 @@ from simcred.contracts.monitor import MonitorReport, monitor
 from simcred.errors import SimcredError
 from simcred.traces import TraceSet
 from simcred.validate.cells import Grid, grid_of, segments
-from simcred.validate.domain import CellStatus, Domain, learn_domain
+from simcred.validate.domain import CellStatus, Domain, cell_rule, learn_domain
 from simcred.validate.learned import COMPONENT, TEST_CASE, library_dict
 from simcred.validate.learned import number as _exact_text
+from simcred.validate.ranking import Ranked, rank
 from simcred.validate.spec import RunsSpec, ValidationFileError, ValidationSpec
 
 VALID, NOT_VALID, INCONCLUSIVE = "valid", "not valid", "inconclusive"
@@ -44,9 +47,13 @@ MAX_VIOLATIONS = 50  # per monitor in verdict.json; the count says how many ther
 
 @dataclass(frozen=True, slots=True, eq=False)
 class Inputs:
+    """The read trace sets; ``replays``: candidates a simulator command made by replaying the
+    reference run by run (paired with it automatically)."""
+
     reference: TraceSet
     candidates: dict[str, TraceSet]
     monitored: tuple[TraceSet, ...]
+    replays: frozenset[str] = frozenset()
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -77,6 +84,7 @@ class Validation:
     configuration: dict[str, Any] | None
     uncovered: dict[str, list[str]]
     monitors: dict[str, MonitorReport]
+    ranking: tuple[Ranked, ...] = ()
 
     @property
     def exit_code(self) -> int:
@@ -97,7 +105,8 @@ def read_inputs(spec: ValidationSpec, base: Path,
                                   "not been run (simcred validate runs it)")
     return Inputs(_read(spec.reference, base),
                   {n: _read(c.runs or simulated[n], base) for n, c in spec.candidates.items()},
-                  tuple(_read(m, base) for m in spec.monitor))
+                  tuple(_read(m, base) for m in spec.monitor),
+                  frozenset(n for n, c in spec.candidates.items() if c.simulate is not None))
 
 
 def _read(runs: RunsSpec, base: Path) -> TraceSet:
@@ -120,23 +129,25 @@ def validate(spec: ValidationSpec, inputs: Inputs, *, source: str = "<memory>") 
     check_test_case(spec, source)
     _check_signals(spec, inputs)
     grid = grid_of(spec.conditions)
+    units = inputs.reference.units
+    empty = Library.from_dict(library_dict(spec, {}, units), source="test case")
+    relevant = _relevant_cells(grid, empty.test_case(TEST_CASE), empty)
     reference = segments(inputs.reference, grid, spec.segments.min_length)
-    domains = {n: learn_domain(spec, grid, reference, runs, n)
+    domains = {n: learn_domain(spec, grid, reference, runs, n,
+                               cell_rule(spec, len(relevant), n in inputs.replays))
                for n, runs in inputs.candidates.items()}
-    data = library_dict(spec, domains)
+    data = library_dict(spec, domains, units)
     library = Library.from_dict(data, source="learned contracts")
     target = library.test_case(TEST_CASE)
-    relevant = _relevant_cells(grid, target, library)
     beyond_text = _beyond_grid(grid, target, library)
-    verdicts = {n: _candidate_verdict(n, d, relevant, library, target, beyond_text,
-                                      spec.test_case.max_distance)
+    verdicts = {n: _candidate_verdict(n, d, relevant, library, target, beyond_text)
                 for n, d in domains.items()}
     configuration = _configuration(library)
     uncovered = {n: _uncovered(d, relevant, beyond_text) for n, d in domains.items()}
     monitors = _monitors(library, inputs)
     verdict, summary = _overall(spec, verdicts, configuration)
     return Validation(spec, grid, domains, verdicts, verdict, summary, data, configuration,
-                      uncovered, monitors)
+                      uncovered, monitors, rank(domains, relevant, spec))
 
 
 def _check_signals(spec: ValidationSpec, inputs: Inputs) -> None:
@@ -208,34 +219,30 @@ def _uncovered(domain: Domain, relevant: tuple[int, ...], beyond: str) -> list[s
 
 
 def _candidate_verdict(name: str, domain: Domain, relevant: tuple[int, ...], library: Library,
-                       target: Contract, beyond: str, required: float) -> CandidateVerdict:
+                       target: Contract, beyond: str) -> CandidateVerdict:
     cells = [domain.cells[c] for c in relevant]
     bad = [c for c in cells if c.status is CellStatus.NOT_VALID]
-    unknown = [c for c in cells if c.status is CellStatus.UNKNOWN]
     proof = None
     if name in library.spec.models:
         proof = _proof(setup_refines(library, {COMPONENT: name}, target))
-    reasons = [f"not valid in {c.label}: {c.reason}" for c in bad]
-    reasons += [f"unknown in {c.label}: {c.reason}" for c in unknown]
+    if bad:
+        return CandidateVerdict(name, NOT_VALID, tuple(f"not valid in {c.label}: {c.reason}"
+                                                       for c in bad), relevant, proof)
     if proof is not None and proof["verdict"] == "holds":
         return CandidateVerdict(name, VALID, (f"valid in all {len(cells)} cells of the test "
                                               "case; its learned contract refines the test "
                                               "case (z3)",), relevant, proof)
-    too_far = [c for c in cells if c.status is CellStatus.VALID and c.distance > required]
-    if not bad and not unknown and proof is not None and too_far:
-        return CandidateVerdict(name, NOT_VALID, tuple(
-            f"distance {c.distance:g} in {c.label} exceeds the required {required:g}"
-            for c in too_far), relevant, proof)
+    reasons = [f"{c.status.value} in {c.label}: {c.reason}" for c in cells
+               if c.status is not CellStatus.VALID]
     if beyond:
         reasons.append(beyond)
     if not cells:
         reasons.append("no cell of the grid meets the test case's conditions")
-    return CandidateVerdict(name, NOT_VALID if bad else INCONCLUSIVE, tuple(reasons), relevant,
-                            proof)
+    return CandidateVerdict(name, INCONCLUSIVE, tuple(reasons), relevant, proof)
 
 
 def _monitors(library: Library, inputs: Inputs) -> dict[str, MonitorReport]:
-    """Each learned domain (assumption only: runs carry no distance) over the candidate's own
+    """Each learned domain (assumption only: runs carry no deviation) over the candidate's own
     runs and over every monitored set."""
     out = {}
     for name in library.spec.models:
@@ -257,5 +264,6 @@ def _overall(spec: ValidationSpec, verdicts: dict[str, CandidateVerdict],
         names = ", ".join(verdicts)
         return NOT_VALID, f"NOT VALID: no candidate ({names}) is valid for {question}"
     open_ = ", ".join(n for n, v in verdicts.items() if v.verdict == INCONCLUSIVE)
-    return INCONCLUSIVE, (f"INCONCLUSIVE: not enough data to decide for {question} "
-                          f"({open_}: cells without enough data or outside the grid)")
+    return INCONCLUSIVE, (f"INCONCLUSIVE: the data do not decide for {question} ({open_}: "
+                          "deviations not placed on either side of the tolerance, cells "
+                          "without enough data or outside the grid)")

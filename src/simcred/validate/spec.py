@@ -6,17 +6,18 @@ and the key. Paths are relative to the validation file's folder. See docs/valida
 
     name: car following, 10-25 m/s
     test_case:
-      conditions: "10 <= v <= 25"     # operating conditions (over the condition variables)
-      max_distance: 0.2               # required validity: calibrated distance bound
-    reference: {path: ref.parquet}    # any format simcred reads (reader options allowed)
+      conditions: "10 <= v_leader <= 25"  # operating conditions (over the condition variables)
+      tolerance: {v: 0.1}                 # largest acceptable response deviation, per feature
+    reference: {path: ref.parquet}        # any format simcred reads (reader options allowed)
     candidates:
       idm: {runs: {path: idm.parquet}, cost: 1}
-    features: [v, gap]
-    conditions:                       # variables spanning the validity domain, cell edges
-      v: {unit: m/s, edges: [10, 15, 20, 25]}
-    comparison: {bins: 4, alpha: 0.05, permutations: 199, seed: 0}
-    acceptance: {rule: chain}         # or {rule: distance, d_max: 0.2}
-    min_data: {runs: 8, samples: 200} # per side and cell, else the cell is unknown
+    features: [gap, v, v_leader]
+    inputs: [v_leader]                    # exogenous: conditioned on, not compared
+    pairs: {by: run_id}                   # or groups: {by: driver}; replays pair by themselves
+    conditions:                           # variables spanning the validity domain, cell edges
+      v_leader: {unit: m/s, edges: [10, 15, 20, 25]}
+    comparison: {bins: 3, alpha: 0.05, permutations: 199, bootstrap: 500, seed: 0}
+    min_data: {runs: 8, samples: 200}     # units (runs) and samples per side and cell
     monitor: [{path: new_runs.parquet}]
 """
 
@@ -25,7 +26,7 @@ from __future__ import annotations
 import math
 import re
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
@@ -33,7 +34,7 @@ from simcred.contracts.loader import load_yaml
 from simcred.errors import SimcredError
 
 NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*$")
-RESERVED = {"and", "or", "not", "implies", "true", "false", "distance"}
+RESERVED = {"and", "or", "not", "implies", "true", "false", "deviation"}
 MAX_CELLS = 400
 
 
@@ -53,8 +54,19 @@ class RunsSpec(_Strict):
 
 
 class TestCaseSpec(_Strict):
+    """The test case: its operating conditions and, per response feature, the largest response
+    deviation it tolerates (in the feature's unit per second, e.g. m/s² for a speed)."""
+
     conditions: str = Field(min_length=1)
-    max_distance: float = Field(default=1.0, ge=0, le=1, allow_inf_nan=False)
+    tolerance: dict[str, float] = Field(min_length=1)
+
+    @field_validator("tolerance")
+    @classmethod
+    def _positive(cls, tolerance: dict[str, float]) -> dict[str, float]:
+        for name, value in tolerance.items():
+            if not math.isfinite(value) or value <= 0:
+                raise ValueError(f"tolerance of '{name}' must be a finite number > 0")
+        return tolerance
 
 
 class SimulateSpec(_Strict):
@@ -108,40 +120,27 @@ class ConditionSpec(_Strict):
 
 
 class ComparisonSpec(_Strict):
-    """Options of the calibrated comparison (run-level test) in every cell; ``baseline``: random
-    half-splits of the reference's segments compared with each other (the same-model distance
-    range a cell's distance is read against)."""
+    """Options of the response comparison (``compare(test="response")``) in every cell:
+    ``bins`` per feature, the level ``alpha``, ``permutations`` of the difference test,
+    ``bootstrap`` replicates of the deviation's bounds, ``seed``, ``resample`` (s)."""
 
-    bins: int | list[int] = 4
-    kernel: Literal["gaussian", "laplace", "linear"] = "gaussian"
+    bins: int | list[int] = 3
     alpha: float = Field(default=0.05, gt=0, lt=1)
     permutations: int = Field(default=199, ge=19, le=100_000)
+    bootstrap: int = Field(default=500, ge=100, le=100_000)
     seed: int = Field(default=0, ge=0)
-    chain: Literal["sum", "max"] = "sum"
-    multiplicity: Literal["fwer", "fdr", "none"] = "fwer"
     resample: float | None = Field(default=None, gt=0)
-    baseline: int = Field(default=0, ge=0, le=100)
 
 
-class AcceptanceSpec(_Strict):
-    """When a cell with enough data is valid: the chain-level test does not reject at the
-    comparison's alpha (``chain``), or in addition the distance is at most ``d_max``
-    (``distance``; a cell whose test rejects is never valid, whatever ``d_max``)."""
+class UnitKeySpec(_Strict):
+    """A per-run key: ``run_id`` or a per-run fact (``metadata["run_info"]`` key) of the runs."""
 
-    rule: Literal["chain", "distance"] = "chain"
-    d_max: float | None = Field(default=None, ge=0, le=1, allow_inf_nan=False)
-
-    @model_validator(mode="after")
-    def _d_max(self) -> AcceptanceSpec:
-        if self.rule == "distance" and self.d_max is None:
-            raise ValueError("rule 'distance' needs d_max")
-        if self.rule == "chain" and self.d_max is not None:
-            raise ValueError("d_max belongs to rule 'distance'")
-        return self
+    by: str = Field(min_length=1, max_length=200)
 
 
 class MinDataSpec(_Strict):
-    """Least data per side (reference and candidate) in a cell; below it the cell is unknown."""
+    """Least data per side (reference and candidate) in a cell: units of the design (runs,
+    groups or pair members) and samples; below it the cell is unknown."""
 
     runs: int = Field(default=8, ge=2)
     samples: int = Field(default=100, ge=2)
@@ -161,9 +160,11 @@ class ValidationSpec(_Strict):
     reference_note: str = ""
     candidates: dict[str, CandidateSpec] = Field(min_length=1)
     features: list[str] = Field(min_length=1)
+    inputs: list[str] = Field(default_factory=list)
+    pairs: UnitKeySpec | None = None
+    groups: UnitKeySpec | None = None
     conditions: dict[str, ConditionSpec] = Field(min_length=1, max_length=3)
     comparison: ComparisonSpec = Field(default_factory=ComparisonSpec)
-    acceptance: AcceptanceSpec = Field(default_factory=AcceptanceSpec)
     min_data: MinDataSpec = Field(default_factory=MinDataSpec)
     segments: SegmentSpec = Field(default_factory=SegmentSpec)
     monitor: list[RunsSpec] = Field(default_factory=list)
@@ -172,10 +173,32 @@ class ValidationSpec(_Strict):
     @classmethod
     def _names(cls, value: dict[str, Any]) -> dict[str, Any]:
         for name in value:
-            if not NAME.match(name) or name in RESERVED:
+            if not NAME.match(name) or name.split(".")[0] in RESERVED:
                 raise ValueError(f"'{name}' is not a usable name (letters, digits, _ and dots; "
                                  f"not {', '.join(sorted(RESERVED))})")
         return value
+
+    @model_validator(mode="after")
+    def _design(self) -> ValidationSpec:
+        if self.pairs is not None and self.groups is not None:
+            raise ValueError("pairs and groups cannot be combined: pair whole groups by giving "
+                             "each group's runs one pair key")
+        unknown = [n for n in self.inputs if n not in self.features]
+        if unknown:
+            raise ValueError(f"input '{unknown[0]}' is not one of the features (inputs "
+                             "condition the state, so they must be features)")
+        if not self.response:
+            raise ValueError("every feature is an input: no response is left to compare")
+        for name in self.test_case.tolerance:
+            if name not in self.response:
+                raise ValueError(f"test_case.tolerance: '{name}' is not a response feature "
+                                 f"(response features: {', '.join(self.response)})")
+        return self
+
+    @property
+    def response(self) -> tuple[str, ...]:
+        """The features the candidate produces (every feature that is not an input)."""
+        return tuple(n for n in self.features if n not in self.inputs)
 
     @model_validator(mode="after")
     def _cells(self) -> ValidationSpec:
@@ -192,10 +215,30 @@ def read_validation(path: str | Path) -> tuple[ValidationSpec, Path]:
     return parse_validation(data, source=str(path)), path.resolve().parent
 
 
+#: Keys of earlier versions, with what replaced them (a one-line error instead of "extra").
+REMOVED = {
+    ("test_case", "max_distance"): "VALID now means the response deviation is shown to be "
+    "within test_case.tolerance (docs/validate.md)",
+    ("acceptance",): "VALID now means shown within test_case.tolerance; there is no acceptance "
+    "rule (docs/validate.md)",
+    ("comparison", "kernel"): "the response comparison has no kernel option",
+    ("comparison", "chain"): "the response comparison has no chain option",
+    ("comparison", "multiplicity"): "errors are controlled over the test case's cells",
+    ("comparison", "baseline"): "the response comparison has no baseline option",
+}
+
+
 def parse_validation(data: Any, *, source: str = "<memory>") -> ValidationSpec:
     if not isinstance(data, dict):
         raise ValidationFileError(f"{source}: a validation file is a mapping (test_case, "
                                   "reference, candidates, features, conditions, ...)")
+    for path, instead in REMOVED.items():
+        found = data
+        for key in path:
+            found = found.get(key) if isinstance(found, dict) else None
+        if found is not None:
+            raise ValidationFileError(f"{source}: {'.'.join(path)}: no longer an option: "
+                                      f"{instead}")
     try:
         return ValidationSpec.model_validate(data)
     except ValidationError as exc:

@@ -28,6 +28,8 @@ def verdict_document(result: Validation, inputs: Inputs, *, validation_file: Pat
         "verdict": result.verdict,
         "summary": result.summary,
         "test_case": result.spec.test_case.model_dump(),
+        "error_rates": error_rates(result),
+        "ranking": [r.to_dict() for r in result.ranking],
         "candidates": {n: v.to_dict() for n, v in result.candidates.items()},
         "grid": {"variables": list(result.grid.variables), "units": list(result.grid.units),
                  "edges": [list(e) for e in result.grid.edges]},
@@ -38,6 +40,27 @@ def verdict_document(result: Validation, inputs: Inputs, *, validation_file: Pat
         "provenance": provenance(result, inputs, validation_file, date),
     }
     return envelope("validation_verdict", body)
+
+
+def error_rates(result: Validation) -> dict[str, Any]:
+    """Which error probabilities the verdict controls, and at what level."""
+    alpha = result.spec.comparison.alpha
+    cells = len(next(iter(result.candidates.values())).relevant_cells)
+    return {
+        "alpha": alpha,
+        "test_case_cells": cells,
+        "false_valid": f"at most {alpha:g} per candidate: VALID needs, in every cell of the "
+                       f"test case, each deviation's upper {1 - alpha:.4g} bound below its "
+                       "tolerance (intersection-union test)",
+        "false_not_valid": f"at most {alpha:g} per candidate within tolerance in every cell: "
+                           f"NOT VALID needs a deviation's lower {1 - alpha / max(cells, 1):.4g} "
+                           f"bound above its tolerance in some cell (Bonferroni over the "
+                           f"{cells} cells)",
+        "overall": f"the chosen candidate is wrongly valid with probability at most {alpha:g} "
+                   "times the number of candidates that are not within tolerance",
+        "bounds": "cluster-bootstrap (basic) bounds over the design's units: approximate; their "
+                  "coverage is measured in docs/calibration.md",
+    }
 
 
 def verdict_json(result: Validation, inputs: Inputs, **kwargs: Any) -> str:
