@@ -1,15 +1,16 @@
-"""Acceptance: on a universe with a known validity domain the learned domain matches the truth.
+"""Acceptance: on a universe with a known validity domain the verdict keeps its error rates.
 
-The candidate equals the reference below v = 20 m/s and deviates above it by the declared effect
-size (0.15 in the AR(1) coefficient; simcred.validate.synthetic). Over 20 seeds (5 cells each):
+The candidate equals the reference below v = 20 m/s and changes the AR(1) coefficient by 0.15
+above it (simcred.validate.synthetic): a response deviation of 1.06-1.17 /s there, twice the
+tolerance 0.5. Over 20 seeds (5 cells each, the test case all of them, K = 5):
 
-* no cell above 20 m/s is declared valid (measured: 0 of 40; power 40/40, docs/validate.md);
-* cells below 20 m/s are declared not valid at about the level alpha = 0.05 of the chain test
-  (measured 7 of 60); the bound 10 of 60 is exceeded with probability < 0.2 % under
-  Binomial(60, 0.05).
+* no cell above 20 m/s is declared valid (its deviation is far beyond the tolerance);
+* cells below 20 m/s (deviation 0) are declared not valid at most at the family level: each at
+  alpha / K = 0.01, so 60 cells give 0.6 expected; 4 or more has probability 0.003 under
+  Binomial(60, 0.01) (cells are independent across seeds, dependent within one).
 
-The same run also shows that unknown is never valid: with too little data per cell, every cell
-is unknown and no candidate is valid.
+Unknown is never valid: with too little data every cell is unknown and the verdict inconclusive.
+The family-wise rates over 200+ seeds are measured by examples/validate/power.py.
 """
 
 from __future__ import annotations
@@ -24,8 +25,9 @@ from simcred.validate.synthetic import universe, validation_spec
 SEEDS = 20
 EFFECT = 0.15
 
+
 @pytest.mark.slow
-def test_learned_domain_matches_the_truth_over_20_seeds():
+def test_the_verdict_keeps_its_error_rates_over_20_seeds():
     counts = Counter()
     for seed in range(SEEDS):
         reference = universe(100, 150, seed=1000 + seed)
@@ -33,10 +35,11 @@ def test_learned_domain_matches_the_truth_over_20_seeds():
         result = validate(validation_spec(seed), Inputs(reference, {"sim": candidate}, ()))
         for cell in result.domains["sim"].cells:
             counts["above" if cell.index[0] >= 3 else "below", cell.status.value] += 1
+        assert result.verdict != "valid"
     assert counts["above", "valid"] == 0  # no false validation
-    assert counts["above", "not valid"] == 2 * SEEDS  # power 1 at the declared effect
-    assert counts["below", "not valid"] <= 10  # false alarms at about alpha
-    assert counts["below", "valid"] + counts["below", "not valid"] == 3 * SEEDS
+    assert counts["above", "not valid"] >= 2 * SEEDS - 4  # shown beyond the tolerance
+    assert counts["below", "not valid"] <= 3  # family-wise false alarms
+    assert sum(v for (side, _), v in counts.items() if side == "below") == 3 * SEEDS
 
 
 def test_unknown_is_never_valid():

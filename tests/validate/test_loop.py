@@ -18,7 +18,8 @@ from simcred.contracts.library import Library
 from simcred.traces import TraceSet
 from simcred.validate import read_inputs, read_validation, validate
 from simcred.validate.cells import OUTSIDE, Grid, segments
-from simcred.validate.learned import COMPONENT, TEST_CASE
+from simcred.validate.domain import CellStatus
+from simcred.validate.learned import COMPONENT, TEST_CASE, number
 
 from .conftest import write_universe
 
@@ -41,8 +42,8 @@ def test_not_valid_above_the_switch(tmp_path):
 
 
 def test_valid_below_the_switch_and_cheapest_by_brute_force(tmp_path, capsys):
-    path = write_universe(tmp_path, test_case={"conditions": "5 <= v < 20", "max_distance": 0.5},
-                          candidates=TWO)
+    path = write_universe(tmp_path, test_case={"conditions": "5 <= v < 20",
+                                               "tolerance": {"x": 1.0}}, candidates=TWO)
     code, verdict = _run(path, tmp_path / "out")
     assert code == 0 and verdict["verdict"] == "valid"
     assert verdict["configuration"]["setup"] == {COMPONENT: "sim"}
@@ -61,13 +62,15 @@ def test_valid_below_the_switch_and_cheapest_by_brute_force(tmp_path, capsys):
 
 
 def test_inconclusive_when_data_is_short_or_the_grid_ends(tmp_path):
-    path = write_universe(tmp_path, test_case={"conditions": "5 <= v < 20"},
+    path = write_universe(tmp_path, test_case={"conditions": "5 <= v < 20",
+                                               "tolerance": {"x": 1.0}},
                           min_data={"runs": 10_000, "samples": 200})
     code, verdict = _run(path, tmp_path / "a")
     assert code == 3 and verdict["verdict"] == "inconclusive"
     assert {c["status"] for c in verdict["domains"]["sim"]["cells"]} == {"unknown"}
     assert verdict["configuration"] is None
-    path = write_universe(tmp_path, test_case={"conditions": "0 <= v < 20"})
+    path = write_universe(tmp_path, test_case={"conditions": "0 <= v < 20",
+                                               "tolerance": {"x": 1.0}})
     code, verdict = _run(path, tmp_path / "b")
     assert code == 3
     assert any("beyond the grid" in r for r in verdict["candidates"]["sim"]["reasons"])
@@ -112,8 +115,10 @@ def test_library_api_matches_cli(tmp_path):
     result = validate(spec, read_inputs(spec, base))
     assert result.verdict == "not valid" and result.exit_code == 1
     domain = result.domains["sim"]
-    assert domain.bound == max(c.distance for c in domain.cells if c.status.value == "valid")
-    assert f"distance <= {domain.bound}" in result.library_yaml()
+    for cell in domain.with_status(CellStatus.VALID):  # each valid cell guarantees its bound
+        guarantee = result.library["models"]["sim"]["contract"]["guarantee"]
+        assert f"deviation.x <= {number(cell.bounds[0].upper)}" in guarantee
+    assert yaml.safe_load(result.library_yaml()) == result.library
 
 
 @settings(max_examples=60, deadline=None)
@@ -157,14 +162,13 @@ def _groups(values):
 
 def test_each_cell_is_the_comparison_of_its_segments(tmp_path):
     """Oracle: compare() called directly on the reference's and the candidate's segments of a
-    cell, with the cell's seed, gives the cell's p-value, distance and baseline."""
+    cell, grouped by the run each segment was cut from, with the cell's seed, gives the cell's
+    p-value and bounds; the status is the literal rule on those bounds (K = 3 cells)."""
     from simcred.compare import compare
     from simcred.validate.cells import grid_of
     from simcred.validate.domain import cell_seed
 
-    path = write_universe(tmp_path, comparison={"bins": 4, "permutations": 99, "seed": 7,
-                                                "baseline": 3})
-    spec, base = read_validation(path)
+    spec, base = read_validation(write_universe(tmp_path))
     inputs = read_inputs(spec, base)
     result = validate(spec, inputs)
     grid = grid_of(spec.conditions)
@@ -172,11 +176,15 @@ def test_each_cell_is_the_comparison_of_its_segments(tmp_path):
     cand = segments(inputs.candidates["sim"], grid, spec.segments.min_length)
     for cell in result.domains["sim"].cells:
         direct = compare(ref.by_cell[cell.cell], cand.by_cell[cell.cell], features=["x"], bins=4,
-                         alpha=0.05, permutations=99, seed=cell_seed(7, "sim", cell.cell),
-                         baseline=3)
-        assert cell.pvalue == direct.chain.pvalue and cell.distance == direct.distance
-        assert cell.baseline == (direct.baseline.low, direct.baseline.high)
-        assert cell.status.value == ("not valid" if direct.chain.rejected else "valid")
+                         alpha=0.05, permutations=99, bootstrap=500, test="response",
+                         group_by="source_run", margin={"x": 1.0},
+                         seed=cell_seed(7, "sim", cell.cell))
+        effect = direct.response.effect.features[0]
+        lower, upper = effect.bounds(0.05 / 3)[0], effect.bounds(0.05)[1]
+        assert cell.pvalue == direct.chain.pvalue
+        assert (cell.bounds[0].lower, cell.bounds[0].upper) == (lower, upper)
+        expected = "not valid" if lower > 1.0 else "valid" if upper < 1.0 else "inconclusive"
+        assert cell.status.value == expected
 
 
 def test_provenance_names_the_inputs(tmp_path):
@@ -214,7 +222,7 @@ def test_two_condition_variables(tmp_path):
                                                 "g": {"unit": "m", "edges": [0, 1, 2]}})
     spec, _ = read_validation(path)
     reference = _with_run_constant(universe(160, 150, seed=1), "g", 11)
-    candidate = _with_run_constant(universe(160, 150, seed=2, effect=0.15, v_switch=20,
+    candidate = _with_run_constant(universe(160, 150, seed=2, effect=0.3, v_switch=20,
                                             name="sim"), "g", 12)
     inputs = Inputs(reference, {"sim": candidate}, ())
     result = validate(spec, inputs)
@@ -226,69 +234,84 @@ def test_two_condition_variables(tmp_path):
     out = tmp_path / "out"
     out.mkdir()
     html = write_validation_report(result, verdict_document(result, inputs), out).read_text()
-    assert html.count("data:image/png;base64,") == 1 + 4
+    assert html.count("data:image/png;base64,") == 1 + 1 + 4  # ranking, domain, state maps
 
 
-def test_rule_distance_never_accepts_a_cell_whose_test_rejects(tmp_path):
-    """Issue 22: with ``rule: distance`` a cell was valid whenever its distance met d_max, even
-    where the chain test rejected (SUMO IDM at 17.5-20 m/s: VALID at p = 0.005)."""
-    path = write_universe(tmp_path, acceptance={"rule": "distance", "d_max": 1.0})
-    code, verdict = _run(path, tmp_path / "out")
+def test_the_size_decides_not_the_p_value(tmp_path):
+    """Issue 22: VALID meant "no difference found", NOT VALID "a difference found". Now the size
+    of the deviation decides: with a tolerance far above the AR change's deviation every cell
+    is valid, whatever its difference p-value; with one far below, cells whose bounds straddle
+    it are inconclusive, never valid. (Here the difference test does not even reject above
+    20 m/s: the AR change shifts the response up for x > 0 and down for x < 0, which its pooled
+    statistic averages away — the deviation, an RMS over states, does not; docs/validate.md.)"""
+    path = write_universe(tmp_path, test_case={"conditions": "10 <= v <= 25",
+                                               "tolerance": {"x": 20.0}})
+    code, verdict = _run(path, tmp_path / "wide")
     cells = verdict["domains"]["sim"]["cells"]
-    rejected = [c for c in cells if c["chain_pvalue"] <= 0.05]
-    assert [c["label"] for c in rejected] == ["20 ≤ v < 25", "25 ≤ v ≤ 30"]
-    assert all(c["status"] == "not valid" and "never valid" in c["reason"] for c in rejected)
-    assert all(c["status"] == "valid" for c in cells if c["chain_pvalue"] > 0.05)
-    assert code == 1 and verdict["verdict"] == "not valid"
+    assert [c["status"] for c in cells] == ["valid"] * 5 and code == 0
+    assert min(c["difference_pvalue"] for c in cells) <= 0.05  # a "difference" in a valid cell
+    path = write_universe(tmp_path, test_case={"conditions": "10 <= v <= 25",
+                                               "tolerance": {"x": 0.3}})
+    code, verdict = _run(path, tmp_path / "narrow")
+    cells = verdict["domains"]["sim"]["cells"]
+    for c in cells:
+        bound = c["deviation"][0]
+        assert c["status"] != "valid" or bound["upper"] < 0.3
+        if bound["lower"] <= 0.3 <= bound["upper"]:
+            assert c["status"] == "inconclusive"
+    assert [c["status"] for c in cells[3:]] == ["not valid"] * 2
+    assert max(c["difference_pvalue"] for c in cells[3:]) > 0.05  # not valid, not "different"
+    assert code == 1
 
 
-def test_the_distance_bound_is_per_cell(tmp_path):
-    """Issue 22: one global bound (the largest distance of any valid cell) decided the test
-    case, so a cell outside it (here 15-20 m/s, distance 0.25) made 10-15 m/s NOT VALID at
-    max_distance 0.1 although its own cell measured 0."""
+def test_the_bound_is_per_cell(tmp_path):
+    """Issue 22: one global bound (the largest of any valid cell) decided the test case, so a
+    cell outside it could make it fail. The guarantee is one bound per valid cell, and a test
+    case is judged on its own cells only."""
     path = write_universe(tmp_path, test_case={"conditions": "10 <= v < 15",
-                                               "max_distance": 0.1})
+                                               "tolerance": {"x": 0.55}})
     code, verdict = _run(path, tmp_path / "out")
-    distances = {c["label"]: c["distance"] for c in verdict["domains"]["sim"]["cells"]}
-    assert distances["10 ≤ v < 15"] == 0 and distances["15 ≤ v < 20"] == 0.25
+    upper = {c["label"]: c["deviation"][0]["upper"] for c in verdict["domains"]["sim"]["cells"]}
+    assert upper["10 ≤ v < 15"] < 0.55 < upper["15 ≤ v < 20"]  # this universe, seed 1/2/7
     assert code == 0 and verdict["verdict"] == "valid"
     guarantee = yaml.safe_load((tmp_path / "out" / "contracts.yaml").read_text())[
         "models"]["sim"]["contract"]["guarantee"]
-    assert guarantee == ("(5 <= v <= 15 implies distance <= 0) and "
-                         "(15 <= v <= 20 implies distance <= 0.25)")
-    # the cell that does reach into the test case still counts, with its own distance
+    assert f"(10 <= v <= 15 implies deviation.x <= {number(upper['10 ≤ v < 15'])})" in guarantee
+    assert "15 <= v <= 20" not in guarantee  # not shown within 0.55: not in the domain
     path = write_universe(tmp_path, test_case={"conditions": "12 <= v <= 18",
-                                               "max_distance": 0.1})
+                                               "tolerance": {"x": 0.55}})
     code, verdict = _run(path, tmp_path / "out2")
-    assert code == 1 and verdict["candidates"]["sim"]["reasons"] == [
-        "distance 0.25 in 15 ≤ v < 20 exceeds the required 0.1"]
+    assert code == 3 and verdict["candidates"]["sim"]["verdict"] == "inconclusive"
+    assert verdict["candidates"]["sim"]["reasons"][0].startswith("inconclusive in 15 ≤ v < 20")
 
 
 def test_a_test_case_ending_at_an_edge_does_not_pull_in_the_next_cell(tmp_path):
     """Issue 22: ``v <= 20`` met the cell 20-25 at the single point 20, which made the test case
     NOT VALID although the learned contract (5 <= v <= 20) covers it."""
     path = write_universe(tmp_path, test_case={"conditions": "10 <= v <= 20",
-                                               "max_distance": 0.5})
+                                               "tolerance": {"x": 1.0}})
     code, verdict = _run(path, tmp_path / "out")
     assert verdict["candidates"]["sim"]["test_case_cells"] == [1, 2]
     assert code == 0 and verdict["verdict"] == "valid"
     assert verdict["candidates"]["sim"]["refinement"]["verdict"] == "holds"
     # starting at the edge: only the cells above it
-    path = write_universe(tmp_path, test_case={"conditions": "20 <= v <= 25"})
+    path = write_universe(tmp_path, test_case={"conditions": "20 <= v <= 25",
+                                               "tolerance": {"x": 1.0}})
     code, verdict = _run(path, tmp_path / "out2")
     assert verdict["candidates"]["sim"]["test_case_cells"] == [3]
     assert code == 1
     # a test case on the edge itself meets the two closed cells that share it
-    path = write_universe(tmp_path, test_case={"conditions": "v == 20"})
+    path = write_universe(tmp_path, test_case={"conditions": "v == 20",
+                                               "tolerance": {"x": 1.0}})
     _, verdict = _run(path, tmp_path / "out3")
     assert verdict["candidates"]["sim"]["test_case_cells"] == [2, 3]
 
 
 def test_learned_contracts_work_with_monitor(tmp_path, capsys):
     """Issue 22: ``simcred monitor`` refused the learned contracts.yaml (no run carries the
-    ``distance`` signal). The library marks it ``observed: false``; the monitor checks the
-    domains and names the guarantee clauses it cannot check."""
-    _run(write_universe(tmp_path), tmp_path / "out")
+    ``distance`` signal). The library marks the deviations ``observed: false``; the monitor
+    checks the domains and names the guarantee clauses it cannot check."""
+    _, verdict = _run(write_universe(tmp_path), tmp_path / "out")
     capsys.readouterr()
     library = tmp_path / "out" / "contracts.yaml"
     code = run(["monitor", str(library), str(tmp_path / "sim.parquet"), "--setup",
@@ -296,8 +319,10 @@ def test_learned_contracts_work_with_monitor(tmp_path, capsys):
     report = json.loads(capsys.readouterr().out)
     assert code == 1 and report["violations"]  # the candidate's runs leave 5 <= v <= 20
     assert {v["kind"] for v in report["violations"]} == {"assumption"}
-    assert report["not_monitored"] == ["sim: 5 <= v and v <= 15 implies distance <= 0",
-                                       "sim: 15 <= v and v <= 20 implies distance <= 0.25"]
+    upper = [number(c["deviation"][0]["upper"]) for c in verdict["domains"]["sim"]["cells"][:3]]
+    assert report["not_monitored"] == [
+        f"sim: {lo} <= v and v <= {hi} implies deviation.x <= {u}"
+        for lo, hi, u in zip((5, 10, 15), (10, 15, 20), upper, strict=True)]
     assert run(["-q", "monitor", str(library), str(tmp_path / "sim.parquet"),
                 "--test-case", "test_case"]) == 2  # no valid setup to monitor: named, exit 2
 

@@ -33,7 +33,7 @@ def test_report_text(report):
     assert "&lt;b&gt;evil&lt;/b&gt; &amp; name" in html and "<b>evil</b>" not in html
     assert not re.search(r'(src|href)="(?!data:)', html)  # nothing outside the file
     images = re.findall(r'<img src="data:image/png;base64,', html)
-    assert len(images) == 1 + 5  # the domain map and one state map per compared cell
+    assert len(images) == 1 + 1 + 5  # ranking, domain map, one state map per compared cell
     assert 'id="configuration"' in html and 'id="provenance"' in html
     assert "sim on monitor[0]" in html
 
@@ -54,7 +54,7 @@ def test_report_renders_in_chromium(chromium, report, tmp_path):
     match = re.search(r'<body[^>]*\bdata-images-loaded="(\d+)/(\d+)"', dom)
     assert match, "the page's load handler did not run"
     loaded, total = map(int, match.groups())
-    assert loaded == total == 6
+    assert loaded == total == 7
 
 
 def test_cells_with_a_constant_feature_are_named_not_drawn(tmp_path):

@@ -20,12 +20,12 @@ def test_simulator_command_candidate(tmp_path):
     command = ["simulate", "sumo-following", "{base}/human.parquet", "--models", "IDM",
                "--out", "{out}"]
     document = {
-        "test_case": {"conditions": "10 <= v_leader <= 20"},
+        "test_case": {"conditions": "10 <= v_leader <= 20", "tolerance": {"v": 0.1}},
         "reference": {"path": "human.parquet"},
         "candidates": {"idm": {"simulate": {"command": command, "output": "IDM.parquet"}}},
-        "features": ["gap", "dv", "a"],
+        "features": ["gap", "v", "v_leader"], "inputs": ["v_leader"],
         "conditions": {"v_leader": {"unit": "m/s", "edges": [10, 15, 20]}},
-        "comparison": {"bins": 3, "permutations": 99, "resample": 0.5},
+        "comparison": {"bins": 3, "permutations": 99, "bootstrap": 100, "resample": 0.5},
         "min_data": {"runs": 5, "samples": 100}, "segments": {"min_length": 25},
     }
     path = tmp_path / "validation.yaml"
@@ -38,3 +38,5 @@ def test_simulator_command_candidate(tmp_path):
     assert made.equals(TraceSet.read(tmp_path / "alone" / "IDM.parquet"))
     verdict = json.loads((tmp_path / "out" / "verdict.json").read_text())
     assert verdict["provenance"]["inputs"]["candidates"]["idm"]["digest"] == made.digest()
+    designs = {c["design"] for c in verdict["domains"]["idm"]["cells"] if c["design"]}
+    assert designs == {"pairs by run"}  # a replay is paired with the runs it replays

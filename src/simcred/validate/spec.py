@@ -181,14 +181,14 @@ class ValidationSpec(_Strict):
     @model_validator(mode="after")
     def _design(self) -> ValidationSpec:
         if self.pairs is not None and self.groups is not None:
-            raise ValueError("pairs and groups cannot be combined: pair whole groups by giving "
+            raise ValueError("pairs: pairs and groups cannot be combined: pair whole groups by giving "
                              "each group's runs one pair key")
         unknown = [n for n in self.inputs if n not in self.features]
         if unknown:
-            raise ValueError(f"input '{unknown[0]}' is not one of the features (inputs "
+            raise ValueError(f"inputs: '{unknown[0]}' is not one of the features (inputs "
                              "condition the state, so they must be features)")
         if not self.response:
-            raise ValueError("every feature is an input: no response is left to compare")
+            raise ValueError("inputs: every feature is an input: no response is left to compare")
         for name in self.test_case.tolerance:
             if name not in self.response:
                 raise ValueError(f"test_case.tolerance: '{name}' is not a response feature "
@@ -204,7 +204,7 @@ class ValidationSpec(_Strict):
     def _cells(self) -> ValidationSpec:
         cells = math.prod(len(c.edges) - 1 for c in self.conditions.values())
         if cells > MAX_CELLS:
-            raise ValueError(f"{cells} cells (at most {MAX_CELLS})")
+            raise ValueError(f"conditions: {cells} cells (at most {MAX_CELLS})")
         return self
 
 
@@ -243,6 +243,7 @@ def parse_validation(data: Any, *, source: str = "<memory>") -> ValidationSpec:
         return ValidationSpec.model_validate(data)
     except ValidationError as exc:
         error = exc.errors()[0]
-        where = ".".join(str(p) for p in error["loc"]) or "(top level)"
-        message = error["msg"].removeprefix("Value error, ")
-        raise ValidationFileError(f"{source}: {where}: {message}") from None
+        where = ".".join(str(p) for p in error["loc"])
+        message = error["msg"].removeprefix("Value error, ")  # a model check names its key
+        raise ValidationFileError(f"{source}: {where + ': ' if where else ''}{message}"
+                                  ) from None
