@@ -83,7 +83,7 @@ YAML_VALUES = st.recursive(
     max_leaves=12)
 LIBRARY_KEYS = ["variables", "components", "models", "architecture", "test_cases"]
 VALIDATION_KEYS = ["name", "test_case", "reference", "candidates", "features", "conditions",
-                   "comparison", "acceptance", "min_data", "segments"]
+                   "comparison", "inputs", "pairs", "groups", "min_data", "segments"]
 
 
 @SETTINGS

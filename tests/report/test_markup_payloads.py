@@ -164,7 +164,7 @@ def _validation(folder: Path, *, poisoned: bool) -> Path:
         names[key] = name
     document = {
         "name": f"synthetic{''.join(PAYLOADS)}" if poisoned else "synthetic",
-        "test_case": {"conditions": "10 <= v <= 25", "max_distance": 0.5},
+        "test_case": {"conditions": "10 <= v <= 25", "tolerance": {signal or "x": 0.5}},
         "reference": {"path": names["ref"]},
         "candidates": {"sim": {"runs": {"path": names["sim"]}, "cost": 1}},
         "features": [signal or "x"],

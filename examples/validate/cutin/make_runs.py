@@ -11,7 +11,9 @@ Manufactured data (simcred's cut-in universe, seed 002), not recordings:
 
 Signals at 10 Hz: ``ego.v``, ``ego.a`` (acceleration command), ``ego.y``, ``ego.heading``,
 ``range`` (TO centre ahead of the EGO's centre) and ``to.brake``, the TO's scripted braking
-deceleration (m/s², constant per run: the exogenous operating condition). Usage::
+deceleration (m/s², constant per run: the exogenous operating condition). Each run's per-run
+facts name its ``script`` (the index of the TO's drawn script), which pairs a resimulation with
+the reference run it replays. Usage::
 
     python examples/validate/cutin/make_runs.py --out examples/validate/cutin --runs 120
 """
@@ -33,7 +35,7 @@ from simcred.sim.experiments.cutin import (
     scripted_object,
     vehicle_model,
 )
-from simcred.traces import TraceSet
+from simcred.traces import RUN_INFO, TraceSet
 
 THIN = 10  # 100 Hz simulation, 10 Hz runs
 
@@ -70,7 +72,9 @@ def drive(model: str, runs: int, seed: int, noise_seed: int, name: str) -> Trace
                               run_ids=[f"{name}{i:03d}" for i in range(runs)],
                               metadata={"example": "validate cut-in", "model": model,
                                         "seed": seed, "noise_seed": noise_seed,
-                                        "manufactured": True}, source=name)
+                                        "manufactured": True,
+                                        RUN_INFO: {f"{name}{i:03d}": {"script": i}
+                                                   for i in range(runs)}}, source=name)
 
 
 def main() -> None:

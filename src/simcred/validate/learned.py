@@ -21,10 +21,12 @@ library refuses it), so they are left out of the library and named in the verdic
 
 from __future__ import annotations
 
+import zlib
 from fractions import Fraction
 from typing import Any
 
 from simcred.contracts.expr import decimal_text
+from simcred.contracts.library import NAME
 from simcred.validate.domain import CellResult, CellStatus, Domain
 from simcred.validate.spec import ValidationSpec
 
@@ -33,8 +35,12 @@ TEST_CASE = "test_case"
 
 
 def metric(feature: str) -> str:
-    """The contract variable of one feature's response deviation."""
-    return f"deviation.{feature}"
+    """The contract variable of one feature's response deviation: ``deviation.<feature>``, or
+    ``deviation.feature_<hash>`` for a feature whose name is not a contract identifier."""
+    name = f"deviation.{feature}"
+    if NAME.fullmatch(name):
+        return name
+    return f"deviation.feature_{zlib.crc32(feature.encode()):08x}"
 
 
 def library_dict(spec: ValidationSpec, domains: dict[str, Domain],
