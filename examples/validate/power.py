@@ -1,13 +1,22 @@
-"""Error rates of learned validity domains on the synthetic universe (docs/validate.md).
+"""Family-wise error rates of `simcred validate` on the synthetic universe (docs/validate.md).
 
-The candidate equals the reference below v = 20 m/s and deviates by ``effect`` in the AR(1)
-coefficient above it (simcred.validate.synthetic). For each effect and seed, the loop learns the
-domain over the cells 5-10-15-20-25-30 m/s and we count, per cell, what it declared:
+The test case is the whole grid, 5 <= v <= 30 m/s in five cells (K = 5), tolerance 0.5 /s on
+x's response deviation (simcred.validate.synthetic.TOLERANCE: an AR-coefficient error of about
+0.075). Candidates with a known truth (true deviations measured on 1,500 runs per set, module
+docs of simcred.validate.synthetic):
 
-* below 20 m/s (truly valid): cells declared *not valid* (false alarms, level alpha per cell);
-* above 20 m/s (deviating): cells declared *valid* (false validations) and *not valid* (power).
+* ``same`` (effect 0 everywhere, deviation 0): truly valid. Measured: how often the test case
+  comes out NOT VALID (family-wise false NOT VALID; bound alpha = 0.05) and how often VALID;
+* ``within`` (effect 0.05 everywhere, deviation 0.29-0.36 < 0.5): truly valid, not identical;
+  NOT VALID here is also wrong (bound alpha);
+* ``beyond`` (effect 0.1 everywhere, deviation 0.67-0.76 > 0.5): truly not valid. VALID is a
+  false validation (bound alpha; intersection-union over the cells);
+* ``above 20`` (effect 0.15 above 20 m/s only): truly not valid (deviation ≥ 1.06 in two cells).
 
-Usage: python examples/validate/power.py [--seeds 20] [--out power.json]
+Each candidate against a fresh reference per seed, ``--seeds`` seeds (default 200) at each size
+(runs per set). Rates with Clopper-Pearson 95 % intervals; JSON with ``--out``.
+
+Usage: python examples/validate/power.py [--seeds 200] [--runs 100 300] [--out power.json]
 """
 
 from __future__ import annotations
@@ -16,51 +25,58 @@ import argparse
 import json
 from collections import Counter
 
+from scipy.stats import binomtest
+
 from simcred.validate.loop import Inputs, validate
 from simcred.validate.synthetic import universe, validation_spec
 
-EFFECTS = (0.0, 0.05, 0.1, 0.15, 0.2)
+#: name -> (effect, v_switch, truly valid)
+CANDIDATES = {"same": (0.0, 0.0, True), "within": (0.05, 0.0, True),
+              "beyond": (0.1, 0.0, False), "above 20": (0.15, 20.0, False)}
+STEPS = 150
 
 
-def outcome(effect: float, seed: int, runs: int = 100, steps: int = 150) -> Counter:
-    """Per (side of the switch, status): how many cells."""
-    reference = universe(runs, steps, seed=1000 + seed)
-    candidate = universe(runs, steps, seed=2000 + seed, effect=effect, v_switch=20, name="sim")
-    result = validate(validation_spec(seed), Inputs(reference, {"sim": candidate}, ()))
-    counts = Counter()
-    for cell in result.domains["sim"].cells:
-        side = "above" if cell.index[0] >= 3 else "below"
-        counts[side, cell.status.value] += 1
-    return counts
+def verdict(name: str, seed: int, runs: int) -> str:
+    effect, switch, _ = CANDIDATES[name]
+    reference = universe(runs, STEPS, seed=1000 + seed)
+    candidate = universe(runs, STEPS, seed=2000 + seed, effect=effect, v_switch=switch,
+                         name="sim")
+    return validate(validation_spec(seed), Inputs(reference, {"sim": candidate}, ())).verdict
+
+
+def rate(k: int, n: int) -> dict:
+    low, high = binomtest(k, n).proportion_ci(0.95, method="exact")
+    return {"count": k, "of": n, "rate": k / n, "ci95": [low, high]}
 
 
 def main() -> None:
     parser = argparse.ArgumentParser()
-    parser.add_argument("--seeds", type=int, default=20)
+    parser.add_argument("--seeds", type=int, default=200)
+    parser.add_argument("--runs", type=int, nargs="+", default=[100, 300])
     parser.add_argument("--out", default=None)
     args = parser.parse_args()
-    table = []
-    print(f"{'effect':>6} {'false alarms below':>20} {'valid above':>12} {'not valid above':>16}"
-          f" {'unknown':>8} {'power':>6}")
-    for effect in EFFECTS:
-        total = Counter()
-        for seed in range(args.seeds):
-            total.update(outcome(effect, seed))
-        above = sum(v for (side, _), v in total.items() if side == "above")
-        below = sum(v for (side, _), v in total.items() if side == "below")
-        row = {"effect": effect, "seeds": args.seeds,
-               "below_cells": below, "below_not_valid": total["below", "not valid"],
-               "above_cells": above, "above_valid": total["above", "valid"],
-               "above_not_valid": total["above", "not valid"],
-               "unknown": total["below", "unknown"] + total["above", "unknown"],
-               "power": total["above", "not valid"] / above}
-        table.append(row)
-        print(f"{effect:>6} {row['below_not_valid']:>14} / {below:<3} {row['above_valid']:>6} / "
-              f"{above:<3} {row['above_not_valid']:>10} / {above:<3} {row['unknown']:>8} "
-              f"{row['power']:>6.2f}")
+    rows = []
+    print(f"{'candidate':>9} {'runs':>5} {'truth':>9} {'VALID':>14} {'NOT VALID':>14} "
+          f"{'INCONCL.':>9} {'wrong verdicts (bound 0.05)':>28}")
+    for runs in args.runs:
+        for name, (_, _, truly_valid) in CANDIDATES.items():
+            counts = Counter(verdict(name, seed, runs) for seed in range(args.seeds))
+            wrong = counts["not valid"] if truly_valid else counts["valid"]
+            row = {"candidate": name, "runs": runs, "seeds": args.seeds,
+                   "truly_valid": truly_valid,
+                   "valid": rate(counts["valid"], args.seeds),
+                   "not_valid": rate(counts["not valid"], args.seeds),
+                   "inconclusive": rate(counts["inconclusive"], args.seeds),
+                   "wrong": rate(wrong, args.seeds)}
+            rows.append(row)
+            low, high = row["wrong"]["ci95"]
+            print(f"{name:>9} {runs:>5} {'valid' if truly_valid else 'not valid':>9} "
+                  f"{counts['valid']:>8} / {args.seeds:<3} {counts['not valid']:>8} / "
+                  f"{args.seeds:<3} {counts['inconclusive']:>9} "
+                  f"{wrong / args.seeds:>12.3f} ({low:.3f}-{high:.3f})", flush=True)
     if args.out:
         with open(args.out, "w") as f:
-            json.dump(table, f, indent=1)
+            json.dump({"alpha": 0.05, "test_case_cells": 5, "rows": rows}, f, indent=1)
 
 
 if __name__ == "__main__":

@@ -311,3 +311,15 @@ def test_no_estimable_state_is_not_a_zero_deviation():
     assert all(np.isnan(f.estimate) and f.equivalent is False for f in effect.features)
     assert any("cannot be estimated" in w for w in result.response.warnings)
     assert json.loads(result.to_json())["response"]["effect"]["features"][0]["estimate"] is None
+
+
+@pytest.mark.parametrize("unit, rate", [("m", "m/s"), ("m/s", "m/s²"), ("m/s²", "m/s³"),
+                                        ("m/s^2", "m/s^3"), ("rad", "rad/s"), (None, "1/s"),
+                                        ("dimensionless", "1/s"), ("km/h", "km/h/s")])
+def test_rate_unit_is_the_unit_per_second(unit, rate):
+    from simcred.compare.effect import rate_unit
+    from simcred.contracts.units import same_unit
+
+    assert rate_unit(unit) == rate
+    if unit not in (None, "dimensionless"):
+        assert same_unit(rate, f"{unit}/s")  # what pint reads it as

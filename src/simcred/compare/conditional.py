@@ -23,7 +23,12 @@ import scipy.sparse as sp
 
 from simcred.compare.design import Design, DesignKind
 from simcred.compare.discretize import StateSpace
-from simcred.compare.effect import MIN_TRANSITIONS, EffectSummary, response_effects
+from simcred.compare.effect import (
+    MIN_TRANSITIONS,
+    EffectSummary,
+    rate_unit,
+    response_effects,
+)
 from simcred.compare.kernels import Kernel
 from simcred.compare.mmd import Estimator, MMDTestResult
 from simcred.compare.paired_runs import paired_statistics, run_summaries, tippett
@@ -104,8 +109,7 @@ def response_comparison(parts, design: Design, space: StateSpace, options: Compa
     start, scenario = scenario_tests(parts, design, space, options, assignments)
     if design.kind is DesignKind.PAIRS:
         outcome = with_paired_runs(outcome, parts, design, options, assignments)
-    rate_units = {name: f"{units[name]}/s" if units.get(name) else "1/s"
-                  for name in data.response}
+    rate_units = {name: rate_unit(units.get(name)) for name in data.response}
     effect = response_effects(data, design, options.bootstrap, options.alpha, INTERVAL_LEVEL,
                               options.margin, rate_units, stream(options.seed, EFFECT_KEY))
     analysis = ResponseAnalysis(

@@ -107,6 +107,20 @@ class EffectSummary:
     equivalent: bool | None
 
 
+_POWERS = {"": "²", "²": "³", "^2": "^3"}
+
+
+def rate_unit(unit: str | None) -> str:
+    """The unit of a rate of change of a quantity in ``unit``: ``m`` → ``m/s``, ``m/s`` →
+    ``m/s²``, ``m/s²`` → ``m/s³``; no unit → ``1/s``."""
+    if not unit or unit == "dimensionless":
+        return "1/s"
+    for power, higher in _POWERS.items():
+        if power and unit.endswith(f"/s{power}") or not power and unit.endswith("/s"):
+            return f"{unit[:len(unit) - len(power)]}{higher}"
+    return f"{unit}/s"
+
+
 def check_margins(margin: Mapping[str, float] | float | None, response: tuple[str, ...]
                   ) -> tuple[tuple[str, float], ...]:
     """``{feature: δ}`` (or one δ for every response feature) as sorted pairs; δ > 0."""

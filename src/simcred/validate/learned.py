@@ -25,6 +25,7 @@ import zlib
 from fractions import Fraction
 from typing import Any
 
+from simcred.compare.effect import rate_unit
 from simcred.contracts.expr import decimal_text
 from simcred.contracts.library import NAME
 from simcred.validate.domain import CellResult, CellStatus, Domain
@@ -51,7 +52,7 @@ def library_dict(spec: ValidationSpec, domains: dict[str, Domain],
     variables = {name: {"type": "real", "unit": c.unit} for name, c in spec.conditions.items()}
     # no run carries a deviation: monitors check the domains and name the guarantee unchecked
     for feature in spec.test_case.tolerance:
-        variables[metric(feature)] = {"type": "real", "unit": _rate(units.get(feature)),
+        variables[metric(feature)] = {"type": "real", "unit": rate_unit(units.get(feature)),
                                       "observed": False}
     models = {}
     for name, domain in domains.items():
@@ -77,10 +78,6 @@ def library_dict(spec: ValidationSpec, domains: dict[str, Domain],
         "test_cases": {TEST_CASE: {"assumption": spec.test_case.conditions,
                                    "guarantee": required}},
     }
-
-
-def _rate(unit: str | None) -> str:
-    return f"{unit}/s" if unit and unit != "dimensionless" else "1/s"
 
 
 def domain_parts(domain: Domain) -> list[str]:

@@ -181,8 +181,8 @@ class ValidationSpec(_Strict):
     @model_validator(mode="after")
     def _design(self) -> ValidationSpec:
         if self.pairs is not None and self.groups is not None:
-            raise ValueError("pairs: pairs and groups cannot be combined: pair whole groups by giving "
-                             "each group's runs one pair key")
+            raise ValueError("pairs: pairs and groups cannot be combined: pair whole groups by "
+                             "giving each group's runs one pair key")
         unknown = [n for n in self.inputs if n not in self.features]
         if unknown:
             raise ValueError(f"inputs: '{unknown[0]}' is not one of the features (inputs "
