@@ -33,6 +33,10 @@ def validate_command(
     date: Annotated[str | None, typer.Option(help="Date to record in the provenance (none by "
                                              "default, so reruns are byte-identical).")] = None,
     no_report: Annotated[bool, typer.Option("--no-report", help="Skip the HTML report.")] = False,
+    planned: Annotated[bool, typer.Option("--plan", help="Also plan the data: units per side "
+                                          "and cell that would show equivalence with 80 % "
+                                          "power, from a pilot of the reference, checked by "
+                                          "simulation (verdict.json 'plan').")] = False,
     overwrite: Overwrite = False,
     resume: Resume = False,
 ) -> None:
@@ -44,7 +48,7 @@ def validate_command(
                  resume=resume) as target:
         inputs = read_inputs(spec, base, simulate_candidates(spec, base, target.path,
                                                                target.checkpoint))
-        result = validate(spec, inputs, source=str(validation))
+        result = validate(spec, inputs, source=str(validation), planned=planned)
         document = verdict_document(result, inputs, validation_file=validation, date=date)
         (target.path / "verdict.json").write_text(dumps(document), encoding="utf-8")
         (target.path / "contracts.yaml").write_text(result.library_yaml(), encoding="utf-8")
@@ -56,8 +60,27 @@ def validate_command(
             out_console.print(f"  {verdict.candidate}: {verdict.verdict}", highlight=False)
             for reason in verdict.reasons:
                 out_console.print(f"    - {reason}", highlight=False, soft_wrap=True)
+        if result.plan is not None:
+            _print_plan(result.plan)
         out_console.print(f"wrote {out / 'verdict.json'}", highlight=False, soft_wrap=True)
     raise typer.Exit(result.exit_code)
+
+
+def _print_plan(plan) -> None:
+    out_console.print(f"plan: units per side and cell for {100 * plan.power:.0f} % power over "
+                      f"the test case ({100 * plan.cell_power:.1f} % per cell)", highlight=False)
+    for row in plan.rows:
+        need = "not reachable (estimate at or above the tolerance)" if row.needed is None \
+            else str(row.needed)
+        out_console.print(f"  {row.source}, {row.label}, {row.feature}: {row.units} now, "
+                          f"estimate {row.estimate:.3g} ± {row.se:.2g} vs {row.tolerance:g}: "
+                          f"{need}", highlight=False, soft_wrap=True)
+    if plan.simulated_power is not None:
+        out_console.print(f"  a candidate as good as the reference at {plan.pilot_units} units "
+                          f"per side: shown valid in {100 * plan.simulated_power:.0f} % of "
+                          f"{plan.simulations} simulations", highlight=False)
+    elif plan.note:
+        out_console.print(f"  {plan.note}", highlight=False)
 
 
 def simulate_candidates(spec: ValidationSpec, base: Path, out: Path,

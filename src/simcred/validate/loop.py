@@ -37,6 +37,7 @@ from simcred.validate.cells import Grid, grid_of, segments
 from simcred.validate.domain import CellStatus, Domain, cell_rule, learn_domain
 from simcred.validate.learned import COMPONENT, TEST_CASE, library_dict
 from simcred.validate.learned import number as _exact_text
+from simcred.validate.plan import Plan, plan
 from simcred.validate.ranking import Ranked, rank
 from simcred.validate.spec import RunsSpec, ValidationFileError, ValidationSpec
 
@@ -85,6 +86,7 @@ class Validation:
     uncovered: dict[str, list[str]]
     monitors: dict[str, MonitorReport]
     ranking: tuple[Ranked, ...] = ()
+    plan: Plan | None = None
 
     @property
     def exit_code(self) -> int:
@@ -124,8 +126,10 @@ def check_test_case(spec: ValidationSpec, source: str) -> None:
         raise ValidationFileError(f"{source}: test_case.conditions: {message}") from None
 
 
-def validate(spec: ValidationSpec, inputs: Inputs, *, source: str = "<memory>") -> Validation:
-    """Run the loop (module docs) on validated inputs."""
+def validate(spec: ValidationSpec, inputs: Inputs, *, source: str = "<memory>",
+             planned: bool = False) -> Validation:
+    """Run the loop (module docs) on validated inputs; ``planned``: also the data plan
+    (:mod:`simcred.validate.plan`)."""
     check_test_case(spec, source)
     _check_signals(spec, inputs)
     grid = grid_of(spec.conditions)
@@ -146,8 +150,9 @@ def validate(spec: ValidationSpec, inputs: Inputs, *, source: str = "<memory>") 
     uncovered = {n: _uncovered(d, relevant, beyond_text) for n, d in domains.items()}
     monitors = _monitors(library, inputs)
     verdict, summary = _overall(spec, verdicts, configuration)
+    needs = plan(spec, grid, reference, relevant, domains) if planned else None
     return Validation(spec, grid, domains, verdicts, verdict, summary, data, configuration,
-                      uncovered, monitors, rank(domains, relevant, spec))
+                      uncovered, monitors, rank(domains, relevant, spec), needs)
 
 
 def _check_signals(spec: ValidationSpec, inputs: Inputs) -> None:

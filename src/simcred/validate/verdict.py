@@ -30,6 +30,7 @@ def verdict_document(result: Validation, inputs: Inputs, *, validation_file: Pat
         "test_case": result.spec.test_case.model_dump(),
         "error_rates": error_rates(result),
         "ranking": [r.to_dict() for r in result.ranking],
+        "plan": None if result.plan is None else result.plan.to_dict(),
         "candidates": {n: v.to_dict() for n, v in result.candidates.items()},
         "grid": {"variables": list(result.grid.variables), "units": list(result.grid.units),
                  "edges": [list(e) for e in result.grid.edges]},

@@ -1,0 +1,228 @@
+"""How much data would show equivalence: units per side and cell for 80 % power, from a pilot,
+checked by simulation.
+
+**Pilot.** In each cell of the test case the reference's units (the runs the segments were cut
+from, or the declared groups) are split at random into two halves that play a perfect candidate
+and the reference: the response comparison of the halves gives, per feature with a tolerance
+``δ``, the bootstrap standard error ``se_m`` of the deviation at ``m`` units per side.
+
+**Size.** VALID for the test case needs every one of its ``K`` cells shown within tolerance, so
+each cell needs power ``p = 0.8^(1/K)`` for the test case to have 80 %. With the upper bound
+``E + z_(1−α) se`` and ``se_n = se_m √(m / n)``, a candidate whose true deviation is ``E < δ``
+needs ``n = m ((z_(1−α) + z_p) se_m / (δ − E))²`` units per side: ``E = 0`` for the pilot (what
+a candidate as good as the reference itself needs); a candidate's own row uses its estimate and
+standard error in its own design (paired replays need fewer). A candidate whose estimate is at or
+above ``δ`` cannot be shown within tolerance at any size.
+
+**Check.** The normal approximation fails where it matters most: at ``E = 0`` the deviation sits
+on the boundary of its range, and its estimate keeps a bias at small sizes. So the pilot's size
+is simulated: ``reps`` data sets of ``n`` units per side drawn with replacement from the two
+halves, each compared as ``validate`` would; the share in which every cell of the test case
+comes out valid is the simulated power. While it is below 80 %, ``n`` grows by half, up to
+``MAX_GROWTH`` times the pilot's units (beyond, resampling a small pilot says little); the plan
+is the first simulated size that reaches 80 %, or none.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from scipy.stats import norm
+
+from simcred.compare import compare
+from simcred.compare.design import unit_keys
+from simcred.traces import RUN_INFO, TraceSet, concat, take
+from simcred.validate.cells import SOURCE_RUN, Grid, Segments
+from simcred.validate.domain import CellRule, Domain, cell_seed
+from simcred.validate.spec import ValidationSpec
+
+POWER = 0.8
+MAX_GROWTH = 4
+PILOT = "reference halves"
+
+
+@dataclass(frozen=True, slots=True)
+class PlanRow:
+    """Units per side one source needs in one cell, with the inputs of that number."""
+
+    source: str
+    cell: int
+    label: str
+    units: int
+    feature: str
+    tolerance: float
+    estimate: float
+    se: float
+    needed: int | None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"source": self.source, "cell": self.cell, "label": self.label,
+                "units_per_side": self.units, "feature": self.feature,
+                "tolerance": self.tolerance, "estimate": self.estimate, "se": self.se,
+                "needed_units_per_side": self.needed}
+
+
+@dataclass(frozen=True, slots=True)
+class Plan:
+    """The plan: rows per source, cell and feature; the pilot's size for the whole test case
+    (the largest cell's need) and its simulated power."""
+
+    power: float
+    cell_power: float
+    rows: tuple[PlanRow, ...]
+    pilot_units: int | None
+    simulated_power: float | None
+    simulations: int
+    note: str
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"power": self.power, "power_per_cell": self.cell_power,
+                "rows": [r.to_dict() for r in self.rows],
+                "pilot_needed_units_per_side": self.pilot_units,
+                "simulated_power": self.simulated_power, "simulations": self.simulations,
+                "note": self.note}
+
+
+def needed_units(units: int, se: float, tolerance: float, estimate: float, alpha: float,
+                 power: float) -> int | None:
+    """``m ((z_(1−α) + z_p) se / (δ − E))²`` rounded up (module docs); None if ``E ≥ δ`` or
+    nothing is estimable."""
+    if not (np.isfinite(se) and np.isfinite(estimate)) or estimate >= tolerance:
+        return None
+    z = norm.ppf(1 - alpha) + norm.ppf(power)
+    return max(2, math.ceil(units * (z * se / (tolerance - estimate)) ** 2))
+
+
+def plan(spec: ValidationSpec, grid: Grid, reference: Segments, relevant: tuple[int, ...],
+         domains: dict[str, Domain], *, reps: int = 20) -> Plan:
+    """The plan for the test case's cells (module docs)."""
+    alpha = spec.comparison.alpha
+    key = spec.groups.by if spec.groups is not None else SOURCE_RUN
+    rule = CellRule(alpha, len(relevant), None, SOURCE_RUN if key == "run_id" else key)
+    cell_power = POWER ** (1 / max(len(relevant), 1))
+    rows: list[PlanRow] = []
+    halves = {}
+    for cell in relevant:
+        split = _halves(reference, cell, rule, spec.comparison.seed)
+        if split is None:
+            continue
+        halves[cell] = split
+        rows += _pilot_rows(spec, grid, cell, split, rule, alpha, cell_power)
+    for name, domain in domains.items():
+        rows += _candidate_rows(name, domain, relevant, spec, alpha, cell_power)
+    pilot = [r.needed for r in rows if r.source == PILOT]
+    if not pilot or None in pilot or len(halves) < len(relevant):
+        return Plan(POWER, cell_power, tuple(rows), None, None, 0,
+                    "some cell of the test case has too little reference data for a pilot")
+    smallest = min(min(_count(h, rule) for h in pair) for pair in halves.values())
+    n, share = max(pilot), 0.0
+    while n <= MAX_GROWTH * smallest:
+        share = _simulate(spec, halves, rule, n, reps)
+        if share >= POWER:
+            return Plan(POWER, cell_power, tuple(rows), n, share, reps, "")
+        n = math.ceil(1.5 * n)
+    return Plan(POWER, cell_power, tuple(rows), None, share, reps,
+                f"not reached by simulation within {MAX_GROWTH} times the pilot's {smallest} "
+                "units per side: more reference data is needed to plan")
+
+
+def _halves(reference: Segments, cell: int, rule: CellRule, seed: int
+            ) -> tuple[TraceSet, TraceSet] | None:
+    """The reference's segments in ``cell`` split at random into two halves of whole units."""
+    if cell not in reference.by_cell:
+        return None
+    traces = reference.by_cell[cell]
+    keys = unit_keys(traces, rule.group_by, "groups")
+    names = sorted(set(keys))
+    if len(names) < 4:
+        return None
+    rng = np.random.default_rng(cell_seed(seed, "plan:halves", cell))
+    first = set(rng.permutation(names)[: len(names) // 2].tolist())
+    runs_a = [i for i, k in enumerate(keys) if k in first]
+    runs_b = [i for i, k in enumerate(keys) if k not in first]
+    return take(traces, runs_a), take(traces, runs_b)
+
+
+def _count(traces: TraceSet, rule: CellRule) -> int:
+    return len(set(unit_keys(traces, rule.group_by, "groups")))
+
+
+def _compare(spec: ValidationSpec, a: TraceSet, b: TraceSet, rule: CellRule, seed: int):
+    options = spec.comparison
+    return compare(a, b, features=spec.features, inputs=spec.inputs, test="response",
+                   bins=options.bins, alpha=options.alpha, permutations=19,
+                   bootstrap=options.bootstrap, seed=seed, resample=options.resample,
+                   group_by=rule.group_by, margin=dict(spec.test_case.tolerance))
+
+
+def _pilot_rows(spec, grid, cell, split, rule, alpha, cell_power) -> list[PlanRow]:
+    result = _compare(spec, *split, rule, cell_seed(spec.comparison.seed, "plan:pilot", cell))
+    m = min(_count(h, rule) for h in split)
+    out = []
+    for effect in result.response.effect.features:
+        if effect.feature not in spec.test_case.tolerance:
+            continue
+        delta = spec.test_case.tolerance[effect.feature]
+        se = float(np.std(effect.replicates, ddof=1)) if len(effect.replicates) > 1 else np.nan
+        out.append(PlanRow(PILOT, cell, grid.label(cell), m, effect.feature, delta, 0.0, se,
+                           needed_units(m, se, delta, 0.0, alpha, cell_power)))
+    return out
+
+
+def _candidate_rows(name, domain, relevant, spec, alpha, cell_power) -> list[PlanRow]:
+    out = []
+    for cell in relevant:
+        result = domain.cells[cell]
+        if result.comparison is None:
+            continue
+        m = min(result.reference_units, result.candidate_units)
+        for effect in result.comparison.response.effect.features:
+            if effect.feature not in spec.test_case.tolerance:
+                continue
+            delta = spec.test_case.tolerance[effect.feature]
+            se = float(np.std(effect.replicates, ddof=1)) if len(effect.replicates) > 1 \
+                else np.nan
+            out.append(PlanRow(name, cell, result.label, m, effect.feature, delta,
+                               effect.estimate, se,
+                               needed_units(m, se, delta, effect.estimate, alpha, cell_power)))
+    return out
+
+
+def _simulate(spec: ValidationSpec, halves: dict[int, tuple[TraceSet, TraceSet]],
+              rule: CellRule, n: int, reps: int) -> float:
+    """Share of ``reps`` simulated data sets (``n`` units per side per cell, drawn with
+    replacement from the halves) in which every cell is shown within tolerance."""
+    tolerance = spec.test_case.tolerance
+    alpha = spec.comparison.alpha
+    shown = 0
+    for rep in range(reps):
+        every = True
+        for cell, (a, b) in halves.items():
+            rng = np.random.default_rng(cell_seed(spec.comparison.seed, f"plan:sim{rep}", cell))
+            result = _compare(spec, _draw(a, rule, n, rng, "a"), _draw(b, rule, n, rng, "b"),
+                              rule, cell_seed(spec.comparison.seed, f"plan:cmp{rep}", cell))
+            every &= all(f.bounds(alpha)[1] < tolerance[f.feature]
+                         for f in result.response.effect.features if f.feature in tolerance)
+        shown += every
+    return shown / reps
+
+
+def _draw(traces: TraceSet, rule: CellRule, n: int, rng: np.random.Generator, tag: str
+          ) -> TraceSet:
+    """``n`` units drawn with replacement, each copy renamed to be its own unit."""
+    keys = unit_keys(traces, rule.group_by, "groups")
+    names = sorted(set(keys))
+    runs_of = {k: [i for i, x in enumerate(keys) if x == k] for k in names}
+    parts, info = [], {}
+    for j, pick in enumerate(rng.integers(0, len(names), n)):
+        part = take(traces, runs_of[names[pick]])
+        ids = tuple(f"{tag}{j}:{r}" for r in part.run_ids)
+        for new, old in zip(ids, part.run_ids, strict=True):
+            info[new] = {**part.metadata[RUN_INFO][old], rule.group_by: f"{tag}{j}",
+                         SOURCE_RUN: f"{tag}{j}"}
+        parts.append(TraceSet(part.signals, part.time, part.values, part.offsets, ids,
+                              {}, part.source))
+    return concat(parts, metadata={**traces.metadata, RUN_INFO: info})
