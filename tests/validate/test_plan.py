@@ -1,0 +1,49 @@
+"""The data plan: the size formula against a literal computation, the pilot's rows, the search
+by simulation, and what it says when a candidate cannot be shown within tolerance."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+from scipy.stats import norm
+
+from simcred.cli import run
+from simcred.validate import read_inputs, read_validation, validate
+from simcred.validate.plan import PILOT, needed_units
+
+from .conftest import write_universe
+
+
+@pytest.mark.parametrize("units, se, tolerance, estimate", [
+    (10, 0.2, 1.0, 0.0), (40, 0.05, 0.1, 0.03), (7, 1.3, 2.0, 1.5)])
+def test_needed_units_is_the_equivalence_size_formula(units, se, tolerance, estimate):
+    z = norm.ppf(0.95) + norm.ppf(0.8)
+    literal = units * (z * se / (tolerance - estimate)) ** 2
+    assert needed_units(units, se, tolerance, estimate, 0.05, 0.8) == max(2, math.ceil(literal))
+    assert needed_units(units, se, tolerance, tolerance, 0.05, 0.8) is None  # at the tolerance
+    assert needed_units(units, float("nan"), tolerance, estimate, 0.05, 0.8) is None
+
+
+def test_plan_rows_and_simulated_size(tmp_path, capsys):
+    spec, base = read_validation(write_universe(tmp_path))
+    result = validate(spec, read_inputs(spec, base), planned=True)
+    plan = result.plan
+    assert plan.cell_power == pytest.approx(0.8 ** (1 / 3))  # three cells in the test case
+    pilot = [r for r in plan.rows if r.source == PILOT]
+    assert [r.cell for r in pilot] == [1, 2, 3] and all(r.estimate == 0 for r in pilot)
+    beyond = [r for r in plan.rows if r.source == "sim" and r.cell == 3]
+    assert beyond[0].needed is None  # the deviating cell cannot be shown within tolerance
+    # the search stops at the first simulated size with 80 %: at least the formula's size
+    assert plan.pilot_units >= max(r.needed for r in pilot)
+    assert plan.simulated_power >= 0.8 and plan.simulations == 20
+    again = validate(spec, read_inputs(spec, base), planned=True).plan
+    assert again.to_dict() == plan.to_dict()  # seeded
+    out = tmp_path / "out"
+    assert run(["validate", str(tmp_path / "validation.yaml"), "--out", str(out), "--plan"]) == 1
+    printed = capsys.readouterr().out
+    assert "plan: units per side" in printed and "not reachable" in printed
+    document = json.loads((out / "verdict.json").read_text())
+    assert document["plan"]["pilot_needed_units_per_side"] == plan.pilot_units
+    assert 'id="plan"' in (out / "report.html").read_text()
