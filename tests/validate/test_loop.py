@@ -341,3 +341,19 @@ def test_an_empty_learned_library_is_a_verdict(tmp_path, capsys):
     result = json.loads(capsys.readouterr().out)
     assert result["status"] == "fails" and result["setup"] is None
     assert "component 'simulation' has no model" in result["reason"]
+
+
+def test_ranking_orders_by_deviation_with_intervals(tmp_path):
+    """Issue 22: candidates ranked by their largest deviation relative to the tolerance with a
+    simultaneous interval, beside two halves of the reference (the floor)."""
+    _, verdict = _run(write_universe(tmp_path, candidates=TWO), tmp_path / "out")
+    ranking = verdict["ranking"]
+    assert [r["candidate"] for r in ranking] == ["twin", "reference halves", "sim"] or \
+        [r["candidate"] for r in ranking] == ["reference halves", "twin", "sim"]
+    for r in ranking:
+        low, high = r["interval"]
+        assert low <= r["score"] <= high and r["test_case_cells"] == 3
+    sim = ranking[-1]
+    assert sim["interval"][0] > 1  # beyond the tolerance, shown
+    cells = verdict["domains"]["sim"]["cells"][1:4]
+    assert sim["score"] == max(c["deviation"][0]["estimate"] for c in cells) / 1.0

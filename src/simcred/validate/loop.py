@@ -37,7 +37,7 @@ from simcred.validate.cells import Grid, grid_of, segments
 from simcred.validate.domain import CellStatus, Domain, cell_rule, learn_domain
 from simcred.validate.learned import COMPONENT, TEST_CASE, library_dict
 from simcred.validate.learned import number as _exact_text
-from simcred.validate.plan import Plan, plan
+from simcred.validate.plan import Plan, pilot, plan
 from simcred.validate.ranking import Ranked, rank
 from simcred.validate.spec import RunsSpec, ValidationFileError, ValidationSpec
 
@@ -150,9 +150,11 @@ def validate(spec: ValidationSpec, inputs: Inputs, *, source: str = "<memory>",
     uncovered = {n: _uncovered(d, relevant, beyond_text) for n, d in domains.items()}
     monitors = _monitors(library, inputs)
     verdict, summary = _overall(spec, verdicts, configuration)
-    needs = plan(spec, grid, reference, relevant, domains) if planned else None
+    halves = pilot(spec, reference, relevant)
+    needs = plan(spec, grid, halves, relevant, domains) if planned else None
+    ranking = rank(domains, relevant, spec, tuple(halves.comparisons.values()))
     return Validation(spec, grid, domains, verdicts, verdict, summary, data, configuration,
-                      uncovered, monitors, rank(domains, relevant, spec), needs)
+                      uncovered, monitors, ranking, needs)
 
 
 def _check_signals(spec: ValidationSpec, inputs: Inputs) -> None:

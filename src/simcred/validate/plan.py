@@ -32,16 +32,16 @@ from typing import Any
 import numpy as np
 from scipy.stats import norm
 
-from simcred.compare import compare
+from simcred.compare import Comparison, compare
 from simcred.compare.design import unit_keys
 from simcred.traces import RUN_INFO, TraceSet, concat, take
 from simcred.validate.cells import SOURCE_RUN, Grid, Segments
 from simcred.validate.domain import CellRule, Domain, cell_seed
+from simcred.validate.ranking import REFERENCE as PILOT
 from simcred.validate.spec import ValidationSpec
 
 POWER = 0.8
 MAX_GROWTH = 4
-PILOT = "reference halves"
 
 
 @dataclass(frozen=True, slots=True)
@@ -96,29 +96,50 @@ def needed_units(units: int, se: float, tolerance: float, estimate: float, alpha
     return max(2, math.ceil(units * (z * se / (tolerance - estimate)) ** 2))
 
 
-def plan(spec: ValidationSpec, grid: Grid, reference: Segments, relevant: tuple[int, ...],
-         domains: dict[str, Domain], *, reps: int = 20) -> Plan:
-    """The plan for the test case's cells (module docs)."""
-    alpha = spec.comparison.alpha
+@dataclass(frozen=True, slots=True, eq=False)
+class Pilot:
+    """Two random halves of the reference's units per cell of the test case, and their
+    comparison (a candidate as good as the reference, with half its data)."""
+
+    rule: CellRule
+    halves: dict[int, tuple[TraceSet, TraceSet]]
+    comparisons: dict[int, Comparison]
+
+
+def pilot(spec: ValidationSpec, reference: Segments, relevant: tuple[int, ...]) -> Pilot:
+    """The pilot in every cell of the test case with at least 4 reference units."""
     key = spec.groups.by if spec.groups is not None else SOURCE_RUN
-    rule = CellRule(alpha, len(relevant), None, SOURCE_RUN if key == "run_id" else key)
-    cell_power = POWER ** (1 / max(len(relevant), 1))
-    rows: list[PlanRow] = []
+    rule = CellRule(spec.comparison.alpha, len(relevant), None,
+                    SOURCE_RUN if key == "run_id" else key)
     halves = {}
     for cell in relevant:
         split = _halves(reference, cell, rule, spec.comparison.seed)
-        if split is None:
-            continue
-        halves[cell] = split
-        rows += _pilot_rows(spec, grid, cell, split, rule, alpha, cell_power)
+        if split is not None:
+            halves[cell] = split
+    comparisons = {cell: _compare(spec, *split, rule,
+                                  cell_seed(spec.comparison.seed, "plan:pilot", cell))
+                   for cell, split in halves.items()}
+    return Pilot(rule, halves, comparisons)
+
+
+def plan(spec: ValidationSpec, grid: Grid, found: Pilot, relevant: tuple[int, ...],
+         domains: dict[str, Domain], *, reps: int = 20) -> Plan:
+    """The plan for the test case's cells (module docs)."""
+    alpha = spec.comparison.alpha
+    cell_power = POWER ** (1 / max(len(relevant), 1))
+    rule, halves = found.rule, found.halves
+    rows: list[PlanRow] = []
+    for cell, result in found.comparisons.items():
+        rows += _pilot_rows(spec, grid, cell, result, min(_count(h, rule) for h in halves[cell]),
+                            alpha, cell_power)
     for name, domain in domains.items():
         rows += _candidate_rows(name, domain, relevant, spec, alpha, cell_power)
-    pilot = [r.needed for r in rows if r.source == PILOT]
-    if not pilot or None in pilot or len(halves) < len(relevant):
+    pilot_sizes = [r.needed for r in rows if r.source == PILOT]
+    if not pilot_sizes or None in pilot_sizes or len(halves) < len(relevant):
         return Plan(POWER, cell_power, tuple(rows), None, None, 0,
                     "some cell of the test case has too little reference data for a pilot")
     smallest = min(min(_count(h, rule) for h in pair) for pair in halves.values())
-    n, share = max(pilot), 0.0
+    n, share = max(pilot_sizes), 0.0
     while n <= MAX_GROWTH * smallest:
         share = _simulate(spec, halves, rule, n, reps)
         if share >= POWER:
@@ -158,18 +179,20 @@ def _compare(spec: ValidationSpec, a: TraceSet, b: TraceSet, rule: CellRule, see
                    group_by=rule.group_by, margin=dict(spec.test_case.tolerance))
 
 
-def _pilot_rows(spec, grid, cell, split, rule, alpha, cell_power) -> list[PlanRow]:
-    result = _compare(spec, *split, rule, cell_seed(spec.comparison.seed, "plan:pilot", cell))
-    m = min(_count(h, rule) for h in split)
+def _pilot_rows(spec, grid, cell, result, m, alpha, cell_power) -> list[PlanRow]:
     out = []
     for effect in result.response.effect.features:
         if effect.feature not in spec.test_case.tolerance:
             continue
         delta = spec.test_case.tolerance[effect.feature]
-        se = float(np.std(effect.replicates, ddof=1)) if len(effect.replicates) > 1 else np.nan
-        out.append(PlanRow(PILOT, cell, grid.label(cell), m, effect.feature, delta, 0.0, se,
-                           needed_units(m, se, delta, 0.0, alpha, cell_power)))
+        out.append(PlanRow(PILOT, cell, grid.label(cell), m, effect.feature, delta, 0.0,
+                           _se(effect), needed_units(m, _se(effect), delta, 0.0, alpha,
+                                                     cell_power)))
     return out
+
+
+def _se(effect) -> float:
+    return float(np.std(effect.replicates, ddof=1)) if len(effect.replicates) > 1 else np.nan
 
 
 def _candidate_rows(name, domain, relevant, spec, alpha, cell_power) -> list[PlanRow]:
@@ -183,11 +206,10 @@ def _candidate_rows(name, domain, relevant, spec, alpha, cell_power) -> list[Pla
             if effect.feature not in spec.test_case.tolerance:
                 continue
             delta = spec.test_case.tolerance[effect.feature]
-            se = float(np.std(effect.replicates, ddof=1)) if len(effect.replicates) > 1 \
-                else np.nan
             out.append(PlanRow(name, cell, result.label, m, effect.feature, delta,
-                               effect.estimate, se,
-                               needed_units(m, se, delta, effect.estimate, alpha, cell_power)))
+                               effect.estimate, _se(effect),
+                               needed_units(m, _se(effect), delta, effect.estimate, alpha,
+                                            cell_power)))
     return out
 
 
