@@ -1,0 +1,121 @@
+"""Known-truth study of `simcred validate` on car following (issue 22; docs/validate.md).
+
+Designs (tests/validate_designs.py): a human-like IDM behind recorded OpenACC leader windows of
+25 s at 0.1 s, the candidate replaying the same windows (paired by run), with
+
+* ``none`` — the same model (truth: valid);
+* ``delay_0.3`` / ``delay_0.5`` / ``delay_1.0`` — a reaction delay (truth: not valid);
+* ``clip`` — applied acceleration clipped to [-1.5, +0.5] m/s² (truth: not valid);
+
+and ``humans``: two random halves of the real OpenACC human episodes split by driver unit
+(grouped by unit; truth: valid). Test case: the whole leader-speed range, cells 0-15-30 m/s
+(K = 2); features gap, v, v_leader with v_leader an input; tolerance on the acceleration response
+(the rate of v): ``TOLERANCE`` = 0.012 m/s², the true deviation of a 0.15 s reaction delay
+(scripts/validate_truth.py on 8,000 episodes per side: 0.0123 / 0.0115 in the two cells), so
+every injected defect lies beyond it (0.017-0.224 m/s² in every cell) and the same model within.
+A test case that tolerates a reaction-time error below 0.15 s.
+
+For each candidate and size (episodes per side), ``--seeds`` draws; the counts of VALID /
+NOT VALID / INCONCLUSIVE with the wrong verdicts (VALID for a not-valid truth, NOT VALID for a
+valid one) and their Clopper-Pearson 95 % intervals. JSON with ``--out``.
+
+Usage::
+
+    OPENBLAS_NUM_THREADS=1 python scripts/validate_known_truth.py --seeds 200 \\
+        --sizes 10 20 40 --out benchmarks/results/validate_known_truth_small.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+from scipy.stats import binomtest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+
+from validate_designs import closed_loop_pair, human_halves  # noqa: E402
+
+from simcred.validate.loop import Inputs, validate  # noqa: E402
+from simcred.validate.spec import parse_validation  # noqa: E402
+
+TOLERANCE = 0.012  # m/s²: the acceleration-response deviation of a 0.15 s reaction delay
+CANDIDATES = {"none": True, "delay_0.3": False, "delay_0.5": False, "delay_1.0": False,
+              "clip": False, "humans": True}
+
+
+def spec(seed: int, *, humans: bool, tolerance: float = TOLERANCE, bootstrap: int = 200):
+    """The study's validation (paths are placeholders: the sets go in through Inputs)."""
+    return parse_validation({
+        "test_case": {"conditions": "0 <= v_leader <= 30", "tolerance": {"v": tolerance}},
+        "reference": {"path": "-"}, "candidates": {"cand": {"runs": {"path": "-"}}},
+        "features": ["gap", "v", "v_leader"], "inputs": ["v_leader"],
+        **({"groups": {"by": "unit"}} if humans else {"pairs": {"by": "run_id"}}),
+        "conditions": {"v_leader": {"unit": "m/s", "edges": [0, 15, 30]}},
+        "comparison": {"bins": 3, "alpha": 0.05, "permutations": 99, "bootstrap": bootstrap,
+                       "seed": seed},
+        "min_data": {"runs": 4, "samples": 100}})
+
+
+def draw(name: str, episodes: int, seed: int):
+    rng = np.random.default_rng([seed, episodes, 22])
+    if name == "humans":
+        return human_halves(rng, episodes)
+    return closed_loop_pair(rng, episodes, defect=name)
+
+
+def verdict(name: str, episodes: int, seed: int, planned: bool = False, **options):
+    reference, candidate = draw(name, episodes, seed)
+    result = validate(spec(seed, humans=name == "humans", **options),
+                      Inputs(reference, {"cand": candidate}, ()), planned=planned)
+    return result
+
+
+def rate(k: int, n: int) -> dict:
+    low, high = binomtest(k, n).proportion_ci(0.95, method="exact")
+    return {"count": k, "of": n, "rate": k / n, "ci95": [low, high]}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--seeds", type=int, default=200)
+    parser.add_argument("--sizes", type=int, nargs="+", default=[10, 20, 40])
+    parser.add_argument("--candidates", nargs="+", default=list(CANDIDATES))
+    parser.add_argument("--tolerance", type=float, default=TOLERANCE)
+    parser.add_argument("--out", default=None)
+    args = parser.parse_args()
+    rows = []
+    print(f"{'candidate':>10} {'episodes':>8} {'truth':>9} {'VALID':>7} {'NOT VALID':>9} "
+          f"{'INCONCL.':>8} {'wrong':>6} {'95 % CI':>13} {'s/draw':>7}")
+    for episodes in args.sizes:
+        for name in args.candidates:
+            truly_valid = CANDIDATES[name]
+            start = time.perf_counter()
+            counts = Counter(verdict(name, episodes, seed, tolerance=args.tolerance).verdict
+                             for seed in range(args.seeds))
+            seconds = (time.perf_counter() - start) / args.seeds
+            wrong = counts["not valid"] if truly_valid else counts["valid"]
+            row = {"candidate": name, "episodes": episodes, "seeds": args.seeds,
+                   "truly_valid": truly_valid, "tolerance": args.tolerance,
+                   **{k.replace(" ", "_"): rate(counts[k], args.seeds)
+                      for k in ("valid", "not valid", "inconclusive")},
+                   "wrong": rate(wrong, args.seeds), "seconds_per_draw": seconds}
+            rows.append(row)
+            low, high = row["wrong"]["ci95"]
+            print(f"{name:>10} {episodes:>8} {'valid' if truly_valid else 'not valid':>9} "
+                  f"{counts['valid']:>7} {counts['not valid']:>9} {counts['inconclusive']:>8} "
+                  f"{wrong / args.seeds:>6.3f} {low:>6.3f}-{high:.3f} {seconds:>7.2f}",
+                  flush=True)
+    if args.out:
+        Path(args.out).write_text(json.dumps({"alpha": 0.05, "test_case_cells": 2,
+                                              "tolerance": args.tolerance, "rows": rows},
+                                             indent=1))
+
+
+if __name__ == "__main__":
+    main()
