@@ -14,9 +14,10 @@ grid would; the leader is the same in a pair, so the segments pair up by id). Th
 ``estimate`` field (bias-corrected) is the truth; ``plugin`` and the 95 % interval are kept.
 ``delay_0.15`` is the study's tolerance ("a reaction-time error below 0.15 s is tolerated").
 
-Then the real human halves (random halves of the OpenACC human-follower episodes by unit, full
-size, ``group_by="unit"``): their deviation with its interval over several random splits, and
-the per-episode cost of the simulation.
+Then the truly valid ``none`` at growing sizes (its one-sided upper 95 % bound against the
+tolerance), the real human halves (random halves of the OpenACC human-follower episodes by
+unit, full size, ``group_by="unit"``): their deviation with its interval over several random
+splits, and the per-episode cost of the simulation.
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/validate_truth.py
     OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/validate_truth.py --episodes 500 \
@@ -64,7 +65,8 @@ def effect(a, b, args, **design) -> dict:
             "seconds": round(time.perf_counter() - start, 2),
             "pvalue": result.chain.pvalue,
             "features": {f.feature: {"unit": f.unit, "estimate": f.estimate, "plugin": f.plugin,
-                                     "low": f.low, "high": f.high, "upper": f.upper}
+                                     "low": f.low, "high": f.high, "upper": f.upper,
+                                     "upper_95": f.bounds(0.05)[1]}
                          for f in e.features}}
 
 
@@ -167,6 +169,22 @@ def tolerance_replicate(args) -> dict:
     return all_and_cells(ref, cand, args, pair_by="run_id")
 
 
+def none_by_size(args, tolerance: dict) -> dict:
+    """The truly valid candidate (``none``) at growing sizes: estimate and one-sided upper 95 %
+    bound per feature and cell beside the tolerance (when could VALID be reached?)."""
+    out = {}
+    for n in args.none_sizes:
+        row = all_and_cells(*vd.closed_loop_pair(np.random.default_rng(args.seed + 100 + n), n),
+                            args, pair_by="run_id")
+        for cell, r in row.items():
+            for name, f in r["features"].items():
+                f["upper_95_below_tolerance"] = bool(
+                    f["upper_95"] < tolerance[cell]["features"][name]["estimate"])
+        out[str(n)] = row
+        print_row(f"none n={n}", row, flush=True)
+    return out
+
+
 def humans(args) -> dict:
     out = {"bootstrap": args.human_bootstrap, "splits": []}
     for split in range(args.human_splits):
@@ -216,6 +234,8 @@ def main(argv=None):
     parser.add_argument("--human-bootstrap", type=int, default=500)
     parser.add_argument("--human-splits", type=int, default=10)
     parser.add_argument("--cost-episodes", type=int, default=2000)
+    parser.add_argument("--none-sizes", type=lambda t: [int(x) for x in t.split(",")],
+                        default=[10, 40, 300, 1000, 2000, 4000])
     parser.add_argument("--out", default=str(ROOT / "benchmarks/results/validate_truth.json"))
     args = parser.parse_args(argv)
     start = time.perf_counter()
@@ -236,6 +256,7 @@ def main(argv=None):
     }
     result["tolerance_replicate"] = tolerance_replicate(args)
     print_row("tol. seed+1", result["tolerance_replicate"])
+    result["none_by_size"] = none_by_size(args, table[TOLERANCE])
     result["humans"] = humans(args)
     result["simulation_cost"] = simulation_cost(args)
     result["seconds"] = round(time.perf_counter() - start, 1)
