@@ -323,3 +323,37 @@ def test_rate_unit_is_the_unit_per_second(unit, rate):
     assert rate_unit(unit) == rate
     if unit not in (None, "dimensionless"):
         assert same_unit(rate, f"{unit}/s")  # what pint reads it as
+
+
+@pytest.mark.slow
+def test_deviation_permutation_pvalue_holds_its_level_with_few_runs():
+    """The deviation's own permutation p-value (effect.pvalue) is exact under the same law:
+    6 vs 6 runs of one AR(1) process with an input, 300 replications, P(p <= 0.05) within the
+    binomial 99.9 % range of 0.05; and it sees an AR-coefficient change (a response shift whose
+    sign changes between states) that the pooled response statistic averages away."""
+    from scipy.stats import binom
+
+    hits, size = 0, 300
+    for rep in range(size):
+        rng = np.random.default_rng(10_000 + rep)
+        a, b = _set(rng, 6, 30), _set(rng, 6, 30, ids=[f"s{i:03d}" for i in range(6)])
+        result = compare(a, b, features=["x", "u"], inputs=["u"], test="response", bins=3,
+                         permutations=99, bootstrap=100, seed=rep)
+        hits += result.response.effect.features[0].pvalue <= 0.05
+    low, high = binom.ppf([0.0005, 0.9995], size, 0.05)
+    assert low <= hits <= high, hits
+    rng = np.random.default_rng(7)
+    a = _set(rng, 30, 40)
+    b = TraceSet.from_runs([{"t": np.arange(40) * 1.0, "x": x, "u": rng.normal(size=40)}
+                            for x in _ar(rng, 30, 40, 0.2)], run_ids=[f"b{i}" for i in range(30)])
+    result = compare(a, b, features=["x", "u"], inputs=["u"], test="response", bins=3,
+                     permutations=199, bootstrap=100, seed=0)
+    assert result.response.effect.features[0].pvalue <= 0.01
+
+
+def _ar(rng, runs, steps, phi):
+    x = np.zeros((runs, steps))
+    x[:, 0] = rng.normal(size=runs)
+    for t in range(1, steps):
+        x[:, t] = phi * x[:, t - 1] + rng.normal(size=runs)
+    return x

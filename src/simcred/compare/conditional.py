@@ -111,7 +111,8 @@ def response_comparison(parts, design: Design, space: StateSpace, options: Compa
         outcome = with_paired_runs(outcome, parts, design, options, assignments)
     rate_units = {name: rate_unit(units.get(name)) for name in data.response}
     effect = response_effects(data, design, options.bootstrap, options.alpha, INTERVAL_LEVEL,
-                              options.margin, rate_units, stream(options.seed, EFFECT_KEY))
+                              options.margin, rate_units, stream(options.seed, EFFECT_KEY),
+                              assignments)
     analysis = ResponseAnalysis(
         DesignInfo(design.kind.value, design.key, design.units_a,
                    design.n_units - design.units_a, design.smallest_pvalue),

@@ -23,6 +23,13 @@ for all. Rejected (equivalence shown) when every one-sided upper ``1 − α`` bo
 ``2Ê − q_α`` lies below its margin: an intersection–union test, level α without adjustment.
 Little data gives wide bounds and "not shown equivalent", never "equivalent".
 
+**Is there any deviation?** ``pvalue``: the permutation p-value of ``Ê`` itself under the
+design's assignments (the states that enter fixed): exact when the two response laws are the
+same, whatever the sample size, and sensitive to changes of sign between states (an RMS, unlike a
+pooled mean). A caller that declares "beyond the margin" can require it besides the bootstrap
+lower bound, so that a candidate with the reference's own law is never declared beyond at more
+than the test's level, however few units there are.
+
 **Detectable effect.** ``mde_j = (z_{1−α/2} + z_{0.8}) · se(shift_j)``: the uniform shift of the
 response that a test of the mean response would detect with 80 % power, with the bootstrap
 standard error of ``shift_j`` (a normal approximation).
@@ -49,6 +56,7 @@ from scipy.stats import norm
 
 from simcred.compare.design import Design
 from simcred.compare.response import unit_sums
+from simcred.compare.runs import exceedance_pvalues
 from simcred.compare.transitions import Transitions
 from simcred.errors import OptionError
 
@@ -82,6 +90,7 @@ class FeatureEffect:
     margin: float | None = None
     equivalent: bool | None = None
     lower: float = float("nan")
+    pvalue: float = float("nan")
     replicates: np.ndarray = field(default_factory=lambda: np.empty(0), repr=False,
                                    compare=False)
 
@@ -142,8 +151,10 @@ def check_margins(margin: Mapping[str, float] | float | None, response: tuple[st
 
 def response_effects(data: Transitions, design: Design, replicates: int, alpha: float,
                      level: float, margins: tuple[tuple[str, float], ...],
-                     units: Mapping[str, str], rng: np.random.Generator) -> EffectSummary:
-    """Response deviations with cluster-bootstrap intervals, equivalence and detectable effect."""
+                     units: Mapping[str, str], rng: np.random.Generator,
+                     assignments: np.ndarray | None = None) -> EffectSummary:
+    """Response deviations with cluster-bootstrap intervals, equivalence, detectable effect and,
+    given the design's ``assignments`` (row 0 observed), the deviation's permutation p-value."""
     moments = np.hstack([np.ones((len(data.residual), 1)), data.residual, data.residual**2])
     sums = unit_sums(data, moments, design.n_units)
     width = moments.shape[1]
@@ -159,6 +170,11 @@ def response_effects(data: Transitions, design: Design, replicates: int, alpha: 
     boot_estimate, boot_shift = _effects(boot[keep])
     features = _feature_effects(data.response, estimate[:, 0], shift[:, 0], boot_estimate,
                                 boot_shift, alpha, level, dict(margins), units)
+    if assignments is not None:
+        null = _effects(_assigned_sums(sums.matrix, assignments, width)[keep])[0]
+        pvalues = exceedance_pvalues(null.T, null[:, 0])
+        features = tuple(replace(f, pvalue=float(p)) for f, p in zip(features, pvalues,
+                                                                     strict=True))
     verdicts = [f.equivalent for f in features if f.equivalent is not None]
     return EffectSummary(level, replicates, int(keep.sum()), features,
                          all(verdicts) if verdicts else None)
@@ -184,6 +200,13 @@ def _side_sums(matrix, weights: np.ndarray, in_a: np.ndarray, width: int) -> np.
         sides = [np.asarray(matrix[:, cols] @ weights[cols])
                  for cols in (slice(0, units_a), slice(units_a, None))]
     return np.stack(sides, axis=-1).reshape(-1, width, weights.shape[1], 2)
+
+
+def _assigned_sums(matrix, assignments: np.ndarray, width: int) -> np.ndarray:
+    """(blocks, width, P + 1, 2) sums of the unit matrix over each assignment's A and B units."""
+    side_a = assignments.T.astype(np.float64)  # (units, P + 1)
+    sides = [np.asarray(matrix @ side) for side in (side_a, 1.0 - side_a)]
+    return np.stack(sides, axis=-1).reshape(-1, width, assignments.shape[0], 2)
 
 
 def _effects(sums: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

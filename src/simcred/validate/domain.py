@@ -15,7 +15,11 @@ the comparison's level, a cell is
   ``δ`` or more in some cell is at most ``α``, without adjustment);
 * ``not valid`` when some ``E`` is shown above its ``δ``: the one-sided lower ``1 − α/K`` bound
   is above ``δ`` (Bonferroni over the test case's cells: a candidate within tolerance in every
-  cell comes out not valid in at most ``α`` of cases, whatever the number of cells);
+  cell comes out not valid in at most ``α`` of cases, whatever the number of cells), and the
+  permutation test of ``E`` itself rejects the same law at ``α/K``. The bootstrap bound is
+  approximate and fails with few units; the permutation test is exact for a candidate with the
+  reference's own law, so that candidate is never declared not valid at more than ``α`` over
+  the test case, however little data there is;
 * ``inconclusive`` otherwise: the data cannot place the deviation on either side of ``δ``;
 * ``unknown`` when either side has fewer design units or samples than ``min_data``.
 
@@ -65,6 +69,7 @@ class FeatureBounds:
     low: float
     high: float
     detectable: float
+    pvalue: float
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -103,7 +108,8 @@ class CellResult:
 def _bounds_dict(b: FeatureBounds) -> dict[str, Any]:
     return {"feature": b.feature, "unit": b.unit, "tolerance": b.tolerance,
             "estimate": b.estimate, "lower": b.lower, "upper": b.upper,
-            "interval_95": [b.low, b.high], "detectable_shift": b.detectable}
+            "interval_95": [b.low, b.high], "detectable_shift": b.detectable,
+            "deviation_pvalue": b.pvalue}
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -210,29 +216,37 @@ def _feature_bounds(effect: FeatureEffect, tolerance: float, rule: CellRule) -> 
     lower = effect.bounds(rule.alpha / rule.family)[0]
     upper = effect.bounds(rule.alpha)[1]
     return FeatureBounds(effect.feature, effect.unit, tolerance, effect.estimate, lower, upper,
-                         effect.low, effect.high, effect.mde)
+                         effect.low, effect.high, effect.mde, effect.pvalue)
 
 
 def _decide(bounds: Sequence[FeatureBounds], rule: CellRule) -> tuple[CellStatus, str]:
     """Valid when every upper bound is below its tolerance, not valid when some lower bound is
     above it, inconclusive otherwise; not estimable counts as not shown."""
     confidence = f"{100 * (1 - rule.alpha):g} %"
-    family = f"{100 * (1 - rule.alpha / rule.family):.4g} %"
-    above = [b for b in bounds if b.lower > b.tolerance]
+    level = rule.alpha / rule.family
+    family = f"{100 * (1 - level):.4g} %"
+    above = [b for b in bounds if b.lower > b.tolerance and b.pvalue <= level]
     if above:
         return CellStatus.NOT_VALID, "; ".join(
             f"{b.feature} deviates by more than {b.tolerance:g} {b.unit}: {b.estimate:.3g}, "
-            f"lower {family} bound {b.lower:.3g}" for b in above)
+            f"lower {family} bound {b.lower:.3g}, deviation p = {b.pvalue:.3g}" for b in above)
     if all(b.upper < b.tolerance for b in bounds):
         return CellStatus.VALID, "; ".join(
             f"{b.feature} within {b.tolerance:g} {b.unit}: {b.estimate:.3g}, upper "
             f"{confidence} bound {b.upper:.3g}" for b in bounds)
     open_ = [b for b in bounds if not b.upper < b.tolerance]
-    return CellStatus.INCONCLUSIVE, "; ".join(
-        (f"{b.feature}: not estimable (no state visited enough by both sides)"
-         if not np.isfinite(b.estimate) else
-         f"{b.feature}: {b.estimate:.3g} {b.unit}, bounds {b.lower:.3g}–{b.upper:.3g} "
-         f"straddle the tolerance {b.tolerance:g}") for b in open_)
+    return CellStatus.INCONCLUSIVE, "; ".join(_undecided(b, level) for b in open_)
+
+
+def _undecided(b: FeatureBounds, level: float) -> str:
+    if not np.isfinite(b.estimate):
+        return f"{b.feature}: not estimable (no state visited enough by both sides)"
+    if b.lower > b.tolerance:
+        return (f"{b.feature}: {b.estimate:.3g} {b.unit}, bounds {b.lower:.3g}–{b.upper:.3g} "
+                f"above the tolerance {b.tolerance:g}, but the deviation's permutation test "
+                f"does not reject the same law at {level:.3g} (p = {b.pvalue:.3g})")
+    return (f"{b.feature}: {b.estimate:.3g} {b.unit}, bounds {b.lower:.3g}–{b.upper:.3g} "
+            f"straddle the tolerance {b.tolerance:g}")
 
 
 def _matched(reference: TraceSet, candidate: TraceSet, rule: CellRule
