@@ -1,0 +1,34 @@
+"""Known truth on car following (issue 22): a closed-loop IDM behind recorded OpenACC leaders,
+its replay paired run by run (tests/validate_designs.py), tolerance 0.012 m/s² on the
+acceleration response (the true deviation of a 0.15 s reaction delay). Small sizes and 25 seeds
+here; the full study (200 seeds, 10-1,000 episodes, human halves) is
+scripts/validate_known_truth.py, its tables in docs/validate.md.
+
+* the same model: NOT VALID at most at the family level (each draw at most α = 0.05 over the two
+  cells: ≥ 5 of 25 has probability 0.007 under Binomial(25, 0.05));
+* a 1.0 s reaction delay and clipped acceleration: never VALID, at any size.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections import Counter
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "scripts"))
+
+from validate_known_truth import verdict  # noqa: E402
+
+SEEDS = 25
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("episodes", [10, 40])
+def test_known_truth_verdicts(episodes):
+    same = Counter(verdict("none", episodes, seed).verdict for seed in range(SEEDS))
+    assert same["not valid"] <= 4
+    for defect in ("delay_1.0", "clip"):
+        found = Counter(verdict(defect, episodes, seed).verdict for seed in range(SEEDS))
+        assert found["valid"] == 0, (defect, found)
