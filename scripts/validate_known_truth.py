@@ -39,10 +39,9 @@ from scipy.stats import binomtest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from validate_designs import closed_loop_pair, human_halves  # noqa: E402
-
 from simcred.validate.loop import Inputs, validate  # noqa: E402
 from simcred.validate.spec import parse_validation  # noqa: E402
+from validate_designs import closed_loop_pair, human_halves  # noqa: E402
 
 TOLERANCE = 0.012  # m/s²: the acceleration-response deviation of a 0.15 s reaction delay
 CANDIDATES = {"none": True, "delay_0.3": False, "delay_0.5": False, "delay_1.0": False,
