@@ -75,7 +75,7 @@ def _print_plan(plan) -> None:
         out_console.print(f"  {row.source}, {row.label}, {row.feature}: {row.units} now, "
                           f"estimate {row.estimate:.3g} ± {row.se:.2g} vs {row.tolerance:g}: "
                           f"{need}", highlight=False, soft_wrap=True)
-    if plan.simulated_power is not None:
+    if plan.pilot_units is not None:
         out_console.print(f"  a candidate as good as the reference at {plan.pilot_units} units "
                           f"per side: shown valid in {100 * plan.simulated_power:.0f} % of "
                           f"{plan.simulations} simulations", highlight=False)

@@ -4,7 +4,9 @@ checked by simulation.
 **Pilot.** In each cell of the test case the reference's units (the runs the segments were cut
 from, or the declared groups) are split at random into two halves that play a perfect candidate
 and the reference: the response comparison of the halves gives, per feature with a tolerance
-``δ``, the bootstrap standard error ``se_m`` of the deviation at ``m`` units per side.
+``δ``, the bootstrap standard error ``se_m`` of the deviation at ``m`` units per side. The pilot
+is unpaired: for candidates that replay the reference run by run (pairs), their own rows, in
+their own design, are the plan (pairing removes the scenarios' spread; the pilot cannot).
 
 **Size.** VALID for the test case needs every one of its ``K`` cells shown within tolerance, so
 each cell needs power ``p = 0.8^(1/K)`` for the test case to have 80 %. With the upper bound
@@ -16,8 +18,10 @@ above ``δ`` cannot be shown within tolerance at any size.
 
 **Check.** The normal approximation fails where it matters most: at ``E = 0`` the deviation sits
 on the boundary of its range, and its estimate keeps a bias at small sizes. So the pilot's size
-is simulated: ``reps`` data sets of ``n`` units per side drawn with replacement from the two
-halves, each compared as ``validate`` would; the share in which every cell of the test case
+is simulated: ``reps`` data sets whose two sides are each ``n`` units drawn with replacement
+from the cell's reference units (one law on both sides: a candidate exactly as good as the
+reference; drawing each side from its own half would build the halves' sampling difference into
+the truth), each compared as ``validate`` would; the share in which every cell of the test case
 comes out valid is the simulated power. While it is below 80 %, ``n`` grows by half, up to
 ``MAX_GROWTH`` times the pilot's units (beyond, resampling a small pilot says little); the plan
 is the first simulated size that reaches 80 %, or none.
@@ -102,6 +106,7 @@ class Pilot:
     comparison (a candidate as good as the reference, with half its data)."""
 
     rule: CellRule
+    pools: dict[int, TraceSet]
     halves: dict[int, tuple[TraceSet, TraceSet]]
     comparisons: dict[int, Comparison]
 
@@ -119,7 +124,8 @@ def pilot(spec: ValidationSpec, reference: Segments, relevant: tuple[int, ...]) 
     comparisons = {cell: _compare(spec, *split, rule,
                                   cell_seed(spec.comparison.seed, "plan:pilot", cell))
                    for cell, split in halves.items()}
-    return Pilot(rule, halves, comparisons)
+    pools = {cell: reference.by_cell[cell] for cell in halves}
+    return Pilot(rule, pools, halves, comparisons)
 
 
 def plan(spec: ValidationSpec, grid: Grid, found: Pilot, relevant: tuple[int, ...],
@@ -141,7 +147,7 @@ def plan(spec: ValidationSpec, grid: Grid, found: Pilot, relevant: tuple[int, ..
     smallest = min(min(_count(h, rule) for h in pair) for pair in halves.values())
     n, share = max(pilot_sizes), 0.0
     while n <= MAX_GROWTH * smallest:
-        share = _simulate(spec, halves, rule, n, reps)
+        share = _simulate(spec, found.pools, rule, n, reps)
         if share >= POWER:
             return Plan(POWER, cell_power, tuple(rows), n, share, reps, "")
         n = math.ceil(1.5 * n)
@@ -213,18 +219,19 @@ def _candidate_rows(name, domain, relevant, spec, alpha, cell_power) -> list[Pla
     return out
 
 
-def _simulate(spec: ValidationSpec, halves: dict[int, tuple[TraceSet, TraceSet]],
-              rule: CellRule, n: int, reps: int) -> float:
-    """Share of ``reps`` simulated data sets (``n`` units per side per cell, drawn with
-    replacement from the halves) in which every cell is shown within tolerance."""
+def _simulate(spec: ValidationSpec, pools: dict[int, TraceSet], rule: CellRule, n: int,
+              reps: int) -> float:
+    """Share of ``reps`` simulated data sets (``n`` units per side per cell, both sides drawn
+    with replacement from the cell's reference units: the same law) in which every cell is
+    shown within tolerance."""
     tolerance = spec.test_case.tolerance
     alpha = spec.comparison.alpha
     shown = 0
     for rep in range(reps):
         every = True
-        for cell, (a, b) in halves.items():
+        for cell, pool in pools.items():
             rng = np.random.default_rng(cell_seed(spec.comparison.seed, f"plan:sim{rep}", cell))
-            result = _compare(spec, _draw(a, rule, n, rng, "a"), _draw(b, rule, n, rng, "b"),
+            result = _compare(spec, _draw(pool, rule, n, rng, "a"), _draw(pool, rule, n, rng, "b"),
                               rule, cell_seed(spec.comparison.seed, f"plan:cmp{rep}", cell))
             every &= all(f.bounds(alpha)[1] < tolerance[f.feature]
                          for f in result.response.effect.features if f.feature in tolerance)
