@@ -75,6 +75,25 @@ def verdict(name: str, episodes: int, seed: int, planned: bool = False, **option
     return result
 
 
+def plan_check(pilot: int, seeds: int, tolerance: float) -> dict:
+    """The planned size from one draw at ``pilot`` episodes, and VALID's rate at that size."""
+    result = verdict("none", pilot, 10_000, planned=True, tolerance=tolerance)
+    rows = [r for r in result.plan.rows if r.source == "cand"]
+    needed = [r.needed for r in rows]
+    if not needed or None in needed:
+        return {"pilot": pilot, "rows": [r.to_dict() for r in rows], "planned": None}
+    size = max(needed)
+    print(f"plan from {pilot} episodes: {[r.needed for r in rows]} units per side and cell "
+          f"-> {size} episodes", flush=True)
+    counts = Counter(verdict("none", size, seed, tolerance=tolerance).verdict
+                     for seed in range(seeds))
+    print(f"at {size} episodes: VALID {counts['valid']} / NOT VALID {counts['not valid']} / "
+          f"INCONCLUSIVE {counts['inconclusive']} of {seeds}", flush=True)
+    return {"pilot": pilot, "rows": [r.to_dict() for r in rows], "planned": size,
+            "valid": rate(counts["valid"], seeds), "not_valid": rate(counts["not valid"], seeds),
+            "inconclusive": rate(counts["inconclusive"], seeds)}
+
+
 def rate(k: int, n: int) -> dict:
     low, high = binomtest(k, n).proportion_ci(0.95, method="exact")
     return {"count": k, "of": n, "rate": k / n, "ci95": [low, high]}
@@ -86,8 +105,15 @@ def main() -> None:
     parser.add_argument("--sizes", type=int, nargs="+", default=[10, 20, 40])
     parser.add_argument("--candidates", nargs="+", default=list(CANDIDATES))
     parser.add_argument("--tolerance", type=float, default=TOLERANCE)
+    parser.add_argument("--plan-from", type=int, default=None)
     parser.add_argument("--out", default=None)
     args = parser.parse_args()
+    if args.plan_from is not None:
+        found = plan_check(args.plan_from, args.seeds, args.tolerance)
+        if args.out:
+            Path(args.out).write_text(json.dumps({"tolerance": args.tolerance, **found},
+                                                 indent=1))
+        return
     rows = []
     print(f"{'candidate':>10} {'episodes':>8} {'truth':>9} {'VALID':>7} {'NOT VALID':>9} "
           f"{'INCONCL.':>8} {'wrong':>6} {'95 % CI':>13} {'s/draw':>7}")
