@@ -35,9 +35,11 @@ from collections import Counter
 from pathlib import Path
 
 import numpy as np
-from scipy.stats import binomtest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+ROOT = Path(__file__).resolve().parents[1]
+sys.path[:0] = [str(ROOT / "tests"), str(ROOT / "examples" / "validate")]
+
+from power import rate  # noqa: E402  (verdict counts as in examples/validate/power.py)
 
 from simcred.validate.loop import Inputs, validate  # noqa: E402
 from simcred.validate.spec import parse_validation  # noqa: E402
@@ -92,11 +94,6 @@ def plan_check(pilot: int, seeds: int, tolerance: float) -> dict:
     return {"pilot": pilot, "rows": [r.to_dict() for r in rows], "planned": size,
             "valid": rate(counts["valid"], seeds), "not_valid": rate(counts["not valid"], seeds),
             "inconclusive": rate(counts["inconclusive"], seeds)}
-
-
-def rate(k: int, n: int) -> dict:
-    low, high = binomtest(k, n).proportion_ci(0.95, method="exact")
-    return {"count": k, "of": n, "rate": k / n, "ci95": [low, high]}
 
 
 def main() -> None:
