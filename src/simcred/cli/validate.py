@@ -79,8 +79,8 @@ def _print_plan(plan) -> None:
         out_console.print(f"  a candidate as good as the reference at {plan.pilot_units} units "
                           f"per side: shown valid in {100 * plan.simulated_power:.0f} % of "
                           f"{plan.simulations} simulations", highlight=False)
-    elif plan.note:
-        out_console.print(f"  {plan.note}", highlight=False)
+    if plan.note:
+        out_console.print(f"  {plan.note}", highlight=False, soft_wrap=True)
 
 
 def simulate_candidates(spec: ValidationSpec, base: Path, out: Path,

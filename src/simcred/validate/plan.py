@@ -24,7 +24,9 @@ reference; drawing each side from its own half would build the halves' sampling 
 the truth), each compared as ``validate`` would; the share in which every cell of the test case
 comes out valid is the simulated power. While it is below 80 %, ``n`` grows by half, up to
 ``MAX_GROWTH`` times the pilot's units (beyond, resampling a small pilot says little); the plan
-is the first simulated size that reaches 80 %, or none.
+is the first simulated size that reaches 80 %, or none. Cells of the test case without a pilot
+(fewer than 4 reference units) are named: they need reference data before any plan, and the
+simulated power covers the other cells.
 """
 
 from __future__ import annotations
@@ -141,19 +143,22 @@ def plan(spec: ValidationSpec, grid: Grid, found: Pilot, relevant: tuple[int, ..
     for name, domain in domains.items():
         rows += _candidate_rows(name, domain, relevant, spec, alpha, cell_power)
     pilot_sizes = [r.needed for r in rows if r.source == PILOT]
-    if not pilot_sizes or None in pilot_sizes or len(halves) < len(relevant):
+    missing = [grid.label(c) for c in relevant if c not in halves]
+    lacking = (f" No pilot in {'; '.join(missing)} (fewer than 4 reference units): those cells "
+               "need reference data before any plan.") if missing else ""
+    if not pilot_sizes or None in pilot_sizes:
         return Plan(POWER, cell_power, tuple(rows), None, None, 0,
-                    "some cell of the test case has too little reference data for a pilot")
+                    ("no cell of the test case has a usable pilot." + lacking).strip())
     smallest = min(min(_count(h, rule) for h in pair) for pair in halves.values())
     n, share = max(pilot_sizes), 0.0
     while n <= MAX_GROWTH * smallest:
         share = _simulate(spec, found.pools, rule, n, reps)
         if share >= POWER:
-            return Plan(POWER, cell_power, tuple(rows), n, share, reps, "")
+            return Plan(POWER, cell_power, tuple(rows), n, share, reps, lacking.strip())
         n = math.ceil(1.5 * n)
     return Plan(POWER, cell_power, tuple(rows), None, share, reps,
                 f"not reached by simulation within {MAX_GROWTH} times the pilot's {smallest} "
-                "units per side: more reference data is needed to plan")
+                f"units per side: more reference data is needed to plan.{lacking}")
 
 
 def _halves(reference: Segments, cell: int, rule: CellRule, seed: int
