@@ -36,7 +36,7 @@ def test_plan_rows_and_simulated_size(tmp_path, capsys):
     beyond = [r for r in plan.rows if r.source == "sim" and r.cell == 3]
     assert beyond[0].needed is None  # the deviating cell cannot be shown within tolerance
     # the search stops at the first simulated size with 80 %: at least the formula's size
-    assert plan.pilot_units >= max(r.needed for r in pilot)
+    assert all(plan.sizes[r.cell] >= r.needed for r in pilot)
     assert plan.simulated_power >= 0.8 and plan.simulations == 20
     again = validate(spec, read_inputs(spec, base), planned=True).plan
     assert again.to_dict() == plan.to_dict()  # seeded
@@ -45,5 +45,6 @@ def test_plan_rows_and_simulated_size(tmp_path, capsys):
     printed = capsys.readouterr().out
     assert "plan: units per side" in printed and "not reachable" in printed
     document = json.loads((out / "verdict.json").read_text())
-    assert document["plan"]["pilot_needed_units_per_side"] == plan.pilot_units
+    assert document["plan"]["planned_units_per_side"] == {str(c): n
+                                                          for c, n in plan.sizes.items()}
     assert 'id="plan"' in (out / "report.html").read_text()

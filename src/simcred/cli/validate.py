@@ -75,10 +75,12 @@ def _print_plan(plan) -> None:
         out_console.print(f"  {row.source}, {row.label}, {row.feature}: {row.units} now, "
                           f"estimate {row.estimate:.3g} ± {row.se:.2g} vs {row.tolerance:g}: "
                           f"{need}", highlight=False, soft_wrap=True)
-    if plan.pilot_units is not None:
-        out_console.print(f"  a candidate as good as the reference at {plan.pilot_units} units "
-                          f"per side: shown valid in {100 * plan.simulated_power:.0f} % of "
-                          f"{plan.simulations} simulations", highlight=False)
+    if plan.sizes:
+        sizes = ", ".join(str(n) for n in plan.sizes.values())
+        out_console.print(f"  a candidate as good as the reference, at {sizes} units per side "
+                          f"in the {len(plan.sizes)} cells: shown valid in "
+                          f"{100 * plan.simulated_power:.0f} % of {plan.simulations} "
+                          "simulations", highlight=False)
     if plan.note:
         out_console.print(f"  {plan.note}", highlight=False, soft_wrap=True)
 

@@ -22,11 +22,12 @@ is simulated: ``reps`` data sets whose two sides are each ``n`` units drawn with
 from the cell's reference units (one law on both sides: a candidate exactly as good as the
 reference; drawing each side from its own half would build the halves' sampling difference into
 the truth), each compared as ``validate`` would; the share in which every cell of the test case
-comes out valid is the simulated power. While it is below 80 %, ``n`` grows by half, up to
-``MAX_GROWTH`` times the pilot's units (beyond, resampling a small pilot says little); the plan
-is the first simulated size that reaches 80 %, or none. Cells of the test case without a pilot
-(fewer than 4 reference units) are named: they need reference data before any plan, and the
-simulated power covers the other cells.
+comes out valid is the simulated power. Each cell has its own size, starting from the formula's;
+while the test case is below 80 %, every cell below its share ``p`` grows by half, up to
+``MAX_GROWTH`` times the cell's reference units (beyond, resampling a small reference says
+little); the plan is the first simulated sizes that reach 80 %, or none. Cells of the test case
+without a pilot (fewer than 4 reference units) are named: they need reference data before any
+plan, and the simulated power covers the other cells.
 """
 
 from __future__ import annotations
@@ -73,13 +74,14 @@ class PlanRow:
 
 @dataclass(frozen=True, slots=True)
 class Plan:
-    """The plan: rows per source, cell and feature; the pilot's size for the whole test case
-    (the largest cell's need) and its simulated power."""
+    """The plan: rows per source, cell and feature; per cell of the test case the simulated
+    size for a candidate as good as the reference (``sizes``: units per side; empty when no
+    size was reached) and the simulated power of the test case at those sizes."""
 
     power: float
     cell_power: float
     rows: tuple[PlanRow, ...]
-    pilot_units: int | None
+    sizes: dict[int, int]
     simulated_power: float | None
     simulations: int
     note: str
@@ -87,7 +89,7 @@ class Plan:
     def to_dict(self) -> dict[str, Any]:
         return {"power": self.power, "power_per_cell": self.cell_power,
                 "rows": [r.to_dict() for r in self.rows],
-                "pilot_needed_units_per_side": self.pilot_units,
+                "planned_units_per_side": {str(c): n for c, n in self.sizes.items()},
                 "simulated_power": self.simulated_power, "simulations": self.simulations,
                 "note": self.note}
 
@@ -142,23 +144,43 @@ def plan(spec: ValidationSpec, grid: Grid, found: Pilot, relevant: tuple[int, ..
                             alpha, cell_power)
     for name, domain in domains.items():
         rows += _candidate_rows(name, domain, relevant, spec, alpha, cell_power)
-    pilot_sizes = [r.needed for r in rows if r.source == PILOT]
     missing = [grid.label(c) for c in relevant if c not in halves]
     lacking = (f" No pilot in {'; '.join(missing)} (fewer than 4 reference units): those cells "
                "need reference data before any plan.") if missing else ""
-    if not pilot_sizes or None in pilot_sizes:
-        return Plan(POWER, cell_power, tuple(rows), None, None, 0,
+    sizes = _start_sizes(rows)
+    if not sizes:
+        return Plan(POWER, cell_power, tuple(rows), {}, None, 0,
                     ("no cell of the test case has a usable pilot." + lacking).strip())
-    smallest = min(min(_count(h, rule) for h in pair) for pair in halves.values())
-    n, share = max(pilot_sizes), 0.0
-    while n <= MAX_GROWTH * smallest:
-        share = _simulate(spec, found.pools, rule, n, reps)
+    return _search(spec, grid, found, sizes, cell_power, tuple(rows), reps, lacking)
+
+
+def _start_sizes(rows: list[PlanRow]) -> dict[int, int]:
+    """Per cell with a pilot, the formula's size (the largest over its features)."""
+    sizes: dict[int, int] = {}
+    for row in rows:
+        if row.source == PILOT and row.needed is not None:
+            sizes[row.cell] = max(sizes.get(row.cell, 2), row.needed)
+    return sizes
+
+
+def _search(spec, grid, found: Pilot, sizes: dict[int, int], cell_power: float,
+            rows: tuple[PlanRow, ...], reps: int, lacking: str) -> Plan:
+    """Simulate at ``sizes``; grow (by half) every cell below its share of the power until the
+    test case reaches it or a cell would need more than ``MAX_GROWTH`` times its reference."""
+    share = 0.0
+    while True:
+        too_big = [c for c, n in sizes.items() if n > MAX_GROWTH * _count(found.pools[c],
+                                                                          found.rule)]
+        if too_big:
+            return Plan(POWER, cell_power, rows, {}, share if share else None, reps,
+                        f"not reached by simulation: {'; '.join(grid.label(c) for c in too_big)} "
+                        f"would need more than {MAX_GROWTH} times its reference units; more "
+                        f"reference data is needed to plan.{lacking}")
+        per_cell, share = _simulate(spec, found.pools, found.rule, sizes, reps)
         if share >= POWER:
-            return Plan(POWER, cell_power, tuple(rows), n, share, reps, lacking.strip())
-        n = math.ceil(1.5 * n)
-    return Plan(POWER, cell_power, tuple(rows), None, share, reps,
-                f"not reached by simulation within {MAX_GROWTH} times the pilot's {smallest} "
-                f"units per side: more reference data is needed to plan.{lacking}")
+            return Plan(POWER, cell_power, rows, dict(sizes), share, reps, lacking.strip())
+        sizes = {c: math.ceil(1.5 * n) if per_cell[c] < cell_power else n
+                 for c, n in sizes.items()}
 
 
 def _halves(reference: Segments, cell: int, rule: CellRule, seed: int
@@ -224,24 +246,28 @@ def _candidate_rows(name, domain, relevant, spec, alpha, cell_power) -> list[Pla
     return out
 
 
-def _simulate(spec: ValidationSpec, pools: dict[int, TraceSet], rule: CellRule, n: int,
-              reps: int) -> float:
-    """Share of ``reps`` simulated data sets (``n`` units per side per cell, both sides drawn
-    with replacement from the cell's reference units: the same law) in which every cell is
-    shown within tolerance."""
+def _simulate(spec: ValidationSpec, pools: dict[int, TraceSet], rule: CellRule,
+              sizes: dict[int, int], reps: int) -> tuple[dict[int, float], float]:
+    """Per cell and for the whole test case, the share of ``reps`` simulated data sets (``n``
+    units per side in each cell, both sides drawn with replacement from the cell's reference
+    units: the same law) in which it is shown within tolerance."""
     tolerance = spec.test_case.tolerance
     alpha = spec.comparison.alpha
-    shown = 0
+    shown = {cell: 0 for cell in sizes}
+    every = 0
     for rep in range(reps):
-        every = True
-        for cell, pool in pools.items():
+        passed = True
+        for cell, n in sizes.items():
+            pool = pools[cell]
             rng = np.random.default_rng(cell_seed(spec.comparison.seed, f"plan:sim{rep}", cell))
             result = _compare(spec, _draw(pool, rule, n, rng, "a"), _draw(pool, rule, n, rng, "b"),
                               rule, cell_seed(spec.comparison.seed, f"plan:cmp{rep}", cell))
-            every &= all(f.bounds(alpha)[1] < tolerance[f.feature]
-                         for f in result.response.effect.features if f.feature in tolerance)
-        shown += every
-    return shown / reps
+            valid = all(f.bounds(alpha)[1] < tolerance[f.feature]
+                        for f in result.response.effect.features if f.feature in tolerance)
+            shown[cell] += valid
+            passed &= valid
+        every += passed
+    return {cell: k / reps for cell, k in shown.items()}, every / reps
 
 
 def _draw(traces: TraceSet, rule: CellRule, n: int, rng: np.random.Generator, tag: str
