@@ -99,6 +99,7 @@ def plan_check(pilot: int, seeds: int, tolerance: float) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--seeds", type=int, default=200)
+    parser.add_argument("--first-seed", type=int, default=0)
     parser.add_argument("--sizes", type=int, nargs="+", default=[10, 20, 40])
     parser.add_argument("--candidates", nargs="+", default=list(CANDIDATES))
     parser.add_argument("--tolerance", type=float, default=TOLERANCE)
@@ -119,10 +120,11 @@ def main() -> None:
             truly_valid = CANDIDATES[name]
             start = time.perf_counter()
             counts = Counter(verdict(name, episodes, seed, tolerance=args.tolerance).verdict
-                             for seed in range(args.seeds))
+                             for seed in range(args.first_seed, args.first_seed + args.seeds))
             seconds = (time.perf_counter() - start) / args.seeds
             wrong = counts["not valid"] if truly_valid else counts["valid"]
             row = {"candidate": name, "episodes": episodes, "seeds": args.seeds,
+                   "first_seed": args.first_seed,
                    "truly_valid": truly_valid, "tolerance": args.tolerance,
                    **{k.replace(" ", "_"): rate(counts[k], args.seeds)
                       for k in ("valid", "not valid", "inconclusive")},
