@@ -258,7 +258,7 @@ def test_study_resumes_after_ctrl_c_with_the_same_bytes(tmp_path, monkeypatch, c
 
     def args(out: str, *extra: str) -> list[str]:
         return ["-q", "study", "car-following", "--models", "IDM,Krauss", "--max-episodes", "60",
-                "--permutations", "99", "--baseline", "1", "--min-runs", "5", "--seed", "2",
+                "--permutations", "99", "--min-runs", "5", "--seed", "2",
                 "--out", str(tmp_path / out), *extra]
 
     assert run(args("whole")) == 0
