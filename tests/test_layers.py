@@ -29,6 +29,7 @@ LAYERS: dict[str, float] = {
     **{unit: i / 100 for i, unit in enumerate(CORE)},
     "io": 1,
     "compare": 2, "contracts": 2, "scenario": 2, "risk": 2,
+    "regions": 2.5,  # the per-region engine of study and validate (compare + contracts)
     "sim": 3, "examples": 3,
     "reprocess": 4, "study": 4,
     "validate": 4.5,
@@ -196,7 +197,8 @@ def test_relative_imports_are_resolved(tmp_path):
 # -- faces: every package lists its public API, and every listed name resolves -------------------
 
 FACES = ["simcred.io", "simcred.scenario", "simcred.risk", "simcred.sim", "simcred.reprocess",
-         "simcred.report", "simcred.paper", "simcred.kinematics", "simcred.seeds", "simcred.cli"]
+         "simcred.regions", "simcred.report", "simcred.paper", "simcred.kinematics",
+         "simcred.seeds", "simcred.cli"]
 
 
 @pytest.mark.parametrize("face", FACES)

@@ -62,7 +62,8 @@ CASES: dict[str, Args] = {
                              "I1=M1,I2=M2a", "--out", str(o.with_suffix(".json"))],
     "study car-following": lambda v, o: ["study", "car-following", "--models", "IDM",
                                          "--max-episodes", "60", "--permutations", "99",
-                                         "--baseline", "2", "--min-runs", "5", "--seed", "2",
+                                         "--tolerance", "v=0.1", "--min-runs", "5", "--seed",
+                                         "2",
                                          "--out", str(o)],
 }
 # Writes the same files as its parts, `paper 000` and `paper 002`, checked above.

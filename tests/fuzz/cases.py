@@ -189,7 +189,9 @@ def _newer_command_cases() -> list[tuple[str, Builder]]:
                           ("--sample-step", "0"), ("--sample-step", "nan"), ("--test", "magic"),
                           ("--alpha", "2"), ("--permutations", "0"), ("--baseline", "-1"),
                           ("--one-sided", "x"), ("--models", "NoSuchModel"),
-                          ("--max-episodes", "0"), ("--min-runs", "0")]:
+                          ("--max-episodes", "0"), ("--min-runs", "0"),
+                          ("--tolerance", "v=-1"), ("--tolerance", "x"), ("--inputs", "a"),
+                          ("--bands", "0-10,20-30")]:
         cases.append((f"study {option} {value!r}", lambda r, v, o=option, x=value: [
             *study, "--out", str(r / "st"), o, x]))
     cases.append(("study --source corrupt", lambda r, v: [

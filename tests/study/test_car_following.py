@@ -1,4 +1,5 @@
-"""The car-following study: verdict combination, bands, thinning, a small end-to-end run, CLI."""
+"""The car-following study on the per-region engine: options, a small end-to-end run, the same
+cell result as validate for the same inputs, files and CLI."""
 
 from __future__ import annotations
 
@@ -6,26 +7,24 @@ import json
 
 import numpy as np
 import pytest
-from scipy.stats import combine_pvalues
 
-from helpers import ar_set
-from simcred.compare import compare
 from simcred.errors import OptionError
+from simcred.io.openacc import HUMAN, read_openacc
+from simcred.regions import CellStatus
+from simcred.sim.sumo import replay
 from simcred.study.car_following import (
     BASELINE,
     BASELINE_CARS,
     REAL_ACC,
     StudyOptions,
-    band_index,
+    _subset,
     repeat_baselines,
     run_study,
-    thin,
 )
 from simcred.study.files import write_study
-from simcred.study.verdict import chain_verdict, fisher
-from simcred.traces import TraceSet
 
 SMALL = dict(models=("IDM",), max_episodes=80, permutations=99, min_runs=5, seed=3)
+BANDS = ((0.0, 10.0), (10.0, 20.0), (20.0, 30.0))
 
 
 @pytest.fixture(scope="module")
@@ -33,112 +32,122 @@ def small():
     return run_study(StudyOptions(**SMALL))
 
 
-def test_fisher_matches_scipy():
-    rng = np.random.default_rng(0)
-    for k in (1, 3, 40):
-        p = list(rng.uniform(0.001, 1, size=k))
-        assert fisher(p) == pytest.approx(combine_pvalues(p, method="fisher").pvalue, rel=1e-12)
-    assert fisher([]) is None
+@pytest.fixture(scope="module")
+def judged():
+    return run_study(StudyOptions(**SMALL, tolerance={"v": 0.1}))
 
 
-@pytest.mark.slow
-def test_interim_verdict_holds_its_level_on_independent_transitions():
-    """H0 true, transitions independent given the state (AR(1) chains, both sets alike): the
-    Fisher-combined per-transition test rejects at most about alpha of the time."""
-    alpha, reps, rejected = 0.1, 120, 0
-    for rep in range(reps):
-        rng = np.random.default_rng(rep)
-        a, b = ar_set(rng, 40, 0.5, length=12), ar_set(rng, 40, 0.5, length=12)
-        result = compare(a, b, bins=3, test="permutation", permutations=199, seed=rep,
-                         continue_on_start_difference=True, alpha=alpha)
-        rejected += chain_verdict(result, "permutation", alpha).rejected
-    assert rejected / reps <= alpha + 3 * np.sqrt(alpha * (1 - alpha) / reps)
-
-
-def test_interim_verdict_detects_reversed_dynamics():
-    rng = np.random.default_rng(1)
-    a, b = ar_set(rng, 60, 0.8, length=20), ar_set(rng, 60, -0.8, length=20)
-    result = compare(a, b, bins=3, test="permutation", permutations=199, seed=0,
-                     continue_on_start_difference=True)
-    verdict = chain_verdict(result, "permutation", 0.01)
-    assert verdict.rejected and verdict.pvalue < 1e-6 and "Fisher" in verdict.method
-
-
-def test_band_index_edges():
-    runs = [{"t": [0.0, 0.1], "v_leader": [v, v]} for v in (0.0, 9.99, 10.0, 20.0, 30.0, 35.0)]
-    ts = TraceSet.from_runs(runs)
-    bands = ((0.0, 10.0), (10.0, 20.0), (20.0, 30.0))
-    assert band_index(ts, bands).tolist() == [0, 0, 1, 2, 2, -1]
-
-
-def test_thin_keeps_every_kth_sample():
-    ts = TraceSet.from_runs([{"t": np.arange(11) * 0.1, "x": np.arange(11.0)},
-                             {"t": np.arange(7) * 0.1, "x": np.arange(7.0) + 100}])
-    out = thin(ts, 5)
-    assert out.run(0)["x"].tolist() == [0, 5, 10] and out.run(1)["x"].tolist() == [100, 105]
-
-
-@pytest.mark.parametrize("kwargs", [{"test": "bound"}, {"bands": ((10, 0),)},
-                                    {"bands": ((0, 10), (5, 15))}, {"models": ()},
-                                    {"sample_step": 0.25}, {"permutations": 49},
-                                    {"alpha": 1.5}, {"bins": 1}, {"max_episodes": 1},
-                                    {"bands": ((0, float("inf")),)}, {"baseline": -1},
-                                    {"test": "per-transition"}, {"one_sided": "ignore"}])
+@pytest.mark.parametrize("kwargs", [{"bands": ((10, 0),)}, {"bands": ((0, 10), (5, 15))},
+                                    {"bands": ((0, 10), (20, 30))}, {"models": ()},
+                                    {"permutations": 5}, {"alpha": 1.5}, {"bins": 1},
+                                    {"max_episodes": 1}, {"bands": ((0, float("inf")),)},
+                                    {"bootstrap": 10}, {"sample_step": 0},
+                                    {"features": ("gap", "x")}, {"inputs": ("a",)},
+                                    {"inputs": ("gap", "v", "v_leader")},
+                                    {"tolerance": {"v_leader": 0.1}}, {"tolerance": {"v": -1}},
+                                    {"min_runs": 1}, {"seed": -1}])
 def test_bad_options(kwargs):
     with pytest.raises(OptionError):
-        StudyOptions(**kwargs).every  # noqa: B018  (sample step is checked against the rules)
+        StudyOptions(**kwargs)
+
+
+def test_bands_are_one_grid_over_the_leader_speed():
+    grid = StudyOptions().grid()
+    assert grid.variables == ("v_leader",) and grid.edges == ((0.0, 10.0, 20.0, 30.0),)
+    assert grid.units == ("m/s",)
 
 
 def test_small_study(small):
     assert small.rows == (BASELINE, BASELINE_CARS, "SUMO IDM", REAL_ACC)
     assert len(small.cells) == 4 * 3
-    top = [c for c in small.cells if c.band == (20.0, 30.0)]
-    assert {c.status for c in top} == {"insufficient data"}  # no human episode at 20-30 m/s
-    for c in small.cells:
-        if c.verdict is not None:
-            assert c.verdict.pvalue is not None and 0 <= c.distance <= 1
-            assert c.verdict.rejected == (c.verdict.pvalue <= 0.01)
+    assert [c.band for c in small.cells[:4]] == [BANDS[0]] * 4  # band by band, rows in order
+    top = [c for c in small.cells if c.band == BANDS[2]]
+    assert {c.status for c in top} == {CellStatus.UNKNOWN}  # no human episode at 20-30 m/s
+    assert "reference has 0 units" in top[0].result.reason
+    compared = [c for c in small.cells if c.compared]
+    assert {c.row for c in compared} == set(small.rows)
+    for c in compared:  # no tolerance: deviations reported, never judged
+        r = c.result
+        assert c.status is CellStatus.COMPARED and 0 < r.pvalue <= 1
+        assert [b.feature for b in r.bounds] == ["gap", "v"]
+        assert all(b.tolerance is None and 0 <= b.low <= b.high for b in r.bounds)
+        assert r.comparison.options.test == "response"
+    design = {c.row: c.result.design for c in compared}
+    assert design["SUMO IDM"] == "pairs by run" and design[REAL_ACC] == "groups by run"
+    assert design[BASELINE] == design[BASELINE_CARS] == "groups by run"
     doc = small.to_dict()
-    assert "run-level" in doc["method"] and doc["options"]["test"] == "runs"
+    assert "response comparison" in doc["method"] and doc["options"]["tolerance"] == {}
     assert doc["inputs"]["versions"]["sumo"] and len(doc["inputs"]["files"]) == 38
-    assert doc["inputs"]["seeds"]["study"] == 3
+    assert doc["inputs"]["seeds"]["study"] == 3 and doc["inputs"]["seeds"]["sumo"] == 3
     assert len(doc["findings"]) == len(small.cells)
+    assert not any("valid" in f for f in doc["findings"])
+
+
+def test_baselines_split_whole_units():
+    """The car split puts every car's segments in one half; the random split every episode's."""
+    from simcred.compare.design import unit_keys
+    from simcred.regions import SOURCE_RUN, halves
+    from simcred.study.car_following import CAR
+
+    options = StudyOptions(**SMALL)
+    human = _subset(read_openacc(None, options.rules, follower=HUMAN), options.max_episodes)
+    cell = options.settings().segments(human, options.grid()).by_cell[1]
+    for key in (CAR, SOURCE_RUN):
+        a, b = halves(cell, key, 0)
+        keys_a, keys_b = set(unit_keys(a, key, "g")), set(unit_keys(b, key, "g"))
+        assert not keys_a & keys_b and keys_a | keys_b == set(unit_keys(cell, key, "g"))
+        assert a.n_runs + b.n_runs == cell.n_runs and abs(len(keys_a) - len(keys_b)) <= 1
 
 
 def test_same_seed_same_findings(small):
     assert run_study(StudyOptions(**SMALL)).to_json() == small.to_json()
 
 
-def test_default_verdict_is_the_run_level_chain(small):
-    """Each tested cell's verdict is the comparison's chain-level one, its distance counts the
-    family-wise (max-T) rejections, and the same-model baseline splits the cell's reference."""
-    tested = [c for c in small.cells if c.verdict is not None]
-    assert tested
-    for c in tested:
-        chain, options = c.comparison.chain, c.comparison.options
-        assert options.test == "runs" and options.multiplicity == "fwer"
-        assert c.verdict.pvalue == chain.pvalue and c.verdict.rejected == chain.rejected
-        for s in c.comparison.states:  # max-T: adjusted >= raw; rejected only if adjusted <= α
-            assert s.result.adjusted_pvalue >= s.result.pvalue
-            assert not s.result.rejected or s.result.adjusted_pvalue <= 0.01
-        assert c.distance == len(c.comparison.rejected_states) / c.comparison.n_states
-        base = c.comparison.baseline
-        assert len(base.distances) == 10 and 0 <= base.low <= base.high <= 1
-        assert c.to_dict()["baseline"]["high"] == base.high
-        assert c.comparison.inputs[0].runs == c.a.runs  # A (split) is the human reference
-    assert any("where halves of the reference give" in f for f in small.findings())
+def test_a_tolerance_decides_the_cells(judged):
+    compared = [c for c in judged.cells if c.compared]
+    assert compared
+    for c in compared:
+        assert c.status in (CellStatus.VALID, CellStatus.NOT_VALID, CellStatus.INCONCLUSIVE)
+        v = next(b for b in c.result.bounds if b.feature == "v")
+        gap = next(b for b in c.result.bounds if b.feature == "gap")
+        assert v.tolerance == 0.1 and gap.tolerance is None  # gap reported, not judged
+    # IDM's acceleration response deviates far beyond 0.1 m/s² at 10-20 m/s
+    assert judged.cell("SUMO IDM", BANDS[1]).status is CellStatus.NOT_VALID
+    assert judged.to_dict()["options"]["tolerance"] == {"v": 0.1}
 
 
-def test_interim_test_is_one_option():
-    """test='permutation' keeps the interim per-transition verdict: Fisher's combination of the
-    per-state p-values, no multiplicity control, no baseline."""
-    result = run_study(StudyOptions(**{**SMALL, "test": "permutation"}))
-    assert "per-transition" in result.to_dict()["method"]
-    for c in result.cells:
-        if c.verdict is not None:
-            pvalues = [s.result.pvalue for s in c.comparison.states]
-            assert c.verdict.pvalue == fisher(pvalues)
-            assert c.comparison.chain is None and c.comparison.baseline is None
+def test_study_and_validate_give_the_same_cell_results(judged):
+    """One engine: the study's SUMO row is exactly validate's domain of the same replays with
+    the same settings (a validation file with the study's values), cell by cell."""
+    from simcred.validate.cells import grid_of, segments
+    from simcred.validate.domain import cell_rule, learn_domain
+    from simcred.validate.spec import parse_validation
+
+    options = judged.options
+    human = _subset(read_openacc(None, options.rules, follower=HUMAN), options.max_episodes)
+    idm = replay(human, ["IDM"], seed=options.seed)["IDM"]
+    spec = parse_validation({
+        "test_case": {"conditions": "0 <= v_leader <= 30", "tolerance": {"v": 0.1}},
+        "reference": {"path": "human.parquet"},
+        "candidates": {"idm": {"runs": {"path": "idm.parquet"}}},
+        "features": ["gap", "v", "v_leader"], "inputs": ["v_leader"],
+        "conditions": {"v_leader": {"unit": "m/s", "edges": [0, 10, 20, 30]}},
+        "comparison": {"bins": 3, "alpha": 0.05, "permutations": 99, "bootstrap": 500,
+                       "seed": 3, "resample": 0.5},
+        "min_data": {"runs": 5, "samples": 500}, "segments": {"min_length": 25}})
+    grid = grid_of(spec.conditions)
+    assert grid == options.grid()
+    reference = segments(human, grid, spec.segments.min_length)
+    domain = learn_domain(spec, grid, reference, idm, "SUMO IDM",
+                          cell_rule(spec, grid.n_cells, replay=True))
+    study = [judged.cell("SUMO IDM", band).result for band in BANDS]
+    for mine, theirs in zip(study, domain.cells, strict=True):
+        a, b = mine.to_dict(), theirs.to_dict()
+        # validate reports the judged feature only; the study every response feature
+        assert [d for d in a["deviation"] if d["feature"] == "v"] == b["deviation"]
+        assert {k: v for k, v in a.items() if k != "deviation"} == \
+            {k: v for k, v in b.items() if k != "deviation"}
+    assert any(c.status is not CellStatus.UNKNOWN for c in domain.cells)
 
 
 def test_write_and_cli(small, tmp_path, capsys):
@@ -149,18 +158,26 @@ def test_write_and_cli(small, tmp_path, capsys):
     assert doc["kind"] == "car_following_study" and paths[0].name == "study.json"
     matrix = (tmp_path / "w" / "matrix.csv").read_text().splitlines()
     assert matrix[0] == "row,0-10 m/s,10-20 m/s,20-30 m/s" and len(matrix) == 5
+    assert "v=" in matrix[3] and "p=" in matrix[3] and matrix[3].endswith("unknown")
+    band = (tmp_path / "w" / "bands" / "10-20_m_s.csv").read_text().splitlines()
+    assert "v_deviation_mps2" in band[0] and "gap_deviation_mps" in band[0]
     code = run(["--quiet", "study", "car-following", "--out", str(tmp_path / "c"), "--models",
                 "IDM", "--max-episodes", "40", "--permutations", "99", "--min-runs", "5",
-                "--bands", "0-10,10-20"])
+                "--bands", "0-10,10-20", "--tolerance", "v=0.1"])
     assert code == 0
     assert (tmp_path / "c" / "matrix.png").is_file() and (tmp_path / "c" / "maps").is_dir()
+    cli_doc = json.loads((tmp_path / "c" / "study.json").read_text())
+    assert cli_doc["options"]["tolerance"] == {"v": 0.1}
     assert run(["study", "car-following", "--out", str(tmp_path / "c")]) == 2  # no clobbering
     assert "--overwrite" in capsys.readouterr().err
     assert run(["study", "car-following", "--out", str(tmp_path / "d"), "--bands", "0..10"]) == 2
     assert "LOW-HIGH" in capsys.readouterr().err
-    assert run(["study", "car-following", "--out", str(tmp_path / "d"), "--test", "bound"]) == 2
-    err = capsys.readouterr().err
-    assert "test must be one of runs, permutation" in err and len(err.strip().splitlines()) == 1
+    for removed in (["--test", "runs"], ["--one-sided", "neutral"], ["--baseline", "10"]):
+        assert run(["study", "car-following", "--out", str(tmp_path / "d"), *removed]) == 2
+        err = capsys.readouterr().err
+        assert f"{removed[0]} was removed" in err and len(err.strip().splitlines()) == 1
+    assert run(["study", "car-following", "--out", str(tmp_path / "d"), "--tolerance", "v"]) == 2
+    assert "FEATURE=NUMBER" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("command", [["study", "car-following"], ["simulate", "sumo-following"],
@@ -175,24 +192,21 @@ def test_help_shows_units(command, capsys):
 
 def test_repeat_baselines_are_the_study_cells(small):
     cells = repeat_baselines([SMALL["seed"]], StudyOptions(**SMALL))
+    assert len(cells) == 2 * 3
     for c in cells:
-        study = small.cell(c.row, c.band)
-        assert c.status == study.status
-        if c.verdict is not None:
-            assert c.verdict == study.verdict and c.distance == study.distance
+        assert c.result.to_dict() == small.cell(c.row, c.band).result.to_dict()
 
 
 @pytest.mark.slow
 def test_random_human_split_rejected_about_alpha_or_less():
-    """False rejections of the run-level test on real data (H0 true by construction: random halves
-    of the same human episodes), 20 seeds × 2 bands at alpha = 0.01, 199 permutations. Expected
-    0.4 rejections; 3 or more has probability < 0.01 for a test at its level."""
-    options = StudyOptions(permutations=199, baseline=0)
+    """False rejections of the difference test on real data (H0 true by construction: random
+    halves of the same human episodes), 20 seeds × 2 bands at alpha = 0.05. Expected 2
+    rejections; 6 or more has probability < 0.02 for a test at its level."""
+    options = StudyOptions(permutations=99, bootstrap=100)
     cells = [c for c in repeat_baselines(range(2000, 2020), options)
-             if c.row == BASELINE and c.verdict is not None]
+             if c.row == BASELINE and c.compared]
     assert len(cells) == 40
-    assert sum(c.verdict.rejected for c in cells) <= 2
-    assert sum(c.distance > 0 for c in cells) <= 2  # FWER: P(distance > 0) <= alpha
+    assert sum(c.result.pvalue <= 0.05 for c in cells) <= 5
 
 
 def test_csv_fields_round_trip_through_the_csv_module():
@@ -204,3 +218,13 @@ def test_csv_fields_round_trip_through_the_csv_module():
     texts = ["plain", 'say "hi", twice', "a,b", ""]
     line = ",".join(_csv(t) for t in texts)
     assert next(csv.reader(io.StringIO(line))) == texts
+
+
+def test_segments_of_one_episode_are_one_unit(small):
+    """Episodes are cut at band edges: an episode whose leader crosses 10 m/s has a segment in
+    both bands, and within a band the design counts episodes, not segments."""
+    per_band = small.episodes["human"]["per_band"]
+    assert per_band[0]["segments"] >= per_band[0]["episodes"]
+    r = small.cell(BASELINE, BANDS[1]).result
+    assert r.reference_units + r.candidate_units == per_band[1]["episodes"]
+    assert np.isfinite(r.bounds[0].estimate)

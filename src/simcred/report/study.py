@@ -13,50 +13,53 @@ from matplotlib.colors import ListedColormap  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 
 from simcred.io.openacc import UNITS  # noqa: E402
+from simcred.regions import CellStatus  # noqa: E402
 from simcred.report.figures import save_figure, state_map  # noqa: E402
-from simcred.study.car_following import StudyResult, band_label, episode_counts  # noqa: E402
+from simcred.study.car_following import StudyResult, band_label  # noqa: E402
 from simcred.study.files import cell_slug  # noqa: E402
 
-# insufficient data, not distinguishable, differs
-VERDICT_COLORS = ["#d9d9d9", "#b7dfb0", "#d7301f"]
-VERDICT_LABELS = ["insufficient data", "not distinguishable at α", "differs (H0 rejected)"]
+STATUS_COLORS = {CellStatus.UNKNOWN: "#d9d9d9", CellStatus.COMPARED: "#c6dbef",
+                 CellStatus.VALID: "#b7dfb0", CellStatus.INCONCLUSIVE: "#f2d27a",
+                 CellStatus.NOT_VALID: "#d7301f"}
 LABELS = {name: f"{name} [{unit}]" for name, unit in UNITS.items()}
 
 
 def verdict_matrix(result: StudyResult, path: str | Path) -> Path:
-    """Rows × speed bands, coloured by verdict, annotated with chain p-value and distance."""
+    """Rows × speed bands, coloured by status, annotated with each response deviation and its
+    95 % interval, the difference p-value and the units per side."""
     rows, bands = result.rows, result.options.bands
+    shown = [s for s in STATUS_COLORS if any(c.status is s for c in result.cells)]
     code = np.zeros((len(rows), len(bands)), dtype=int)
-    fig, ax = plt.subplots(figsize=(2.8 * len(bands) + 3.2, 0.75 * len(rows) + 1.8))
+    fig, ax = plt.subplots(figsize=(3.0 * len(bands) + 3.2, 0.8 * len(rows) + 1.8))
     for i, row in enumerate(rows):
         for j, band in enumerate(bands):
             c = result.cell(row, band)
-            if c.verdict is None:
-                text = f"insufficient data\n{episode_counts(c)}"
+            r = c.result
+            code[i, j] = shown.index(c.status)
+            if r.comparison is None:
+                text = f"unknown\n{r.reference_units} vs {r.candidate_units} units"
             else:
-                code[i, j] = 2 if c.verdict.rejected else 1
-                text = (f"p = {c.verdict.pvalue:.2g}, d = {100 * c.distance:.1f} %\n"
-                        f"{episode_counts(c)}")
-                base = c.comparison.baseline
-                if base is not None:
-                    text += f"\nref. halves: d = {100 * base.low:.1f}–{100 * base.high:.1f} %"
-            ax.text(j, i, text, ha="center", va="center", fontsize=7.5)
-    ax.imshow(code, cmap=ListedColormap(VERDICT_COLORS), vmin=-0.5, vmax=2.5, aspect="auto")
+                text = "\n".join([*(f"{b.feature}: {b.estimate:.2g} [{b.low:.2g}, {b.high:.2g}]"
+                                     f" {b.unit}" for b in r.bounds),
+                                  f"p = {r.pvalue:.2g}, {r.reference_units} vs "
+                                  f"{r.candidate_units} units"])
+            ax.text(j, i, text, ha="center", va="center", fontsize=7)
+    ax.imshow(code, cmap=ListedColormap([STATUS_COLORS[s] for s in shown]), vmin=-0.5,
+              vmax=len(shown) - 0.5, aspect="auto")
     ax.set_xticks(range(len(bands)), [f"leader {band_label(b)}" for b in bands])
     ax.set_yticks(range(len(rows)), rows)
     ax.set_xticks(np.arange(len(bands) + 1) - 0.5, minor=True)
     ax.set_yticks(np.arange(len(rows) + 1) - 0.5, minor=True)
     ax.grid(which="minor", color="white", linewidth=2)
     ax.tick_params(which="minor", length=0)
-    ax.legend(handles=[Patch(facecolor=c, label=lab) for c, lab in
-                       zip(VERDICT_COLORS, VERDICT_LABELS, strict=True)],
-              loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=3, fontsize=8)
+    ax.legend(handles=[Patch(facecolor=STATUS_COLORS[s], label=s.value) for s in shown],
+              loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=len(shown), fontsize=8)
     o = result.options
-    ax.set_title(f"vs real human following (OpenACC): chain p-value, distance d = rejected "
-                 f"states / |S|\n{result.to_dict()['method']}; α = {o.alpha}", fontsize=8,
-                 wrap=True)
+    judged = ", ".join(f"{k} ≤ {v:g}" for k, v in o.tolerance.items()) or "none (not judged)"
+    ax.set_title(f"vs real human following (OpenACC): response deviation [95 % interval], "
+                 f"difference p\nresponse comparison per band, α = {o.alpha}; tolerance: "
+                 f"{judged}", fontsize=8, wrap=True)
     return save_figure(fig, Path(path))
-
 
 
 def headway_panel(result: StudyResult, path: str | Path) -> Path:
@@ -93,14 +96,17 @@ def headway_panel(result: StudyResult, path: str | Path) -> Path:
 
 
 def study_figures(result: StudyResult, out: str | Path,
-                  map_features: tuple[str, str] = ("gap", "dv")) -> list[Path]:
-    """``matrix.png``, ``headway.png`` and ``maps/<row>__<band>.png`` for every tested cell."""
+                  map_features: tuple[str, str] = ("gap", "v")) -> list[Path]:
+    """``matrix.png``, ``headway.png`` and ``maps/<row>__<band>.png`` for every compared cell."""
     out = Path(out)
     paths = [verdict_matrix(result, out / "matrix.png"), headway_panel(result, out / "headway.png")]
     for c in result.cells:
-        if c.comparison is not None:
-            paths.append(state_map(c.comparison, out / "maps" / f"{cell_slug(c)}.png",
-                                   map_features, labels=LABELS,
+        comparison = c.result.comparison
+        if comparison is not None and all(len(e) > 0 for e in comparison.space.edges[:2]):
+            drawn = map_features if set(map_features) <= set(comparison.space.features) \
+                else None
+            paths.append(state_map(comparison, out / "maps" / f"{cell_slug(c)}.png",
+                                   drawn, labels=LABELS,
                                    title=f"human vs {c.row}, leader {band_label(c.band)}"
                                    if not c.row.startswith("human vs") else
                                    f"{c.row}, leader {band_label(c.band)}"))

@@ -1,5 +1,6 @@
 """Studies on real data: whole validity questions answered end to end (data → simulation →
-comparison → findings). Sits above compare and sim, below report and cli."""
+per-region comparison → findings), on the per-region engine of ``validate``
+(:mod:`simcred.regions`). Sits above compare, regions and sim, below report and cli."""
 
 from simcred.study.car_following import (
     StudyOptions,

@@ -1,5 +1,5 @@
 """The car-following study's files: ``study.json``, ``matrix.csv``, ``bands/<band>.csv`` and
-``comparisons/<row>__<band>.json``."""
+``comparisons/<row>__<band>.json`` (the response comparison of every compared cell)."""
 
 from __future__ import annotations
 
@@ -10,6 +10,8 @@ from typing import Any
 
 import numpy as np
 
+from simcred.compare.effect import rate_unit
+from simcred.io.openacc import UNITS
 from simcred.study.car_following import Cell, StudyResult, band_label, fmt
 
 
@@ -27,9 +29,9 @@ def write_study(result: StudyResult, out: str | Path) -> list[Path]:
         path.write_text(band_csv(result, band))
         written.append(path)
     for c in result.cells:
-        if c.comparison is not None:
+        if c.result.comparison is not None:
             path = out / "comparisons" / f"{cell_slug(c)}.json"
-            path.write_text(c.comparison.to_json())
+            path.write_text(c.result.comparison.to_json())
             written.append(path)
     return written
 
@@ -43,42 +45,61 @@ def cell_slug(c: Cell) -> str:
 
 
 def matrix_csv(result: StudyResult) -> str:
-    """Rows × bands; a cell is ``p=<chain p>;d=<distance>;<verdict>`` or ``insufficient data``."""
+    """Rows × bands; a cell is ``<feature>=<deviation> [<95 % low>,<high>];...;p=<difference
+    p>;<status>`` or ``unknown``."""
     lines = [",".join(["row", *(band_label(b) for b in result.options.bands)])]
     for row in result.rows:
         cells = []
         for band in result.options.bands:
-            c = result.cell(row, band)
-            if c.verdict is None:
-                cells.append("insufficient data")
-            else:
-                word = "differs" if c.verdict.rejected else "not distinguishable"
-                cells.append(f"p={fmt(c.verdict.pvalue)};d={fmt(c.distance)};{word}")
-        lines.append(",".join([_csv(row), *cells]))
+            r = result.cell(row, band).result
+            if r.comparison is None:
+                cells.append(r.status.value)
+                continue
+            parts = [f"{b.feature}={fmt(b.estimate)} [{fmt(b.low)} {fmt(b.high)}]"
+                     for b in r.bounds]
+            cells.append(";".join([*parts, f"p={fmt(r.pvalue)}", r.status.value]))
+        lines.append(",".join([_csv(row), *(_csv(c) for c in cells)]))
     return "\n".join(lines) + "\n"
 
 
 def band_csv(result: StudyResult, band: tuple[float, float]) -> str:
-    """One band: per row the verdict, distance, start test and descriptive statistics (units in
-    the header)."""
-    header = ["row", "status", "chain_pvalue", "rejected", "distance", "start_pvalue",
-              "n_states", "n_tested", "n_rejected_states", "baseline_distance_low",
-              "baseline_distance_high", "runs_reference", "runs_candidate",
-              "gap_median_m", "gap_median_reference_m", "headway_median_s",
-              "headway_median_reference_s", "a_std_mps2", "a_std_reference_mps2"]
+    """One band: per row the status, the difference p-value, per reported feature the deviation
+    with its 95 % interval and decision bounds, the units and samples, and descriptive statistics
+    (units in the header)."""
+    features = result.options.response
+    unit = {f: rate_unit(UNITS[f]) for f in features}
+    header = ["row", "status", "design", "difference_pvalue"]
+    for f in features:
+        u = _unit_slug(unit[f])
+        header += [f"{f}_deviation_{u}", f"{f}_low_{u}", f"{f}_high_{u}", f"{f}_lower_{u}",
+                   f"{f}_upper_{u}", f"{f}_tolerance_{u}", f"{f}_detectable_shift_{u}"]
+    header += ["units_reference", "units_candidate", "samples_reference", "samples_candidate",
+               "gap_median_m", "gap_median_reference_m", "headway_median_s",
+               "headway_median_reference_s", "a_std_mps2", "a_std_reference_mps2"]
     lines = [",".join(header)]
     for row in result.rows:
-        d = result.cell(row, band).to_dict()
-        v, a, b = d["verdict"] or {}, d["reference"] or {}, d["candidate"] or {}
-        base = d["baseline"] or {}
-        values = [_csv(row), d["status"], v.get("pvalue"), v.get("rejected"), d["distance"],
-                  d["start_pvalue"], d["n_states"], d["n_tested"], d["n_rejected_states"],
-                  base.get("low"), base.get("high"), a.get("runs"), b.get("runs"),
-                  b.get("gap_median"), a.get("gap_median"),
-                  b.get("headway_median"), a.get("headway_median"), b.get("a_std"),
-                  a.get("a_std")]
+        c = result.cell(row, band)
+        r, a, b = c.result, c.a, c.b
+        bounds = {x.feature: x for x in r.bounds}
+        values: list[Any] = [row, r.status.value, r.design, r.pvalue]
+        for f in features:
+            x = bounds.get(f)
+            values += [None] * 7 if x is None else [x.estimate, x.low, x.high, x.lower, x.upper,
+                                                    x.tolerance, x.detectable]
+        values += [r.reference_units, r.candidate_units, r.reference_samples,
+                   r.candidate_samples, _get(b, "gap_median"), _get(a, "gap_median"),
+                   _get(b, "headway_median"), _get(a, "headway_median"), _get(b, "a_std"),
+                   _get(a, "a_std")]
         lines.append(",".join(_value(x) for x in values))
     return "\n".join(lines) + "\n"
+
+
+def _unit_slug(unit: str) -> str:
+    return unit.replace("²", "2").replace("³", "3").replace("m/s", "mps").replace("/", "p")
+
+
+def _get(summary: Any, name: str) -> float | None:
+    return None if summary is None else getattr(summary, name)
 
 
 def _value(x: Any) -> str:
