@@ -41,9 +41,10 @@ from scipy.stats import norm
 
 from simcred.compare import Comparison, compare
 from simcred.compare.design import unit_keys
+from simcred.regions.cells import SOURCE_RUN, Grid, Segments
+from simcred.regions.engine import CellRule, Domain, cell_rule, cell_seed
+from simcred.regions.engine import halves as split_halves
 from simcred.traces import RUN_INFO, TraceSet, concat, take
-from simcred.validate.cells import SOURCE_RUN, Grid, Segments
-from simcred.validate.domain import CellRule, Domain, cell_seed
 from simcred.validate.ranking import REFERENCE as PILOT
 from simcred.validate.spec import ValidationSpec
 
@@ -117,12 +118,13 @@ class Pilot:
 
 def pilot(spec: ValidationSpec, reference: Segments, relevant: tuple[int, ...]) -> Pilot:
     """The pilot in every cell of the test case with at least 4 reference units."""
-    key = spec.groups.by if spec.groups is not None else SOURCE_RUN
-    rule = CellRule(spec.comparison.alpha, len(relevant), None,
-                    SOURCE_RUN if key == "run_id" else key)
+    rule = cell_rule(spec.comparison.alpha, len(relevant),
+                     groups=spec.groups.by if spec.groups is not None else None)
     halves = {}
     for cell in relevant:
-        split = _halves(reference, cell, rule, spec.comparison.seed)
+        split = None if cell not in reference.by_cell else split_halves(
+            reference.by_cell[cell], rule.group_by,
+            cell_seed(spec.comparison.seed, "plan:halves", cell))
         if split is not None:
             halves[cell] = split
     comparisons = {cell: _compare(spec, *split, rule,
@@ -181,23 +183,6 @@ def _search(spec, grid, found: Pilot, sizes: dict[int, int], cell_power: float,
             return Plan(POWER, cell_power, rows, dict(sizes), share, reps, lacking.strip())
         sizes = {c: math.ceil(1.5 * n) if per_cell[c] < cell_power else n
                  for c, n in sizes.items()}
-
-
-def _halves(reference: Segments, cell: int, rule: CellRule, seed: int
-            ) -> tuple[TraceSet, TraceSet] | None:
-    """The reference's segments in ``cell`` split at random into two halves of whole units."""
-    if cell not in reference.by_cell:
-        return None
-    traces = reference.by_cell[cell]
-    keys = unit_keys(traces, rule.group_by, "groups")
-    names = sorted(set(keys))
-    if len(names) < 4:
-        return None
-    rng = np.random.default_rng(cell_seed(seed, "plan:halves", cell))
-    first = set(rng.permutation(names)[: len(names) // 2].tolist())
-    runs_a = [i for i, k in enumerate(keys) if k in first]
-    runs_b = [i for i, k in enumerate(keys) if k not in first]
-    return take(traces, runs_a), take(traces, runs_b)
 
 
 def _count(traces: TraceSet, rule: CellRule) -> int:
