@@ -144,7 +144,7 @@ def ranking_figure(result: Validation, path: Path) -> Path:
     ax.invert_yaxis()
     ax.set_xlim(left=0)
     ax.set_xlabel("largest response deviation / tolerance over the test case's cells")
-    ax.legend(loc="lower right", fontsize=8)
+    ax.legend(loc="upper right", fontsize=8)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110, metadata=METADATA)
     plt.close(fig)

@@ -152,7 +152,7 @@ def plan(spec: ValidationSpec, grid: Grid, found: Pilot, relevant: tuple[int, ..
     sizes = _start_sizes(rows)
     if not sizes:
         return Plan(POWER, cell_power, tuple(rows), {}, None, 0,
-                    ("no cell of the test case has a usable pilot." + lacking).strip())
+                    ("No cell of the test case has a usable pilot." + lacking).strip())
     return _search(spec, grid, found, sizes, cell_power, tuple(rows), reps, lacking)
 
 
@@ -175,7 +175,7 @@ def _search(spec, grid, found: Pilot, sizes: dict[int, int], cell_power: float,
                                                                           found.rule)]
         if too_big:
             return Plan(POWER, cell_power, rows, {}, share if share else None, reps,
-                        f"not reached by simulation: {'; '.join(grid.label(c) for c in too_big)} "
+                        f"Not reached by simulation: {'; '.join(grid.label(c) for c in too_big)} "
                         f"would need more than {MAX_GROWTH} times its reference units; more "
                         f"reference data is needed to plan.{lacking}")
         per_cell, share = _simulate(spec, found.pools, found.rule, sizes, reps)
