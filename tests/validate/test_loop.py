@@ -357,3 +357,31 @@ def test_ranking_orders_by_deviation_with_intervals(tmp_path):
     assert sim["interval"][0] > 1  # beyond the tolerance, shown
     cells = verdict["domains"]["sim"]["cells"][1:4]
     assert sim["score"] == max(c["deviation"][0]["estimate"] for c in cells) / 1.0
+
+
+def test_relative_tolerance_is_resolved_from_the_reference_halves(tmp_path):
+    """Issue 22: a tolerance relative to the reference's own spread: f times the median
+    deviation between 5 random halves of the reference's runs over the test case's cells,
+    written with its splits and then used as an absolute tolerance."""
+    import numpy as np
+
+    path = write_universe(tmp_path, test_case={"conditions": "10 <= v <= 25",
+                                               "tolerance": {"x": {"relative": 3.0}}})
+    spec, base = read_validation(path)
+    result = validate(spec, read_inputs(spec, base))
+    (found,) = result.tolerance_resolution
+    assert found.spread == np.median(found.estimates) and len(found.estimates) == 5
+    assert found.tolerance == 3.0 * found.spread == result.spec.test_case.tolerance["x"]
+    absolute = write_universe(tmp_path / "abs" if (tmp_path / "abs").mkdir() is None else None,
+                              test_case={"conditions": "10 <= v <= 25",
+                                         "tolerance": {"x": found.tolerance}})
+    spec2, base2 = read_validation(absolute)
+    again = validate(spec2, read_inputs(spec2, base2))
+    assert [c.status for c in again.domains["sim"].cells] == \
+        [c.status for c in result.domains["sim"].cells]
+    code, verdict = _run(path, tmp_path / "out")
+    assert verdict["tolerance_resolution"][0]["units"] == "run"
+    path = write_universe(tmp_path, test_case={"conditions": "10 <= v <= 25",
+                                               "tolerance": {"x": {"relative": 1.0}}},
+                          min_data={"runs": 2, "samples": 10}, runs=2, steps=40)
+    assert run(["-q", "validate", str(path), "--out", str(tmp_path / "few")]) == 2

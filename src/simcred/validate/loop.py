@@ -40,6 +40,7 @@ from simcred.validate.learned import number as _exact_text
 from simcred.validate.plan import Plan, pilot, plan
 from simcred.validate.ranking import Ranked, rank
 from simcred.validate.spec import RunsSpec, ValidationFileError, ValidationSpec
+from simcred.validate.tolerance import Resolution, placeholder, resolve
 
 VALID, NOT_VALID, INCONCLUSIVE = "valid", "not valid", "inconclusive"
 EXIT_CODES = {VALID: 0, NOT_VALID: 1, INCONCLUSIVE: 3}
@@ -87,6 +88,7 @@ class Validation:
     monitors: dict[str, MonitorReport]
     ranking: tuple[Ranked, ...] = ()
     plan: Plan | None = None
+    tolerance_resolution: tuple[Resolution, ...] = ()
 
     @property
     def exit_code(self) -> int:
@@ -130,13 +132,14 @@ def validate(spec: ValidationSpec, inputs: Inputs, *, source: str = "<memory>",
              planned: bool = False) -> Validation:
     """Run the loop (module docs) on validated inputs; ``planned``: also the data plan
     (:mod:`simcred.validate.plan`)."""
-    check_test_case(spec, source)
+    check_test_case(placeholder(spec), source)
     _check_signals(spec, inputs)
     grid = grid_of(spec.conditions)
     units = inputs.reference.units
-    empty = Library.from_dict(library_dict(spec, {}, units), source="test case")
+    empty = Library.from_dict(library_dict(placeholder(spec), {}, units), source="test case")
     relevant = _relevant_cells(grid, empty.test_case(TEST_CASE), empty)
     reference = segments(inputs.reference, grid, spec.segments.min_length)
+    spec, resolution = resolve(spec, reference, relevant)
     domains = {n: learn_domain(spec, grid, reference, runs, n,
                                cell_rule(spec, len(relevant), n in inputs.replays))
                for n, runs in inputs.candidates.items()}
@@ -154,7 +157,7 @@ def validate(spec: ValidationSpec, inputs: Inputs, *, source: str = "<memory>",
     needs = plan(spec, grid, halves, relevant, domains) if planned else None
     ranking = rank(domains, relevant, spec, tuple(halves.comparisons.values()))
     return Validation(spec, grid, domains, verdicts, verdict, summary, data, configuration,
-                      uncovered, monitors, ranking, needs)
+                      uncovered, monitors, ranking, needs, resolution)
 
 
 def _check_signals(spec: ValidationSpec, inputs: Inputs) -> None:

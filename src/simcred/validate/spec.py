@@ -8,6 +8,7 @@ and the key. Paths are relative to the validation file's folder. See docs/valida
     test_case:
       conditions: "10 <= v_leader <= 25"  # operating conditions (over the condition variables)
       tolerance: {v: 0.1}                 # largest acceptable response deviation, per feature
+                                          # (or {v: {relative: 1.0}}: the reference's spread)
     reference: {path: ref.parquet}        # any format simcred reads (reader options allowed)
     candidates:
       idm: {runs: {path: idm.parquet}, cost: 1}
@@ -53,18 +54,28 @@ class RunsSpec(_Strict):
     options: dict[str, str | int | float | bool] = Field(default_factory=dict)
 
 
+class RelativeTolerance(_Strict):
+    """A tolerance relative to the reference's own spread: ``relative`` times the deviation
+    between random halves of the reference's units (drivers, recordings, or runs), measured over
+    the test case's cells (:mod:`simcred.validate.tolerance`)."""
+
+    relative: float = Field(gt=0, le=100, allow_inf_nan=False)
+
+
 class TestCaseSpec(_Strict):
     """The test case: its operating conditions and, per response feature, the largest response
-    deviation it tolerates (in the feature's unit per second, e.g. m/s² for a speed)."""
+    deviation it tolerates (in the feature's unit per second, e.g. m/s² for a speed), absolute
+    or relative to the reference's own spread."""
 
     conditions: str = Field(min_length=1)
-    tolerance: dict[str, float] = Field(min_length=1)
+    tolerance: dict[str, float | RelativeTolerance] = Field(min_length=1)
 
     @field_validator("tolerance")
     @classmethod
-    def _positive(cls, tolerance: dict[str, float]) -> dict[str, float]:
+    def _positive(cls, tolerance: dict[str, float | RelativeTolerance]
+                  ) -> dict[str, float | RelativeTolerance]:
         for name, value in tolerance.items():
-            if not math.isfinite(value) or value <= 0:
+            if isinstance(value, float | int) and (not math.isfinite(value) or value <= 0):
                 raise ValueError(f"tolerance of '{name}' must be a finite number > 0")
         return tolerance
 
@@ -194,6 +205,17 @@ class ValidationSpec(_Strict):
                 raise ValueError(f"test_case.tolerance: '{name}' is not a response feature "
                                  f"(response features: {', '.join(self.response)})")
         return self
+
+    @property
+    def relative(self) -> dict[str, float]:
+        """The features whose tolerance is relative, with their factor."""
+        return {name: value.relative for name, value in self.test_case.tolerance.items()
+                if isinstance(value, RelativeTolerance)}
+
+    def with_tolerance(self, tolerance: dict[str, float]) -> ValidationSpec:
+        """This spec with absolute tolerances (relative ones resolved)."""
+        return self.model_copy(update={"test_case": self.test_case.model_copy(
+            update={"tolerance": dict(tolerance)})})
 
     @property
     def response(self) -> tuple[str, ...]:

@@ -28,6 +28,7 @@ def verdict_document(result: Validation, inputs: Inputs, *, validation_file: Pat
         "verdict": result.verdict,
         "summary": result.summary,
         "test_case": result.spec.test_case.model_dump(),
+        "tolerance_resolution": [r.to_dict() for r in result.tolerance_resolution],
         "error_rates": error_rates(result),
         "ranking": [r.to_dict() for r in result.ranking],
         "plan": None if result.plan is None else result.plan.to_dict(),
