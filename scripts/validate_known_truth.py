@@ -81,7 +81,7 @@ def plan_check(pilot: int, seeds: int, tolerance: float) -> dict:
     """The planned size from one draw at ``pilot`` episodes, and VALID's rate at that size."""
     result = verdict("none", pilot, 10_000, planned=True, tolerance=tolerance)
     rows = [r for r in result.plan.rows if r.source == "cand"]
-    needed = [r.needed for r in rows]
+    needed = [r.if_perfect for r in rows]
     if not needed or None in needed:
         return {"pilot": pilot, "rows": [r.to_dict() for r in rows], "planned": None}
     size = max(needed)

@@ -11,7 +11,7 @@ from scipy.stats import norm
 
 from simcred.cli import run
 from simcred.validate import read_inputs, read_validation, validate
-from simcred.validate.plan import PILOT, needed_units
+from simcred.validate.plan import PILOT, needed_if_perfect, needed_units
 
 from .conftest import write_universe
 
@@ -24,6 +24,9 @@ def test_needed_units_is_the_equivalence_size_formula(units, se, tolerance, esti
     assert needed_units(units, se, tolerance, estimate, 0.05, 0.8) == max(2, math.ceil(literal))
     assert needed_units(units, se, tolerance, tolerance, 0.05, 0.8) is None  # at the tolerance
     assert needed_units(units, float("nan"), tolerance, estimate, 0.05, 0.8) is None
+    perfect = units * ((estimate + z * se) / tolerance) ** 2
+    assert needed_if_perfect(units, se, tolerance, estimate, 0.05, 0.8) == \
+        max(2, math.ceil(perfect))
 
 
 def test_plan_rows_and_simulated_size(tmp_path, capsys):
@@ -32,11 +35,11 @@ def test_plan_rows_and_simulated_size(tmp_path, capsys):
     plan = result.plan
     assert plan.cell_power == pytest.approx(0.8 ** (1 / 3))  # three cells in the test case
     pilot = [r for r in plan.rows if r.source == PILOT]
-    assert [r.cell for r in pilot] == [1, 2, 3] and all(r.estimate == 0 for r in pilot)
+    assert [r.cell for r in pilot] == [1, 2, 3]
     beyond = [r for r in plan.rows if r.source == "sim" and r.cell == 3]
     assert beyond[0].needed is None  # the deviating cell cannot be shown within tolerance
     # the search stops at the first simulated size with 80 %: at least the formula's size
-    assert all(plan.sizes[r.cell] >= r.needed for r in pilot)
+    assert all(plan.sizes[r.cell] >= r.if_perfect for r in pilot)
     assert plan.simulated_power >= 0.8 and plan.simulations == 20
     again = validate(spec, read_inputs(spec, base), planned=True).plan
     assert again.to_dict() == plan.to_dict()  # seeded

@@ -70,11 +70,12 @@ def _print_plan(plan) -> None:
     out_console.print(f"plan: units per side and cell for {100 * plan.power:.0f} % power over "
                       f"the test case ({100 * plan.cell_power:.1f} % per cell)", highlight=False)
     for row in plan.rows:
-        need = "not reachable (estimate at or above the tolerance)" if row.needed is None \
-            else str(row.needed)
+        need = "not reachable at its estimate" if row.needed is None \
+            else f"{row.needed} at its estimate"
         out_console.print(f"  {row.source}, {row.label}, {row.feature}: {row.units} now, "
                           f"estimate {row.estimate:.3g} ± {row.se:.2g} vs {row.tolerance:g}: "
-                          f"{need}", highlight=False, soft_wrap=True)
+                          f"{row.if_perfect} if as good as the reference, {need}",
+                          highlight=False, soft_wrap=True)
     if plan.sizes:
         sizes = ", ".join(str(n) for n in plan.sizes.values())
         out_console.print(f"  a candidate as good as the reference, at {sizes} units per side "

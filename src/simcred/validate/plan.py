@@ -9,20 +9,25 @@ is unpaired: for candidates that replay the reference run by run (pairs), their 
 their own design, are the plan (pairing removes the scenarios' spread; the pilot cannot).
 
 **Size.** VALID for the test case needs every one of its ``K`` cells shown within tolerance, so
-each cell needs power ``p = 0.8^(1/K)`` for the test case to have 80 %. With the upper bound
-``E + z_(1−α) se`` and ``se_n = se_m √(m / n)``, a candidate whose true deviation is ``E < δ``
-needs ``n = m ((z_(1−α) + z_p) se_m / (δ − E))²`` units per side: ``E = 0`` for the pilot (what
-a candidate as good as the reference itself needs); a candidate's own row uses its estimate and
-standard error in its own design (paired replays need fewer). A candidate whose estimate is at or
-above ``δ`` cannot be shown within tolerance at any size.
+each cell needs power ``p = 0.8^(1/K)`` for the test case to have 80 %. Two sizes per row, with
+``z = z_(1−α) + z_p``:
 
+* **if as good as the reference** (true deviation 0): there the estimate is not 0 but a
+  boundary bias of order ``1/√m`` — on replayed car following it is still above a 0.012 m/s²
+  tolerance at 300 pairs — and estimate and standard error both shrink like ``1/√n``, so the
+  upper bound does: ``n = m ((Ê_m + z se_m) / δ)²``, with this source's ``Ê_m`` and ``se_m`` at
+  ``m`` units as the pilot of the design's noise (for a candidate whose true deviation is not
+  0, its ``Ê_m`` holds that too, and the number is pessimistic);
+* **at its estimate** (a true deviation ``E = Ê < δ`` that stays): ``n = m (z se_m /
+  (δ − E))²``; at or above the tolerance "not reachable".
 **Check.** The normal approximation fails where it matters most: at ``E = 0`` the deviation sits
 on the boundary of its range, and its estimate keeps a bias at small sizes. So the pilot's size
 is simulated: ``reps`` data sets whose two sides are each ``n`` units drawn with replacement
 from the cell's reference units (one law on both sides: a candidate exactly as good as the
 reference; drawing each side from its own half would build the halves' sampling difference into
 the truth), each compared as ``validate`` would; the share in which every cell of the test case
-comes out valid is the simulated power. Each cell has its own size, starting from the formula's;
+comes out valid is the simulated power. Each cell has its own size, starting from the pilot's
+"as good as the reference" size;
 while the test case is below 80 %, every cell below its share ``p`` grows by half, up to
 ``MAX_GROWTH`` times the cell's reference units (beyond, resampling a small reference says
 little); the plan is the first simulated sizes that reach 80 %, or none. Cells of the test case
@@ -64,13 +69,15 @@ class PlanRow:
     tolerance: float
     estimate: float
     se: float
+    if_perfect: int | None
     needed: int | None
 
     def to_dict(self) -> dict[str, Any]:
         return {"source": self.source, "cell": self.cell, "label": self.label,
                 "units_per_side": self.units, "feature": self.feature,
                 "tolerance": self.tolerance, "estimate": self.estimate, "se": self.se,
-                "needed_units_per_side": self.needed}
+                "needed_if_as_good_as_reference": self.if_perfect,
+                "needed_at_estimate": self.needed}
 
 
 @dataclass(frozen=True, slots=True)
@@ -97,12 +104,22 @@ class Plan:
 
 def needed_units(units: int, se: float, tolerance: float, estimate: float, alpha: float,
                  power: float) -> int | None:
-    """``m ((z_(1−α) + z_p) se / (δ − E))²`` rounded up (module docs); None if ``E ≥ δ`` or
+    """At its estimate: ``m (z se / (δ − E))²`` rounded up (module docs); None if ``E ≥ δ`` or
     nothing is estimable."""
     if not (np.isfinite(se) and np.isfinite(estimate)) or estimate >= tolerance:
         return None
     z = norm.ppf(1 - alpha) + norm.ppf(power)
     return max(2, math.ceil(units * (z * se / (tolerance - estimate)) ** 2))
+
+
+def needed_if_perfect(units: int, se: float, tolerance: float, estimate: float, alpha: float,
+                      power: float) -> int | None:
+    """As good as the reference: ``m ((Ê + z se) / δ)²`` rounded up (module docs); None if
+    nothing is estimable."""
+    if not (np.isfinite(se) and np.isfinite(estimate)):
+        return None
+    z = norm.ppf(1 - alpha) + norm.ppf(power)
+    return max(2, math.ceil(units * ((max(estimate, 0.0) + z * se) / tolerance) ** 2))
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -157,11 +174,11 @@ def plan(spec: ValidationSpec, grid: Grid, found: Pilot, relevant: tuple[int, ..
 
 
 def _start_sizes(rows: list[PlanRow]) -> dict[int, int]:
-    """Per cell with a pilot, the formula's size (the largest over its features)."""
+    """Per cell with a pilot, its "as good as the reference" size (the largest over features)."""
     sizes: dict[int, int] = {}
     for row in rows:
-        if row.source == PILOT and row.needed is not None:
-            sizes[row.cell] = max(sizes.get(row.cell, 2), row.needed)
+        if row.source == PILOT and row.if_perfect is not None:
+            sizes[row.cell] = max(sizes.get(row.cell, 2), row.if_perfect)
     return sizes
 
 
@@ -198,19 +215,17 @@ def _compare(spec: ValidationSpec, a: TraceSet, b: TraceSet, rule: CellRule, see
 
 
 def _pilot_rows(spec, grid, cell, result, m, alpha, cell_power) -> list[PlanRow]:
-    out = []
-    for effect in result.response.effect.features:
-        if effect.feature not in spec.test_case.tolerance:
-            continue
-        delta = spec.test_case.tolerance[effect.feature]
-        out.append(PlanRow(PILOT, cell, grid.label(cell), m, effect.feature, delta, 0.0,
-                           _se(effect), needed_units(m, _se(effect), delta, 0.0, alpha,
-                                                     cell_power)))
-    return out
+    return [_row(PILOT, cell, grid.label(cell), m, effect, spec, alpha, cell_power)
+            for effect in result.response.effect.features
+            if effect.feature in spec.test_case.tolerance]
 
 
-def _se(effect) -> float:
-    return float(np.std(effect.replicates, ddof=1)) if len(effect.replicates) > 1 else np.nan
+def _row(source, cell, label, m, effect, spec, alpha, cell_power) -> PlanRow:
+    delta = spec.test_case.tolerance[effect.feature]
+    se = float(np.std(effect.replicates, ddof=1)) if len(effect.replicates) > 1 else np.nan
+    return PlanRow(source, cell, label, m, effect.feature, delta, effect.estimate, se,
+                   needed_if_perfect(m, se, delta, effect.estimate, alpha, cell_power),
+                   needed_units(m, se, delta, effect.estimate, alpha, cell_power))
 
 
 def _candidate_rows(name, domain, relevant, spec, alpha, cell_power) -> list[PlanRow]:
@@ -220,14 +235,9 @@ def _candidate_rows(name, domain, relevant, spec, alpha, cell_power) -> list[Pla
         if result.comparison is None:
             continue
         m = min(result.reference_units, result.candidate_units)
-        for effect in result.comparison.response.effect.features:
-            if effect.feature not in spec.test_case.tolerance:
-                continue
-            delta = spec.test_case.tolerance[effect.feature]
-            out.append(PlanRow(name, cell, result.label, m, effect.feature, delta,
-                               effect.estimate, _se(effect),
-                               needed_units(m, _se(effect), delta, effect.estimate, alpha,
-                                            cell_power)))
+        out += [_row(name, cell, result.label, m, effect, spec, alpha, cell_power)
+                for effect in result.comparison.response.effect.features
+                if effect.feature in spec.test_case.tolerance]
     return out
 
 
