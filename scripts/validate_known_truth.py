@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import time
 from collections import Counter
@@ -84,9 +85,10 @@ def plan_check(pilot: int, seeds: int, tolerance: float) -> dict:
     needed = [r.if_perfect for r in rows]
     if not needed or None in needed:
         return {"pilot": pilot, "rows": [r.to_dict() for r in rows], "planned": None}
-    size = max(needed)
-    print(f"plan from {pilot} episodes: {[r.needed for r in rows]} units per side and cell "
-          f"-> {size} episodes", flush=True)
+    # the plan is in pairs per cell; a cell holds a share of the episodes' pairs
+    size = max(math.ceil(r.if_perfect * pilot / r.units) for r in rows)
+    print(f"plan from {pilot} episodes: {needed} pairs in the cells (of {[r.units for r in rows]}"
+          f" now) -> {size} episodes", flush=True)
     counts = Counter(verdict("none", size, seed, tolerance=tolerance).verdict
                      for seed in range(seeds))
     print(f"at {size} episodes: VALID {counts['valid']} / NOT VALID {counts['not valid']} / "
