@@ -8,7 +8,10 @@ Designs (tests/validate_designs.py): a human-like IDM behind recorded OpenACC le
 * ``clip`` — applied acceleration clipped to [-1.5, +0.5] m/s² (truth: not valid);
 
 and ``humans``: two random halves of the real OpenACC human episodes split by driver unit
-(grouped by unit; truth: valid). Test case: the whole leader-speed range, cells 0-15-30 m/s
+(grouped by unit; truth: valid); ``leaders_split``: one deterministic IDM (tests/
+response_designs.py, 10 s runs at 0.5 s) behind leaders of two different halves of the
+recordings, unpaired (truth: valid — the same response law, other scenarios). Test case: the
+whole leader-speed range, cells 0-15-30 m/s
 (K = 2); features gap, v, v_leader with v_leader an input; tolerance on the acceleration response
 (the rate of v): ``TOLERANCE`` = 0.012 m/s², the true deviation of a 0.15 s reaction delay
 (scripts/validate_truth.py on 8,000 episodes per side: 0.0123 / 0.0115 in the two cells), so
@@ -42,38 +45,49 @@ sys.path[:0] = [str(ROOT / "tests"), str(ROOT / "examples" / "validate")]
 
 from power import rate  # noqa: E402  (verdict counts as in examples/validate/power.py)
 
+from response_designs import leaders_split  # noqa: E402
 from simcred.validate.loop import Inputs, validate  # noqa: E402
 from simcred.validate.spec import parse_validation  # noqa: E402
 from validate_designs import closed_loop_pair, human_halves  # noqa: E402
 
 TOLERANCE = 0.012  # m/s²: the acceleration-response deviation of a 0.15 s reaction delay
 CANDIDATES = {"none": True, "delay_0.3": False, "delay_0.5": False, "delay_1.0": False,
-              "clip": False, "humans": True}
+              "clip": False, "humans": True, "leaders_split": True}
 
 
-def spec(seed: int, *, humans: bool, tolerance: float = TOLERANCE, bootstrap: int = 200):
-    """The study's validation (paths are placeholders: the sets go in through Inputs)."""
+def spec(seed: int, *, design: str = "pairs", tolerance: float = TOLERANCE,
+         bootstrap: int = 200):
+    """The study's validation (paths are placeholders: the sets go in through Inputs);
+    ``design``: "pairs" (by run), "groups" (by driver unit) or "runs" (unpaired runs)."""
+    keys = {"pairs": {"pairs": {"by": "run_id"}}, "groups": {"groups": {"by": "unit"}},
+            "runs": {}}
     return parse_validation({
         "test_case": {"conditions": "0 <= v_leader <= 30", "tolerance": {"v": tolerance}},
         "reference": {"path": "-"}, "candidates": {"cand": {"runs": {"path": "-"}}},
         "features": ["gap", "v", "v_leader"], "inputs": ["v_leader"],
-        **({"groups": {"by": "unit"}} if humans else {"pairs": {"by": "run_id"}}),
+        **keys[design],
         "conditions": {"v_leader": {"unit": "m/s", "edges": [0, 15, 30]}},
         "comparison": {"bins": 3, "alpha": 0.05, "permutations": 99, "bootstrap": bootstrap,
                        "seed": seed},
         "min_data": {"runs": 4, "samples": 100}})
 
 
+DESIGNS = {"humans": "groups", "leaders_split": "runs"}
+
+
 def draw(name: str, episodes: int, seed: int):
     rng = np.random.default_rng([seed, episodes, 22])
     if name == "humans":
         return human_halves(rng, episodes)
+    if name == "leaders_split":  # one deterministic IDM behind leaders of different recordings
+        found = leaders_split(rng, runs=episodes)
+        return found.a, found.b
     return closed_loop_pair(rng, episodes, defect=name)
 
 
 def verdict(name: str, episodes: int, seed: int, planned: bool = False, **options):
     reference, candidate = draw(name, episodes, seed)
-    result = validate(spec(seed, humans=name == "humans", **options),
+    result = validate(spec(seed, design=DESIGNS.get(name, "pairs"), **options),
                       Inputs(reference, {"cand": candidate}, ()), planned=planned)
     return result
 
