@@ -56,17 +56,18 @@ CANDIDATES = {"none": True, "delay_0.3": False, "delay_0.5": False, "delay_1.0":
 
 
 def spec(seed: int, *, design: str = "pairs", tolerance: float = TOLERANCE,
-         bootstrap: int = 200):
+         bootstrap: int = 200, edges: tuple[float, ...] = (0, 15, 30)):
     """The study's validation (paths are placeholders: the sets go in through Inputs);
     ``design``: "pairs" (by run), "groups" (by driver unit) or "runs" (unpaired runs)."""
     keys = {"pairs": {"pairs": {"by": "run_id"}}, "groups": {"groups": {"by": "unit"}},
             "runs": {}}
     return parse_validation({
-        "test_case": {"conditions": "0 <= v_leader <= 30", "tolerance": {"v": tolerance}},
+        "test_case": {"conditions": f"{edges[0]} <= v_leader <= {edges[-1]}",
+                      "tolerance": {"v": tolerance}},
         "reference": {"path": "-"}, "candidates": {"cand": {"runs": {"path": "-"}}},
         "features": ["gap", "v", "v_leader"], "inputs": ["v_leader"],
         **keys[design],
-        "conditions": {"v_leader": {"unit": "m/s", "edges": [0, 15, 30]}},
+        "conditions": {"v_leader": {"unit": "m/s", "edges": list(edges)}},
         "comparison": {"bins": 3, "alpha": 0.05, "permutations": 99, "bootstrap": bootstrap,
                        "seed": seed},
         "min_data": {"runs": 4, "samples": 100}})
@@ -119,6 +120,7 @@ def main() -> None:
     parser.add_argument("--sizes", type=int, nargs="+", default=[10, 20, 40])
     parser.add_argument("--candidates", nargs="+", default=list(CANDIDATES))
     parser.add_argument("--tolerance", type=float, default=TOLERANCE)
+    parser.add_argument("--edges", type=float, nargs="+", default=[0, 15, 30])
     parser.add_argument("--plan-from", type=int, default=None)
     parser.add_argument("--out", default=None)
     args = parser.parse_args()
@@ -135,7 +137,8 @@ def main() -> None:
         for name in args.candidates:
             truly_valid = CANDIDATES[name]
             start = time.perf_counter()
-            counts = Counter(verdict(name, episodes, seed, tolerance=args.tolerance).verdict
+            counts = Counter(verdict(name, episodes, seed, tolerance=args.tolerance,
+                                     edges=tuple(args.edges)).verdict
                              for seed in range(args.first_seed, args.first_seed + args.seeds))
             seconds = (time.perf_counter() - start) / args.seeds
             wrong = counts["not valid"] if truly_valid else counts["valid"]
@@ -152,7 +155,7 @@ def main() -> None:
                   f"{wrong / args.seeds:>6.3f} {low:>6.3f}-{high:.3f} {seconds:>7.2f}",
                   flush=True)
     if args.out:
-        Path(args.out).write_text(json.dumps({"alpha": 0.05, "test_case_cells": 2,
+        Path(args.out).write_text(json.dumps({"alpha": 0.05, "edges": args.edges,
                                               "tolerance": args.tolerance, "rows": rows},
                                              indent=1))
 
