@@ -34,7 +34,11 @@ CASES = [
      "comparison.baseline: no longer an option"),
     ("missing tolerance", lambda d: d["test_case"].pop("tolerance"), "test_case.tolerance"),
     ("tolerance not positive", lambda d: d["test_case"].update(tolerance={"x": 0}),
-     "test_case.tolerance"),
+     "test_case.tolerance: tolerance of 'x' must be a finite number > 0 or"),
+    ("relative tolerance negative", lambda d: d["test_case"].update(
+        tolerance={"x": {"relative": -1}}), "test_case.tolerance: tolerance of 'x'"),
+    ("relative tolerance misspelt", lambda d: d["test_case"].update(
+        tolerance={"x": {"relativ": 1}}), "test_case.tolerance: tolerance of 'x'"),
     ("tolerance of an input", lambda d: d.update(features=["x", "v"], inputs=["x"]),
      "test_case.tolerance: 'x' is not a response feature"),
     ("input not a feature", lambda d: d.update(inputs=["w"]), "inputs: 'w'"),

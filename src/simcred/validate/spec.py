@@ -62,6 +62,20 @@ class RelativeTolerance(_Strict):
     relative: float = Field(gt=0, le=100, allow_inf_nan=False)
 
 
+def _tolerance_value(name: Any, value: Any) -> float | RelativeTolerance:
+    shape = (f"tolerance of '{name}' must be a finite number > 0 or {{relative: f}} with "
+             "0 < f <= 100")
+    if isinstance(value, dict):
+        try:
+            return RelativeTolerance.model_validate(value)
+        except ValidationError:
+            raise ValueError(shape) from None
+    if isinstance(value, bool) or not isinstance(value, int | float) \
+            or not math.isfinite(value) or value <= 0:
+        raise ValueError(shape)
+    return float(value)
+
+
 class TestCaseSpec(_Strict):
     """The test case: its operating conditions and, per response feature, the largest response
     deviation it tolerates (in the feature's unit per second, e.g. m/s² for a speed), absolute
@@ -70,14 +84,17 @@ class TestCaseSpec(_Strict):
     conditions: str = Field(min_length=1)
     tolerance: dict[str, float | RelativeTolerance] = Field(min_length=1)
 
-    @field_validator("tolerance")
+    @field_validator("tolerance", mode="before")
     @classmethod
-    def _positive(cls, tolerance: dict[str, float | RelativeTolerance]
-                  ) -> dict[str, float | RelativeTolerance]:
+    def _values(cls, tolerance: Any) -> Any:
+        """Each value a number > 0 or ``{relative: f}`` with 0 < f <= 100 (one clear message,
+        not one per branch of the union)."""
+        if not isinstance(tolerance, dict):
+            return tolerance
+        out = {}
         for name, value in tolerance.items():
-            if isinstance(value, float | int) and (not math.isfinite(value) or value <= 0):
-                raise ValueError(f"tolerance of '{name}' must be a finite number > 0")
-        return tolerance
+            out[name] = _tolerance_value(name, value)
+        return out
 
 
 class SimulateSpec(_Strict):
