@@ -249,12 +249,12 @@ def compare_cell(settings: CellComparison, grid: Grid, cell: int, name: str, rul
     decided (module docs); seeded by :func:`cell_seed` (``name``, ``cell``)."""
     head = (cell, grid.index(cell), grid.label(cell))
     if reference is None or candidate is None:
-        counts = (_count_units(reference, rule), _samples(reference),
-                  _count_units(candidate, rule), _samples(candidate))
+        counts = (count_units(reference, rule), _samples(reference),
+                  count_units(candidate, rule), _samples(candidate))
         return CellResult(*head, CellStatus.UNKNOWN, settings.min_data.short(counts), *counts,
                           rule.design)
     ref, cand, dropped = _matched(reference, candidate, rule)
-    counts = (_count_units(ref, rule), _samples(ref), _count_units(cand, rule), _samples(cand))
+    counts = (count_units(ref, rule), _samples(ref), count_units(cand, rule), _samples(cand))
     short = settings.min_data.short(counts)
     if short:
         return CellResult(*head, CellStatus.UNKNOWN, short + dropped, *counts, rule.design)
@@ -358,7 +358,8 @@ def _samples(traces: TraceSet | None) -> int:
     return 0 if traces is None else traces.n_rows
 
 
-def _count_units(traces: TraceSet | None, rule: CellRule) -> int:
+def count_units(traces: TraceSet | None, rule: CellRule) -> int:
+    """Distinct design units (pair members or groups) among ``traces``' runs; 0 for none."""
     if traces is None:
         return 0
     key = rule.pair_by or rule.group_by

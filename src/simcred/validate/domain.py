@@ -29,6 +29,7 @@ cell, runs whose partner has no segment in the cell are left out (counted in the
 
 from __future__ import annotations
 
+from simcred.compare import Comparison, compare
 from simcred.regions import engine
 from simcred.regions.cells import Grid, Segments
 from simcred.regions.engine import (
@@ -45,7 +46,19 @@ from simcred.traces import TraceSet
 from simcred.validate.spec import ValidationSpec
 
 __all__ = ["CellResult", "CellRule", "CellStatus", "Domain", "FeatureBounds", "cell_rule",
-           "cell_seed", "cell_settings", "learn_domain"]
+           "cell_seed", "cell_settings", "learn_domain", "unpaired_comparison"]
+
+
+def unpaired_comparison(spec: ValidationSpec, a: TraceSet, b: TraceSet, group_by: str,
+                        seed: int, bootstrap: int) -> Comparison:
+    """Two sets of the reference's units (halves, or draws from them) compared with the file's
+    comparison options, grouped by ``group_by``: the pilot of the plan and the spread of a
+    relative tolerance. Only the deviation is used, so the difference test is cut to 19
+    permutations and no margin is given."""
+    options = spec.comparison
+    return compare(a, b, features=spec.features, inputs=spec.inputs, test="response",
+                   bins=options.bins, alpha=options.alpha, permutations=19, bootstrap=bootstrap,
+                   seed=seed, resample=options.resample, group_by=group_by)
 
 
 def cell_settings(spec: ValidationSpec) -> CellComparison:

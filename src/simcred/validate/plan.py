@@ -44,12 +44,13 @@ from typing import Any
 import numpy as np
 from scipy.stats import norm
 
-from simcred.compare import Comparison, compare
+from simcred.compare import Comparison
 from simcred.compare.design import unit_keys
 from simcred.regions.cells import SOURCE_RUN, Grid, Segments
-from simcred.regions.engine import CellRule, Domain, cell_rule, cell_seed
+from simcred.regions.engine import CellRule, Domain, cell_rule, cell_seed, count_units
 from simcred.regions.engine import halves as split_halves
 from simcred.traces import RUN_INFO, TraceSet, concat, take
+from simcred.validate.domain import unpaired_comparison
 from simcred.validate.ranking import REFERENCE as PILOT
 from simcred.validate.spec import ValidationSpec
 
@@ -144,8 +145,9 @@ def pilot(spec: ValidationSpec, reference: Segments, relevant: tuple[int, ...]) 
             cell_seed(spec.comparison.seed, "plan:halves", cell))
         if split is not None:
             halves[cell] = split
-    comparisons = {cell: _compare(spec, *split, rule,
-                                  cell_seed(spec.comparison.seed, "plan:pilot", cell))
+    comparisons = {cell: unpaired_comparison(spec, *split, rule.group_by,
+                                             cell_seed(spec.comparison.seed, "plan:pilot", cell),
+                                             spec.comparison.bootstrap)
                    for cell, split in halves.items()}
     pools = {cell: reference.by_cell[cell] for cell in halves}
     return Pilot(rule, pools, halves, comparisons)
@@ -159,8 +161,8 @@ def plan(spec: ValidationSpec, grid: Grid, found: Pilot, relevant: tuple[int, ..
     rule, halves = found.rule, found.halves
     rows: list[PlanRow] = []
     for cell, result in found.comparisons.items():
-        rows += _pilot_rows(spec, grid, cell, result, min(_count(h, rule) for h in halves[cell]),
-                            alpha, cell_power)
+        units = min(count_units(h, rule) for h in halves[cell])
+        rows += _pilot_rows(spec, grid, cell, result, units, alpha, cell_power)
     for name, domain in domains.items():
         rows += _candidate_rows(name, domain, relevant, spec, alpha, cell_power)
     missing = [grid.label(c) for c in relevant if c not in halves]
@@ -188,7 +190,7 @@ def _search(spec, grid, found: Pilot, sizes: dict[int, int], cell_power: float,
     test case reaches it or a cell would need more than ``MAX_GROWTH`` times its reference."""
     share = 0.0
     while True:
-        too_big = [c for c, n in sizes.items() if n > MAX_GROWTH * _count(found.pools[c],
+        too_big = [c for c, n in sizes.items() if n > MAX_GROWTH * count_units(found.pools[c],
                                                                           found.rule)]
         if too_big:
             return Plan(POWER, cell_power, rows, {}, share if share else None, reps,
@@ -200,18 +202,6 @@ def _search(spec, grid, found: Pilot, sizes: dict[int, int], cell_power: float,
             return Plan(POWER, cell_power, rows, dict(sizes), share, reps, lacking.strip())
         sizes = {c: math.ceil(1.5 * n) if per_cell[c] < cell_power else n
                  for c, n in sizes.items()}
-
-
-def _count(traces: TraceSet, rule: CellRule) -> int:
-    return len(set(unit_keys(traces, rule.group_by, "groups")))
-
-
-def _compare(spec: ValidationSpec, a: TraceSet, b: TraceSet, rule: CellRule, seed: int):
-    options = spec.comparison
-    return compare(a, b, features=spec.features, inputs=spec.inputs, test="response",
-                   bins=options.bins, alpha=options.alpha, permutations=19,
-                   bootstrap=options.bootstrap, seed=seed, resample=options.resample,
-                   group_by=rule.group_by, margin=dict(spec.test_case.tolerance))
 
 
 def _pilot_rows(spec, grid, cell, result, m, alpha, cell_power) -> list[PlanRow]:
@@ -255,8 +245,10 @@ def _simulate(spec: ValidationSpec, pools: dict[int, TraceSet], rule: CellRule,
         for cell, n in sizes.items():
             pool = pools[cell]
             rng = np.random.default_rng(cell_seed(spec.comparison.seed, f"plan:sim{rep}", cell))
-            result = _compare(spec, _draw(pool, rule, n, rng, "a"), _draw(pool, rule, n, rng, "b"),
-                              rule, cell_seed(spec.comparison.seed, f"plan:cmp{rep}", cell))
+            result = unpaired_comparison(spec, _draw(pool, rule, n, rng, "a"),
+                                         _draw(pool, rule, n, rng, "b"), rule.group_by,
+                                         cell_seed(spec.comparison.seed, f"plan:cmp{rep}", cell),
+                                         spec.comparison.bootstrap)
             valid = all(f.bounds(alpha)[1] < tolerance[f.feature]
                         for f in result.response.effect.features if f.feature in tolerance)
             shown[cell] += valid

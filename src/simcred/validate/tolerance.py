@@ -22,10 +22,10 @@ from typing import Any
 
 import numpy as np
 
-from simcred.compare import compare
 from simcred.regions.cells import SOURCE_RUN, Segments
 from simcred.regions.engine import cell_seed, halves, segment_key
 from simcred.traces import RUN_INFO, concat
+from simcred.validate.domain import unpaired_comparison
 from simcred.validate.spec import ValidationFileError, ValidationSpec
 
 SPLITS = 5
@@ -66,12 +66,9 @@ def resolve(spec: ValidationSpec, reference: Segments, relevant: tuple[int, ...]
             raise ValidationFileError("test_case.tolerance: a relative tolerance needs at least 4 "
                                       "reference units in the test case's cells to measure the "
                                       "reference's own spread")
-        options = spec.comparison
-        result = compare(*found, features=spec.features, inputs=spec.inputs, test="response",
-                         bins=options.bins, alpha=options.alpha, permutations=19,
-                         bootstrap=BOOTSTRAP, seed=cell_seed(options.seed, "tolerance:cmp",
-                                                             split),
-                         resample=options.resample, group_by=key)
+        result = unpaired_comparison(spec, *found, key,
+                                     cell_seed(spec.comparison.seed, "tolerance:cmp", split),
+                                     BOOTSTRAP)
         for effect in result.response.effect.features:
             if effect.feature in relative:
                 estimates[effect.feature].append(effect.estimate)
