@@ -36,12 +36,33 @@ class FileHandlers:
     write: Callable[..., Path]  # (traces, path, **options)
 
 
-_handlers: dict[str, FileHandlers] = {}
+_handlers: dict[str, Any] = {}
 
 
 def register_files(handlers: FileHandlers) -> None:
     """Register the file formats of :meth:`TraceSet.read` / :meth:`TraceSet.write` (io does)."""
     _handlers["files"] = handlers
+
+
+@dataclass(frozen=True, slots=True)
+class TableHandlers:
+    """How the ``from_*`` / ``to_*`` table methods of :class:`TraceSet` reach Arrow, pandas and
+    polars (registered by :mod:`simcred.io.frames`, as :class:`FileHandlers` are)."""
+
+    read: Callable[..., TraceSet]  # (table, kind, **options); kind: "arrow", "pandas", "polars"
+    write: Callable[..., Any]  # (traces, kind)
+
+
+def register_tables(handlers: TableHandlers) -> None:
+    """Register the table conversions of :meth:`TraceSet.from_arrow` and friends (io does)."""
+    _handlers["tables"] = handlers
+
+
+def _tables() -> TableHandlers:
+    try:
+        return _handlers["tables"]  # type: ignore[return-value]
+    except KeyError:  # pragma: no cover - simcred/__init__ imports simcred.io
+        raise RuntimeError("no TraceSet table conversions registered: import simcred.io") from None
 
 
 def _files() -> FileHandlers:
@@ -288,6 +309,38 @@ class TraceSet:
         """Write in the format ``path`` implies (:func:`simcred.io.write`): a CSV directory,
         Parquet for ``.parquet``/``.pq``, a long CSV for ``.csv``, OSI for ``.osi``/``.mcap``."""
         return _files().write(self, path, **options)
+
+    # -- tables (simcred.io.frames) -----------------------------------------------------------
+
+    @classmethod
+    def from_arrow(cls, table: Any, **options: Any) -> TraceSet:
+        """A trace set from a ``pyarrow.Table`` in long format (:func:`simcred.io.frames.read`:
+        ``run=``, ``time=``, ``object=`` name the key columns; ``metadata=``, ``source=``)."""
+        return _tables().read(table, "arrow", **options)
+
+    @classmethod
+    def from_pandas(cls, frame: Any, **options: Any) -> TraceSet:
+        """A trace set from a ``pandas.DataFrame`` in long format (as :meth:`from_arrow`; the
+        metadata defaults to ``frame.attrs["simcred"]``, which :meth:`to_pandas` sets)."""
+        return _tables().read(frame, "pandas", **options)
+
+    @classmethod
+    def from_polars(cls, frame: Any, **options: Any) -> TraceSet:
+        """A trace set from a ``polars.DataFrame`` in long format (as :meth:`from_arrow`)."""
+        return _tables().read(frame, "polars", **options)
+
+    def to_arrow(self) -> Any:
+        """The ``pyarrow.Table`` ``run``, ``t``, signals; metadata in the schema metadata."""
+        return _tables().write(self, "arrow")
+
+    def to_pandas(self) -> Any:
+        """The ``pandas.DataFrame`` ``run`` (categorical), ``t``, signals; metadata in
+        ``attrs["simcred"]``."""
+        return _tables().write(self, "pandas")
+
+    def to_polars(self) -> Any:
+        """The ``polars.DataFrame`` ``run`` (categorical), ``t``, signals (no metadata)."""
+        return _tables().write(self, "polars")
 
     # -- validation ---------------------------------------------------------------------------
 

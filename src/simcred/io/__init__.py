@@ -25,6 +25,8 @@ def write_traceset(traces: TraceSet, path: str | Path, **options) -> Path:
 
 # TraceSet.read / TraceSet.write reach files through these (the core does not import io).
 register_files(FileHandlers(read=read_traceset, write=write_traceset))
+# TraceSet.from_arrow / to_pandas / ... reach tables through simcred.io.frames (registers itself)
+import simcred.io.frames  # noqa: E402, F401
 
 __all__ = ["FORMATS", "PARQUET_SUFFIXES", "detect", "read", "read_traceset", "write",
            "write_traceset"]

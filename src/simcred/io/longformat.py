@@ -64,6 +64,7 @@ __all__ = [  # the face of the long format; the records and their assembly are r
     "PARQUET_SUFFIXES",
     "Records",
     "csv_delimiter",
+    "from_table",
     "object_name",
     "read",
     "split_signal",
@@ -210,6 +211,50 @@ def read(path: str | Path, *, run_column: str | None = None, time_column: str = 
         named columns decide.
     """
     path = Path(path)
+    keys = _read_iv(run_column, time_column, object_column, signals, time_scale, dropouts)
+    table = _read_table(path, keys)
+    return from_table(table, where=str(path), default_run=path.stem, run_column=run_column,
+                      time_column=time_column, object_column=object_column, signals=signals,
+                      objects_as=objects_as, missing=missing, object_prefix=object_prefix,
+                      time_scale=time_scale, dropouts=dropouts)
+
+
+def from_table(table: pa.Table, *, where: str, default_run: str, run_column: str | None = None,
+               time_column: str = TIME, object_column: str | None = None,
+               signals: Sequence[str] | None = None, objects_as: str = "signals",
+               missing: str = "error", object_prefix: str | None = None,
+               time_scale: float = 1.0, dropouts: str = "error") -> TraceSet:
+    """A long-format Arrow table as a trace set (the rules and options of :func:`read`).
+
+    ``where`` names the table in errors; ``default_run`` is the run id without a run column.
+    Metadata comes from the schema metadata ``simcred`` (a JSON object) when present.
+    """
+    keys = _read_iv(run_column, time_column, object_column, signals, time_scale, dropouts)
+    if table.num_rows == 0:
+        raise TraceSetError(f"{where}: the trace set is empty (no rows)")
+    fields, skipped = _value_columns(table, [*keys, time_column], signals, where)
+    records = Records(
+        where=where,
+        time=float_column(table, time_column, where) * float(time_scale),
+        runs=_labels(table, run_column, where),
+        objects=_labels(table, object_column, where),
+        fields=fields,
+        default_run=default_run,
+    )
+    metadata = _stored_metadata(table, where)
+    if skipped:
+        metadata["skipped_columns"] = skipped
+    if dropouts == "drop":
+        records, dropped = _without_dropouts(records)
+        if dropped:
+            metadata["dropouts"] = dropped
+    return to_traceset(records, objects_as=objects_as, missing=missing,
+                       object_prefix=object_prefix, metadata=metadata, source=where)
+
+
+def _read_iv(run_column: str | None, time_column: str, object_column: str | None,
+             signals: Sequence[str] | None, time_scale: float, dropouts: str) -> list[str]:
+    """Check the reading options (before any file is read); return the run/object columns."""
     if not (isinstance(time_scale, int | float) and np.isfinite(time_scale) and time_scale > 0):
         raise OptionError(f"time_scale must be a finite number > 0 (seconds per unit of the "
                           f"time column), got {time_scale!r}")
@@ -220,28 +265,7 @@ def read(path: str | Path, *, run_column: str | None = None, time_column: str = 
     keys = [k for k in (run_column, object_column) if k is not None]
     if len({*keys, time_column}) != len(keys) + 1:
         raise OptionError("run, time and object columns must be different columns")
-    table = _read_table(path, keys)
-    where = str(path)
-    if table.num_rows == 0:
-        raise TraceSetError(f"{where}: the trace set is empty (no rows)")
-    fields, skipped = _value_columns(table, [*keys, time_column], signals, where)
-    records = Records(
-        where=where,
-        time=float_column(table, time_column, where) * float(time_scale),
-        runs=_labels(table, run_column, where),
-        objects=_labels(table, object_column, where),
-        fields=fields,
-        default_run=path.stem,
-    )
-    metadata = _stored_metadata(table, path)
-    if skipped:
-        metadata["skipped_columns"] = skipped
-    if dropouts == "drop":
-        records, dropped = _without_dropouts(records)
-        if dropped:
-            metadata["dropouts"] = dropped
-    return to_traceset(records, objects_as=objects_as, missing=missing,
-                       object_prefix=object_prefix, metadata=metadata, source=where)
+    return keys
 
 
 def _without_dropouts(records: Records) -> tuple[Records, dict[str, int]]:
@@ -271,7 +295,7 @@ def _as_text(labels) -> np.ndarray:
     return np.array([str(v) for v in values], dtype=object)
 
 
-def _stored_metadata(table: pa.Table, path: Path) -> dict:
+def _stored_metadata(table: pa.Table, where: str) -> dict:
     raw = (table.schema.metadata or {}).get(METADATA_KEY)
     if raw is None:
         return {}
@@ -280,7 +304,7 @@ def _stored_metadata(table: pa.Table, path: Path) -> dict:
     except ValueError:
         meta = None
     if not isinstance(meta, dict):
-        raise TraceSetError(f"{path}: schema metadata 'simcred' is not a JSON object")
+        raise TraceSetError(f"{where}: schema metadata 'simcred' is not a JSON object")
     return meta
 
 

@@ -90,10 +90,18 @@ def _metadata(table: pa.Table, path: Path) -> dict:
 
 
 def write(traces: TraceSet, path: Path) -> Path:
-    if RUN in traces.signals:
-        raise TraceSetError(f"{path}: a signal is named '{RUN}', which in Parquet is the column "
-                            "naming the run of each row; rename it or write a CSV directory")
+    table = to_table(traces, where=str(path))
     path.parent.mkdir(parents=True, exist_ok=True)
+    pq.write_table(table, local(path))
+    return path
+
+
+def to_table(traces: TraceSet, *, where: str) -> pa.Table:
+    """The Arrow table of the file: ``run`` (dictionary-encoded), ``t``, the signals, and the
+    metadata as JSON in the schema metadata. ``where`` names the destination in errors."""
+    if RUN in traces.signals:
+        raise TraceSetError(f"{where}: a signal is named '{RUN}', which in Parquet is the column "
+                            "naming the run of each row; rename it or write a CSV directory")
     columns = {
         RUN: pa.DictionaryArray.from_arrays(  # integer codes per row, each label stored once
             np.repeat(np.arange(traces.n_runs, dtype=np.int32), traces.lengths),
@@ -103,6 +111,4 @@ def write(traces: TraceSet, path: Path) -> Path:
     columns.update({s: traces.values[:, j] for j, s in enumerate(traces.signals)})
     table = pa.table(columns)
     meta = json.dumps(dict(traces.metadata), sort_keys=True).encode()
-    table = table.replace_schema_metadata({METADATA_KEY: meta})
-    pq.write_table(table, local(path))
-    return path
+    return table.replace_schema_metadata({METADATA_KEY: meta})
