@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+import simcred._display as _display
 from simcred.errors import TraceSetError
 
 TIME = "t"
@@ -229,6 +230,10 @@ class TraceSet:
             f"TraceSet({self.source!r}, runs={self.n_runs}, rows={self.n_rows}, "
             f"signals={list(self.signals)})"
         )
+
+    def _repr_html_(self) -> str:
+        """Notebook display: a summary table and a figure (:mod:`simcred.report.notebook`)."""
+        return _display.html(self)
 
     @property
     def units(self) -> dict[str, str]:

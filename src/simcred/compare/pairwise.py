@@ -12,9 +12,11 @@ from typing import Any
 
 import numpy as np
 
+import simcred._display as _display
 from simcred._json import dumps, envelope
 from simcred.compare.process import Prepared, compare_prepared, comparison_options, load
 from simcred.compare.result import Comparison
+from simcred.compare.tables import matrix_frame
 from simcred.engine import Engine, Progress, engine, shared
 from simcred.errors import OptionError
 from simcred.traces import TraceSet
@@ -55,6 +57,14 @@ class DistanceMatrix:
 
     def to_json(self) -> str:
         return dumps(self.to_dict())
+
+    def to_pandas(self):
+        """The matrix as a square ``pandas.DataFrame`` indexed by the names (NaN: stopped)."""
+        return matrix_frame(self)
+
+    def _repr_html_(self) -> str:
+        """Notebook display: a summary table and a figure (:mod:`simcred.report.notebook`)."""
+        return _display.html(self)
 
     def to_csv(self) -> str:
         """The table as CSV: a header of names, one row per set, empty cells where stopped."""

@@ -7,10 +7,12 @@ from typing import Any
 
 import numpy as np
 
+import simcred._display as _display
 from simcred._json import dumps, envelope
 from simcred.compare.discretize import StateSpace
 from simcred.compare.kernels import Kernel
 from simcred.compare.mmd import Estimator, MMDTestResult, MMDTestSpec, Test
+from simcred.compare.tables import states_frame
 
 
 @dataclass(frozen=True, slots=True)
@@ -220,6 +222,15 @@ class Comparison:
     def to_json(self) -> str:
         """Deterministic JSON: same inputs and seed give the same bytes."""
         return dumps(self.to_dict())
+
+    def to_pandas(self):
+        """The start states as a ``pandas.DataFrame`` (:func:`simcred.compare.tables.states_frame`:
+        bins and value ranges per feature, status, m, n, statistic, p-values)."""
+        return states_frame(self)
+
+    def _repr_html_(self) -> str:
+        """Notebook display: a summary table and a figure (:mod:`simcred.report.notebook`)."""
+        return _display.html(self)
 
     def state_grid(self) -> dict[str, np.ndarray]:
         """Per-state arrays on the grid (shape = bins per feature), for maps and summaries.

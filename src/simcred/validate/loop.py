@@ -26,6 +26,7 @@ from typing import Any
 
 import yaml
 
+import simcred._display as _display
 from simcred.contracts.algebra import Contract, Status, valid
 from simcred.contracts.configure import configure, setup_refines
 from simcred.contracts.expr import Bool, negate, parse, to_text
@@ -93,6 +94,10 @@ class Validation:
     @property
     def exit_code(self) -> int:
         return EXIT_CODES[self.verdict]
+
+    def _repr_html_(self) -> str:
+        """Notebook display: a summary table and a figure (:mod:`simcred.report.notebook`)."""
+        return _display.html(self)
 
     def library_yaml(self) -> str:
         return yaml.safe_dump(self.library, sort_keys=False, allow_unicode=True, width=100)
