@@ -14,6 +14,8 @@ sumo-fcd      ``.xml`` (``.xml.gz``) rooted in            :mod:`simcred.io.sumo_
               ``<fcd-export>``
 commonroad    ``.xml`` rooted in ``<commonRoad>``         :mod:`simcred.io.commonroad` (read only)
 osi           ``.osi`` (length-prefixed), ``.mcap``       :mod:`simcred.io.osi`
+levelx        a directory with ``NN_tracks.csv`` (highD,  :mod:`simcred.io.levelx` (read only)
+              inD, rounD, exiD, uniD)
 ============  =========================================  ==========================================
 
 Each format accepts only its own options; any other is a one-line :class:`OptionError`.
@@ -30,6 +32,7 @@ from typing import Any
 
 from simcred.errors import OptionError, TraceSetError
 from simcred.io._xml import xml_root
+from simcred.io.levelx import is_levelx
 from simcred.outputs import output_path
 from simcred.traces import TraceSet
 
@@ -66,6 +69,8 @@ FORMATS: dict[str, Format] = {f.name: f for f in (
     Format("commonroad", "commonroad", "CommonRoad XML scenario", ("layout", "missing")),
     Format("osi", "osi", "ASAM OSI GroundTruth trace (.osi length-prefixed, .mcap)",
            ("objects_as", "missing"), ("host",)),
+    Format("levelx", "levelx", "highD/inD/rounD/exiD/uniD folder (NN_tracks.csv, "
+           "NN_tracksMeta.csv, NN_recordingMeta.csv)", ("recordings", "direction")),
 )}
 PARQUET_SUFFIXES = (".parquet", ".pq")
 OSI_SUFFIXES = (".osi", ".mcap")
@@ -94,7 +99,7 @@ def detect(path: str | Path, *, for_writing: bool = False,
     long_options = any(k in (LONG_WRITE if for_writing else LONG_READ) for k in options)
     if not for_writing:
         if path.is_dir():
-            return FORMATS["csv-dir"]
+            return FORMATS["levelx" if is_levelx(path) else "csv-dir"]
         if not path.exists():
             raise TraceSetError(f"{path}: no such file or directory")
         if suffix in (".xml", ".xml.gz"):
