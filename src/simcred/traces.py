@@ -398,7 +398,8 @@ class TraceSet:
             run = int(np.searchsorted(self.offsets, row, side="right") - 1)
             raise TraceSetError(
                 f"{self._where(run)}: column '{TIME}' is not strictly increasing at row "
-                f"{row - self.offsets[run] + 1} (t={self.time[row]!r} after {self.time[row - 1]!r})"
+                f"{row - self.offsets[run] + 1} (t={float(self.time[row])!r} after "
+                f"{float(self.time[row - 1])!r})"
             )
 
 

@@ -9,7 +9,7 @@ import typer
 
 from simcred.cli._app import Json, _emit, app, one_line_errors
 
-FORMAT_HELP = "csv-dir, parquet, long, sumo-fcd, commonroad, osi"
+FORMAT_HELP = "csv-dir, parquet, long, sumo-fcd, commonroad, osi, levelx, mdf"
 
 
 def _signals(text: str | None) -> list[str] | None:
@@ -54,6 +54,17 @@ def convert(
              "obj<id>. signals).")] = None,
     host: Annotated[str | None, typer.Option(help="OSI output: the object that is the host "
                                                   "vehicle (default: ego, if present).")] = None,
+    channels: Annotated[str | None, typer.Option(
+        help="MDF4: comma-separated channels to read (default: every numeric one).")] = None,
+    resample_method: Annotated[str | None, typer.Option(
+        help="MDF4: linear or previous, to put channels of different rates on the fastest "
+             "one's time stamps (default: refused).")] = None,
+    run_channel: Annotated[str | None, typer.Option(
+        help="MDF4: channel naming the run of each sample (default: run, if present).")] = None,
+    recordings: Annotated[str | None, typer.Option(
+        help="highD family: comma-separated recordings to read (default: all).")] = None,
+    direction: Annotated[str | None, typer.Option(
+        help="highD: normalise (every vehicle drives towards +x) or keep.")] = None,
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing OUT (never "
                                                                 "the input).")] = False,
     as_json: Json = False,
@@ -64,7 +75,9 @@ def convert(
     given = dict(run_column=run_column, time_column=time_column, object_column=object_column,
                  time_scale=time_scale,
                  signals=_signals(signals), objects_as=objects_as, missing=missing,
-                 object_prefix=object_prefix, layout=layout, host=host)
+                 object_prefix=object_prefix, layout=layout, host=host,
+                 channels=_signals(channels), resample=resample_method, run_channel=run_channel,
+                 recordings=_signals(recordings), direction=direction)
     options = {k: v for k, v in given.items() if v is not None}
     result = convert_traces(source, target, source_format=input_format,
                             target_format=output_format, overwrite=overwrite, **options)

@@ -16,6 +16,7 @@ commonroad    ``.xml`` rooted in ``<commonRoad>``         :mod:`simcred.io.commo
 osi           ``.osi`` (length-prefixed), ``.mcap``       :mod:`simcred.io.osi`
 levelx        a directory with ``NN_tracks.csv`` (highD,  :mod:`simcred.io.levelx` (read only)
               inD, rounD, exiD, uniD)
+mdf           ``.mf4``/``.mdf``; a directory of them      :mod:`simcred.io.mdf` (read only)
 ============  =========================================  ==========================================
 
 Each format accepts only its own options; any other is a one-line :class:`OptionError`.
@@ -33,6 +34,8 @@ from typing import Any
 from simcred.errors import OptionError, TraceSetError
 from simcred.io._xml import xml_root
 from simcred.io.levelx import is_levelx
+from simcred.io.mdf import SUFFIXES as MDF_SUFFIXES
+from simcred.io.mdf import files_in as mdf_files
 from simcred.outputs import output_path
 from simcred.traces import TraceSet
 
@@ -71,6 +74,8 @@ FORMATS: dict[str, Format] = {f.name: f for f in (
            ("objects_as", "missing"), ("host",)),
     Format("levelx", "levelx", "highD/inD/rounD/exiD/uniD folder (NN_tracks.csv, "
            "NN_tracksMeta.csv, NN_recordingMeta.csv)", ("recordings", "direction")),
+    Format("mdf", "mdf", "ASAM MDF4 measurement file (.mf4, .mdf) or a directory of them",
+           ("channels", "resample", "run_channel")),
 )}
 PARQUET_SUFFIXES = (".parquet", ".pq")
 OSI_SUFFIXES = (".osi", ".mcap")
@@ -99,7 +104,7 @@ def detect(path: str | Path, *, for_writing: bool = False,
     long_options = any(k in (LONG_WRITE if for_writing else LONG_READ) for k in options)
     if not for_writing:
         if path.is_dir():
-            return FORMATS["levelx" if is_levelx(path) else "csv-dir"]
+            return _directory_format(path)
         if not path.exists():
             raise TraceSetError(f"{path}: no such file or directory")
         if suffix in (".xml", ".xml.gz"):
@@ -117,11 +122,23 @@ def detect(path: str | Path, *, for_writing: bool = False,
         return FORMATS["long" if long_options else "parquet"]
     if suffix in OSI_SUFFIXES:
         return FORMATS["osi"]
+    if suffix in MDF_SUFFIXES and not for_writing:
+        return FORMATS["mdf"]
     if for_writing:  # any other name is a directory of CSV files (names may contain dots)
         return FORMATS["csv-dir"]
-    kinds = "a directory, .csv, .parquet, .pq, .osi, .mcap, .xml"
+    kinds = "a directory, .csv, .parquet, .pq, .osi, .mcap, .xml, .mf4, .mdf"
     raise TraceSetError(f"{path}: not a trace set in a known format (suffix {suffix or 'none'!r}; "
                         f"expected {kinds}, or name it with format=/--format)")
+
+
+def _directory_format(path: Path) -> Format:
+    """A directory's format: a levelX recording folder, a folder of MDF files (and no CSV
+    files), else a CSV directory."""
+    if is_levelx(path):
+        return FORMATS["levelx"]
+    if mdf_files(path) and not any(p.suffix.lower() == ".csv" for p in path.iterdir()):
+        return FORMATS["mdf"]
+    return FORMATS["csv-dir"]
 
 
 def _check_options(fmt: Format, options: Mapping[str, Any], allowed: tuple[str, ...]) -> None:
