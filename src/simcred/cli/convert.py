@@ -9,7 +9,7 @@ import typer
 
 from simcred.cli._app import Json, _emit, app, one_line_errors
 
-FORMAT_HELP = "csv-dir, parquet, long, sumo-fcd, commonroad, osi, levelx, mdf"
+FORMAT_HELP = "csv-dir, parquet, long, sumo-fcd, commonroad, osi, levelx, mdf, ros2"
 
 
 def _signals(text: str | None) -> list[str] | None:
@@ -65,6 +65,15 @@ def convert(
         help="highD family: comma-separated recordings to read (default: all).")] = None,
     direction: Annotated[str | None, typer.Option(
         help="highD: normalise (every vehicle drives towards +x) or keep.")] = None,
+    topics: Annotated[str | None, typer.Option(
+        help="ROS 2 bag: comma-separated topics (default: every Odometry and PoseStamped "
+             "topic).")] = None,
+    fields: Annotated[str | None, typer.Option(
+        help="ROS 2 bag: comma-separated message field paths (twist.twist.linear.x) instead "
+             "of the known types' signals.")] = None,
+    runs: Annotated[str | None, typer.Option(
+        help="ROS 2 bag: bag (a bag is a run) or namespace (a topic namespace is a run).")
+                    ] = None,
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing OUT (never "
                                                                 "the input).")] = False,
     as_json: Json = False,
@@ -77,7 +86,8 @@ def convert(
                  signals=_signals(signals), objects_as=objects_as, missing=missing,
                  object_prefix=object_prefix, layout=layout, host=host,
                  channels=_signals(channels), resample=resample_method, run_channel=run_channel,
-                 recordings=_signals(recordings), direction=direction)
+                 recordings=_signals(recordings), direction=direction,
+                 topics=_signals(topics), fields=_signals(fields), runs=runs)
     options = {k: v for k, v in given.items() if v is not None}
     result = convert_traces(source, target, source_format=input_format,
                             target_format=output_format, overwrite=overwrite, **options)

@@ -17,6 +17,8 @@ osi           ``.osi`` (length-prefixed), ``.mcap``       :mod:`simcred.io.osi`
 levelx        a directory with ``NN_tracks.csv`` (highD,  :mod:`simcred.io.levelx` (read only)
               inD, rounD, exiD, uniD)
 mdf           ``.mf4``/``.mdf``; a directory of them      :mod:`simcred.io.mdf` (read only)
+ros2          a ROS 2 bag directory (``metadata.yaml``)  :mod:`simcred.io.rosbag` (read only)
+              or a directory of bags
 ============  =========================================  ==========================================
 
 Each format accepts only its own options; any other is a one-line :class:`OptionError`.
@@ -36,6 +38,7 @@ from simcred.io._xml import xml_root
 from simcred.io.levelx import is_levelx
 from simcred.io.mdf import SUFFIXES as MDF_SUFFIXES
 from simcred.io.mdf import files_in as mdf_files
+from simcred.io.rosbag import is_bag
 from simcred.outputs import output_path
 from simcred.traces import TraceSet
 
@@ -76,6 +79,8 @@ FORMATS: dict[str, Format] = {f.name: f for f in (
            "NN_tracksMeta.csv, NN_recordingMeta.csv)", ("recordings", "direction")),
     Format("mdf", "mdf", "ASAM MDF4 measurement file (.mf4, .mdf) or a directory of them",
            ("channels", "resample", "run_channel")),
+    Format("ros2", "rosbag", "ROS 2 bag directory (.db3 or .mcap storage) or a directory of bags",
+           ("topics", "fields", "runs")),
 )}
 PARQUET_SUFFIXES = (".parquet", ".pq")
 OSI_SUFFIXES = (".osi", ".mcap")
@@ -132,10 +137,12 @@ def detect(path: str | Path, *, for_writing: bool = False,
 
 
 def _directory_format(path: Path) -> Format:
-    """A directory's format: a levelX recording folder, a folder of MDF files (and no CSV
-    files), else a CSV directory."""
+    """A directory's format: a levelX recording folder, a ROS 2 bag (or a folder of bags), a
+    folder of MDF files (and no CSV files), else a CSV directory."""
     if is_levelx(path):
         return FORMATS["levelx"]
+    if is_bag(path):
+        return FORMATS["ros2"]
     if mdf_files(path) and not any(p.suffix.lower() == ".csv" for p in path.iterdir()):
         return FORMATS["mdf"]
     return FORMATS["csv-dir"]
