@@ -306,7 +306,7 @@ class TraceSet:
     @classmethod
     def read(cls, path: str | Path, **options: Any) -> TraceSet:
         """Read any supported format (CSV directory, Parquet, long format, SUMO FCD, CommonRoad,
-        OSI); ``options`` such as ``run_column=`` go to the reader (:func:`simcred.io.read`,
+        OSI, highD family, MDF4, ROS 2 bags); ``options`` such as ``run_column=`` go to the reader (:func:`simcred.io.read`,
         registered with :func:`register_files`: the core does not import io)."""
         return _files().read(path, **options)
 

@@ -1,7 +1,9 @@
 """Reading and writing trace sets in every supported format.
 
 :func:`read` and :func:`write` dispatch on the path (see :mod:`simcred.io.formats`): a CSV
-directory, a Parquet file, a long-format CSV/Parquet file, SUMO FCD XML, CommonRoad XML, ASAM OSI.
+directory, a Parquet file, a long-format CSV/Parquet file, SUMO FCD XML, CommonRoad XML, ASAM OSI,
+a highD-family folder, ASAM MDF4, a ROS 2 bag. :mod:`simcred.io.frames` turns trace sets into
+Arrow, pandas and polars tables and back.
 """
 
 from __future__ import annotations
