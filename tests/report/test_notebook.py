@@ -87,3 +87,18 @@ def test_comparison_shows_a_table_and_the_state_map_in_chromium(chromium, differ
     assert "<table>" in dom and "rejected states" in dom
     assert 'alt="state map"' in dom
     assert 'data-images-loaded="1/1"' in dom, dumped.stderr[-500:]
+
+
+def test_validation_html_shows_the_verdict_candidates_and_ranking(tmp_path):
+    from simcred.validate import read_inputs, read_validation, validate
+    from validate.conftest import write_universe
+
+    spec, base = read_validation(write_universe(tmp_path, runs=40, steps=100))
+    result = validate(spec, read_inputs(spec, base))
+    html = result._repr_html_()
+    assert f"<h4>Validation: {result.verdict}</h4>" in html
+    for name, verdict in result.candidates.items():
+        assert f"<td>{name}</td><td>{verdict.verdict}</td>" in html
+    assert any(r.score is not None for r in result.ranking)  # so the ranking is drawn
+    assert html.count('src="data:image/png;base64,') == 1
+    assert "&lt;= v &lt;= 25" in html  # the summary is text, escaped
