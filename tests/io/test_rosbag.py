@@ -17,7 +17,7 @@ from fuzz.test_cli_fuzz import run_isolated
 from simcred.cli import run
 from simcred.errors import OptionError, TraceSetError
 from simcred.io import detect, read
-from simcred.traces import RUN_INFO
+from simcred.traces import RUN_INFO, TraceSet
 
 STORE = get_typestore(Stores.ROS2_HUMBLE)
 T = STORE.types
@@ -228,3 +228,14 @@ def test_malformed_bag_is_one_line_exit_2(tmp_path, name):
 
 def test_twenty_malformed_cases():
     assert len(MALFORMED) == 20
+
+
+def test_convert_a_bag_by_namespace_to_parquet(tmp_path, capsys):
+    odoms = {f"/car{i}/odom": drive(3.0, v=float(i)) for i in (1, 2)}
+    bag = write_bag(tmp_path / "bag", odoms)
+    assert run(["--quiet", "convert", str(bag), str(tmp_path / "cars.parquet"), "--runs",
+                "namespace"]) == 0
+    back = TraceSet.read(tmp_path / "cars.parquet")
+    assert back.run_ids == ("car1", "car2") and back.run(1)["vx"].tolist() == [2.0] * 5
+    assert back.metadata["converted_from"]["format"] == "ros2"
+    assert back.metadata[RUN_INFO]["car2"]["topics"] == ["/car2/odom"]
