@@ -102,3 +102,14 @@ def test_validation_html_shows_the_verdict_candidates_and_ranking(tmp_path):
     assert any(r.score is not None for r in result.ranking)  # so the ranking is drawn
     assert html.count('src="data:image/png;base64,') == 1
     assert "&lt;= v &lt;= 25" in html  # the summary is text, escaped
+    cells = result.to_pandas()  # the cells behind the verdict, against the domains' records
+    expected = [(name, c.cell, c.status.value, c.reference_samples, c.candidate_samples)
+                for name, domain in result.domains.items() for c in domain.cells]
+    assert list(zip(cells["candidate"], cells["cell"], cells["status"],
+                    cells["reference_samples"], cells["candidate_samples"],
+                    strict=True)) == expected
+    judged = cells.dropna(subset=["x.estimate"])
+    for _, row in judged.iterrows():
+        bound = result.domains[row["candidate"]].cells[row["cell"]].bounds[0]
+        assert (row["x.estimate"], row["x.upper"]) == (bound.estimate, bound.upper)
+        assert row["v.low"] <= row["v.high"]

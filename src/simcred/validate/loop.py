@@ -33,6 +33,7 @@ from simcred.contracts.expr import Bool, negate, parse, to_text
 from simcred.contracts.library import Library
 from simcred.contracts.monitor import MonitorReport, monitor
 from simcred.errors import SimcredError
+from simcred.regions.tables import domains_frame
 from simcred.traces import TraceSet
 from simcred.validate.cells import Grid, grid_of, segments
 from simcred.validate.domain import CellStatus, Domain, cell_rule, learn_domain
@@ -94,6 +95,11 @@ class Validation:
     @property
     def exit_code(self) -> int:
         return EXIT_CODES[self.verdict]
+
+    def to_pandas(self):
+        """Every candidate's cells as a ``pandas.DataFrame`` (:func:`simcred.regions.tables.
+        domains_frame`: status, reason, data per side, deviation bounds per feature)."""
+        return domains_frame(self.domains.values())
 
     def _repr_html_(self) -> str:
         """Notebook display: a summary table and a figure (:mod:`simcred.report.notebook`)."""
