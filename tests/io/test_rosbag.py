@@ -114,6 +114,14 @@ def test_two_topics_with_the_same_stamps_are_leaf_prefixed(tmp_path):
     assert np.array_equal(ts.column("odom.x"), ts.column("pose.x"))
 
 
+def test_same_leaf_in_two_namespaces_is_refused_in_one_run(tmp_path):
+    bag = write_bag(tmp_path / "b", {"/car1/odom": drive(1.0), "/car2/odom": drive(1.0)})
+    with pytest.raises(TraceSetError, match="topics '/car1/odom' and '/car2/odom' would give "
+                                            "the same signals 'odom.\\*'"):
+        read(bag)
+    assert read(bag, runs="namespace").run_ids == ("car1", "car2")
+
+
 def test_a_directory_of_bags_is_a_run_per_bag(tmp_path):
     for k in (10, 2):
         write_bag(tmp_path / "bags" / f"run_{k}", {"/odom": drive(5.0, v=float(k))})

@@ -201,7 +201,13 @@ def _groups(topics: list[str], runs: str, where: str) -> dict[str, dict[str, str
     for topic in topics:
         namespace, _, leaf = topic.rstrip("/").rpartition("/")
         key = namespace.strip("/").replace("/", ".") if runs == "namespace" else ""
-        groups.setdefault(key, {})[leaf if runs == "namespace" or len(topics) > 1 else ""] = topic
+        members = groups.setdefault(key, {})
+        name = leaf if runs == "namespace" or len(topics) > 1 else ""
+        if name in members:
+            raise TraceSetError(f"{where}: topics '{members[name]}' and '{topic}' would give "
+                                f"the same signals '{leaf}.*' in one run; read them with "
+                                "runs='namespace' or one at a time (topics=)")
+        members[name] = topic
     first = sorted(next(iter(groups.values())))
     for name, members in groups.items():
         if sorted(members) != first:
