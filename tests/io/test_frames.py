@@ -168,3 +168,9 @@ def test_bad_options_are_option_errors():
         TraceSet.from_pandas(frame, run="t")
     with pytest.raises(TypeError):
         TraceSet.from_pandas(frame, run_column="run")  # the table API names it run=
+
+
+def test_a_signal_named_run_cannot_become_a_table():
+    ts = TraceSet.from_runs([{"t": [0, 1], "run": [5, 5]}], source="clash")
+    with pytest.raises(TraceSetError, match="clash: a signal is named 'run'"):
+        ts.to_pandas()

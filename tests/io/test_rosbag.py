@@ -114,6 +114,14 @@ def test_two_topics_with_the_same_stamps_are_leaf_prefixed(tmp_path):
     assert np.array_equal(ts.column("odom.x"), ts.column("pose.x"))
 
 
+def test_a_bags_mcap_file_points_to_the_bag_directory(tmp_path):
+    bag = write_bag(tmp_path / "m", {"/odom": drive(1.0)}, mcap=True)
+    with pytest.raises(TraceSetError, match="m.mcap: the storage file of a ROS 2 bag; read the "
+                                            "bag's directory"):
+        read(bag / "m.mcap")
+    assert read(bag).run_ids == ("m",)
+
+
 def test_same_leaf_in_two_namespaces_is_refused_in_one_run(tmp_path):
     bag = write_bag(tmp_path / "b", {"/car1/odom": drive(1.0), "/car2/odom": drive(1.0)})
     with pytest.raises(TraceSetError, match="topics '/car1/odom' and '/car2/odom' would give "

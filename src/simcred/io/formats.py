@@ -38,7 +38,7 @@ from simcred.io._xml import xml_root
 from simcred.io.levelx import is_levelx
 from simcred.io.mdf import SUFFIXES as MDF_SUFFIXES
 from simcred.io.mdf import files_in as mdf_files
-from simcred.io.rosbag import is_bag
+from simcred.io.rosbag import is_bag, is_ros2_mcap
 from simcred.outputs import output_path
 from simcred.traces import TraceSet
 
@@ -125,6 +125,10 @@ def detect(path: str | Path, *, for_writing: bool = False,
         return FORMATS["long"]
     if suffix in PARQUET_SUFFIXES:
         return FORMATS["long" if long_options else "parquet"]
+    if suffix == ".mcap" and not for_writing and is_ros2_mcap(path):
+        raise TraceSetError(f"{path}: the storage file of a ROS 2 bag; read the bag's directory "
+                            f"(metadata.yaml beside this file: {path.parent}; `ros2 bag reindex` "
+                            "writes a missing one)")
     if suffix in OSI_SUFFIXES:
         return FORMATS["osi"]
     if suffix in MDF_SUFFIXES and not for_writing:

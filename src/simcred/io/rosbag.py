@@ -50,6 +50,19 @@ def is_bag(directory: Path) -> bool:
         (p / METADATA).is_file() for p in directory.iterdir() if p.is_dir())
 
 
+def is_ros2_mcap(path: Path) -> bool:
+    """Whether ``path`` is an MCAP file with the ``ros2`` profile (the storage file of a bag)."""
+    # MCAP: magic (8 bytes), then the Header record: opcode 0x01, u64 length, u32 profile length,
+    # profile (https://mcap.dev/spec#header-op0x01)
+    try:
+        with open(path, "rb") as stream:
+            head = stream.read(8 + 1 + 8 + 4 + 4)
+    except OSError:
+        return False
+    return (head[:5] == b"\x89MCAP" and head[8:9] == b"\x01"
+            and int.from_bytes(head[17:21], "little") == 4 and head[21:25] == b"ros2")
+
+
 def read(path: Path, *, topics: Sequence[str] | None = None,
          fields: Sequence[str] | None = None, runs: str = "bag") -> TraceSet:
     """Read a ROS 2 bag or a directory of bags (see the module rules)."""
