@@ -306,8 +306,9 @@ class TraceSet:
     @classmethod
     def read(cls, path: str | Path, **options: Any) -> TraceSet:
         """Read any supported format (CSV directory, Parquet, long format, SUMO FCD, CommonRoad,
-        OSI, highD family, MDF4, ROS 2 bags); ``options`` such as ``run_column=`` go to the reader (:func:`simcred.io.read`,
-        registered with :func:`register_files`: the core does not import io)."""
+        OSI, highD family, MDF4, ROS 2 bags); ``options`` such as ``run_column=`` go to the
+        reader (:func:`simcred.io.read`, registered with :func:`register_files`: the core does
+        not import io)."""
         return _files().read(path, **options)
 
     def write(self, path: str | Path, **options: Any) -> Path:
