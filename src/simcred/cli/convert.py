@@ -21,7 +21,8 @@ def _signals(text: str | None) -> list[str] | None:
 def convert(
     source: Annotated[Path, typer.Argument(metavar="IN", help="Input: a CSV directory, .parquet, "
                                            "long .csv/.parquet, SUMO FCD .xml, CommonRoad .xml, "
-                                           "OSI .osi/.mcap.")],
+                                           "OSI .osi/.mcap, a highD-family folder, MDF4 .mf4, "
+                                           "a ROS 2 bag directory.")],
     target: Annotated[Path, typer.Argument(metavar="OUT", help="Output: a directory (CSV, one "
                                            "file per run), .parquet, .csv (long), .osi or .mcap.")],
     output_format: Annotated[str | None, typer.Option(
