@@ -73,13 +73,20 @@ def write(traces: TraceSet, kind: str = "arrow") -> Any:
         frame.attrs[ATTRS_KEY] = copy.deepcopy(dict(traces.metadata))
         return frame
     if kind == "polars":
-        import polars as pl
-
+        pl = _polars()
         if any("\0" in name for name in table.column_names):  # polars panics on them
             raise TraceSetError(f"{traces.source}: a signal name holds a NUL character, which "
                                 "polars cannot take in a column name")
         return pl.from_arrow(table)
     return table
+
+
+def _polars():
+    try:
+        import polars
+    except ImportError:
+        raise OptionError("polars tables need polars (pip install 'simcred[polars]')") from None
+    return polars
 
 
 def _check_kind(kind: str) -> None:
@@ -102,8 +109,7 @@ def _as_arrow(table: Any, kind: str, where: str) -> pa.Table:
             raise TraceSetError(f"{where}: not convertible to Arrow "
                                 f"({str(exc).splitlines()[0]})") from None
     if kind == "polars":
-        import polars as pl
-
+        pl = _polars()
         if not isinstance(table, pl.DataFrame):
             raise TraceSetError(f"{where}: expected a polars DataFrame, got "
                                 f"{type(table).__name__}")
