@@ -7,10 +7,12 @@
 
 over the states ``s`` that hold at least ``MIN_SHARE`` (0.5 %) of EACH side's transitions,
 ``w_s`` the average of the two sides' shares of ``s`` (renormalised over those states),
-``μ``/``σ`` the mean and standard deviation of the adjusted response
-(:mod:`simcred.compare.transitions`) in that state. Per state the bracket is the squared
-2-Wasserstein distance of the two normal laws with those moments: a bias, a delay (a shifted
-conditional mean), a gain or a variance change all enter, in the feature's own unit. The state
+``μ``/``σ`` the mean and standard deviation in that state of the response after the global
+covariate fit (:attr:`~simcred.compare.transitions.Transitions.effect_residual`: a state's own
+fit would absorb part of the A–B difference, more as more states get one). Per state the
+bracket is the squared 2-Wasserstein distance of the two normal laws with those moments: a bias,
+a delay (a shifted conditional mean), a gain or a variance change all enter, in the feature's
+own unit. The state
 set and the weights are defined by shares of the two response laws, not by counts, so ``E`` is
 one property of the two laws whatever the number or length of the runs (the paper's distance, a
 count of rejected tests, grows with them). A state must also be visited by ``MIN_UNITS`` (2)
@@ -295,7 +297,7 @@ class _Entries:
 
     @classmethod
     def of(cls, data: Transitions, design: Design) -> _Entries:
-        state, unit, x = data.state, data.unit, data.residual
+        state, unit, x = data.state, data.unit, data.effect_residual
         new = np.r_[True, (state[1:] != state[:-1]) | (unit[1:] != unit[:-1])]
         starts = np.flatnonzero(new)
         codes, index = np.unique(state[starts], return_inverse=True)
