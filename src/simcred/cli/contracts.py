@@ -406,8 +406,9 @@ def monitor_runs(
 
 
 def _setup_models(lib, setup: str) -> list[str]:
-    """The models of ``--setup COMPONENT=MODEL,...``; each must implement its component."""
-    models = []
+    """The models of ``--setup COMPONENT=MODEL,...``; each must implement its component, one
+    model per component."""
+    models, chosen = [], {}
     for item in setup.split(","):
         component, sep, model = (part.strip() for part in item.partition("="))
         if not sep or not component or not model:
@@ -418,5 +419,9 @@ def _setup_models(lib, setup: str) -> list[str]:
                 else f"no component '{component}'"
             raise OptionError(f"--setup: '{model}' is not a model of component '{component}' "
                               f"(models: {known})")
+        if component in chosen:
+            raise OptionError(f"--setup: component '{component}' has two models ('"
+                              f"{chosen[component]}' and '{model}'); a setup has one each")
+        chosen[component] = model
         models.append(model)
     return models
