@@ -3,8 +3,11 @@
 A setup picks one model per component of the architecture; it is sufficiently valid for a test
 case when the composition of the models' contracts refines the test case's contract.
 
-Search (our design). In the interval fragment (boxes), exact interval propagation with
-branch-and-bound (:mod:`.search`). Otherwise counterexample-guided: the cheapest selection that
+Search (our design), first path that applies, named in the result's ``method``: in the interval
+fragment (boxes), exact interval propagation with branch-and-bound (:mod:`.search`); with box
+guarantees on an acyclic architecture and any assumptions (non-convex domains, sums over
+inputs), 0-1 optimisation (:mod:`.optimise`, a MILP over the model choices); otherwise
+counterexample-guided: the cheapest selection that
 passes every constraint learned so far is proposed (exact branch-and-bound over the selections,
 :mod:`.selection`) and checked exactly with z3; if it fails, the counterexample is an operating
 point p, and at p every model's assumption and guarantee evaluate to constants, so "the
@@ -12,7 +15,8 @@ composition refines the test case at p" becomes a propositional constraint on th
 which excludes every selection that fails at p — not only the one checked. Each learned
 constraint is necessary for validity, so the first selection that passes is the cheapest valid
 one (optimality: the proposal is the exact optimum over all selections passing the learned
-constraints). No enumeration of the product of candidates is needed.
+constraints). No enumeration of the product of candidates is needed. Every path's answer is
+re-proven by the z3 refinement check and the realisability check (:mod:`.realisable`).
 """
 
 from __future__ import annotations
@@ -33,6 +37,7 @@ from simcred.contracts.algebra import (
 from simcred.contracts.evaluate import evaluate
 from simcred.contracts.expr import conjoin, conjuncts, to_text, variables
 from simcred.contracts.library import Library, LibraryError
+from simcred.contracts.optimise import optimise
 from simcred.contracts.realisable import Realisability, setup_realisability
 from simcred.contracts.search import branch_and_bound, interval_problem
 from simcred.contracts.selection import Constraints, cheapest
@@ -86,8 +91,8 @@ def configure(library: Library, test_case: str, *, fixed: dict[str, str] | None 
     counterexample-guided search over z3 ``Optimize``. ``search="cegis"`` forces the latter
     (for comparison).
     """
-    if search not in ("auto", "cegis"):
-        raise LibraryError(f"search must be 'auto' or 'cegis', got {search!r}")
+    if search not in ("auto", "cegis", "optimise"):
+        raise LibraryError(f"search must be 'auto', 'optimise' or 'cegis', got {search!r}")
     target = library.test_case(test_case)
     fixed = fixed or {}
     empty = [c for c in library.components() if not library.candidates(c) and c not in fixed]
@@ -140,7 +145,34 @@ def _search(library, test_case, target, choices, forbidden, search, timeout_ms, 
         result = _by_intervals(library, test_case, target, choices, problem, timeout_ms)
         if result is not None:
             return result
+    if search in ("auto", "optimise"):
+        result = _by_optimisation(library, test_case, target, choices, forbidden, timeout_ms)
+        if result is not None:
+            return result
     return _by_cegis(library, test_case, target, choices, timeout_ms, max_iterations, forbidden)
+
+
+def _by_optimisation(library, test_case, target, choices, forbidden, timeout_ms):
+    """0-1 optimisation in the box-guarantee fragment (:mod:`.optimise`); None outside it or
+    if z3 does not confirm the optimum (then CEGIS)."""
+    found = optimise(library, target, choices, forbidden)
+    if found is None:
+        return None
+    setups = int(np.prod([len(m) for m in choices.values()], dtype=object))
+    method = (f"0-1 optimisation over the model choices (MILP, HiGHS; box guarantees: "
+              f"{found.constraints} containment constraints, {found.checks} containments "
+              f"decided while encoding, {setups:,} setups)")
+    if found.setup is None:
+        return Configuration(test_case, Status.FAILS, None, None, None, 1, [],
+                             "no setup refines the test case (decided exactly over all "
+                             f"{setups:,} setups: no choice puts every model's input box "
+                             "inside its assumption and the outputs inside the test case's "
+                             "guarantee)", method)
+    proof = setup_refines(library, found.setup, target, timeout_ms=timeout_ms)
+    if proof.status is not Status.HOLDS:  # cannot happen (module docs of optimise); be safe
+        return None
+    return Configuration(test_case, Status.HOLDS, found.setup, found.cost, proof, 1, [], "",
+                         method + "; optimal by the solver, proven with z3")
 
 
 def _noting(result: Configuration, excluded: list[str]) -> Configuration:
