@@ -44,7 +44,7 @@ from fractions import Fraction
 import numpy as np
 
 from simcred.contracts.algebra import Status, valid
-from simcred.contracts.expr import Arith, Compare, Expr, Num, Var, conjoin, conjuncts
+from simcred.contracts.expr import Arith, Compare, Expr, Num, Var, conjoin, conjuncts, variables
 from simcred.contracts.intervals import REAL_LINE, Interval
 from simcred.contracts.parse import parse
 from simcred.contracts.search import _topological, box
@@ -90,7 +90,7 @@ def optimise(library, target, choices: dict[str, list[str]], forbidden=()) -> Op
     context = (choices, guarantee, environment, driver, index, types)
     consumers = [(index[c, m], library.model_contracts[m].assumption, inputs[c])
                  for c, ms in choices.items() for m in ms]
-    consumers.append((None, target.guarantee, tuple(sorted(_names(target.guarantee)))))
+    consumers.append((None, target.guarantee, tuple(sorted(variables(target.guarantee)))))
     for chosen, assumption, variables_ in consumers:
         found = _containment(assumption, variables_, context, counts)
         if found is None:
@@ -147,12 +147,6 @@ def _solve(choices, index, rows, costs) -> dict[str, str] | None:
         return None
     chosen = {key for key, i in index.items() if result.x[i] > 0.5}
     return {comp: next(m for m in ms if (comp, m) in chosen) for comp, ms in choices.items()}
-
-
-def _names(e: Expr) -> frozenset[str]:
-    from simcred.contracts.expr import variables
-
-    return variables(e)
 
 
 def _containment(assumption: Expr, variables_, context, counts):
