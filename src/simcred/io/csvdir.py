@@ -21,11 +21,10 @@ import pyarrow.csv as pacsv
 
 from simcred._json import read_json
 from simcred.errors import TraceSetError
-from simcred.io._columns import float_column
+from simcred.io._columns import MAX_COLUMNS, check_table, check_width, float_column
 from simcred.traces import TIME, TraceSet, _check_same_signals, handed_over
 
 METADATA_FILE = "traceset.json"
-MAX_COLUMNS = 10_000
 _READ = pacsv.ConvertOptions(null_values=[""], strings_can_be_null=True)
 
 
@@ -55,14 +54,12 @@ def _check_header(path: Path) -> None:
         header.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise TraceSetError(f"{path}: header is not UTF-8 (byte {exc.start})") from None
-    if header.count(b",") + 1 > MAX_COLUMNS:
-        raise TraceSetError(f"{path}: more than {MAX_COLUMNS} columns (the limit of "
-                            "simcred.io.csvdir.MAX_COLUMNS)")
+    check_width(header.count(b",") + 1, str(path))
 
 
 def _read_table(path: Path) -> pa.Table:
     _check_header(path)
-    table = _read_csv(path, _READ)
+    table = check_table(_read_csv(path, _READ), str(path))  # a quoted newline hides commas
     # Columns that look like integers are read again as floats: as int64, "-0" would lose its sign.
     ints = {f.name: pa.float64() for f in table.schema if pa.types.is_integer(f.type)}
     if ints:
@@ -88,8 +85,6 @@ def read(directory: Path) -> TraceSet:
     for path in files:
         table = _read_table(path)
         names = [n for n in table.column_names if n != TIME]
-        if len(set(table.column_names)) != len(table.column_names):
-            raise TraceSetError(f"{path}: duplicate column names {table.column_names}")
         if signals is None:
             signals = names
         else:
