@@ -30,8 +30,12 @@ MARKER_TEXT = b"written by simcred; --overwrite may replace this folder\n"
 
 
 def partial_path(out: Path) -> Path:
-    """Where the output is assembled before it is renamed into place."""
-    return out.with_name(out.name + PARTIAL_SUFFIX)
+    """Where the output is assembled before it is renamed into place: beside the resolved
+    ``out`` (so ``out`` typed relative, absolute or through a link has one partial output)."""
+    target = real(out)
+    if not target.name:
+        raise OptionError(f"--out {out} is the root folder: choose a folder of its own")
+    return target.with_name(target.name + PARTIAL_SUFFIX)
 
 
 def real(path: Path) -> Path:
@@ -152,7 +156,7 @@ def output_path(out: Path, inputs: Sequence[Path] = (), *, kind: str = "director
         half-written remains.
     """
     check_out(out, inputs, overwrite=overwrite, kind=kind)
-    partial = partial_path(out)
+    partial, out = partial_path(out), real(out)
     if partial.is_symlink() or (partial.exists() and not partial.is_dir()):
         raise OptionError(f"{partial} is not a directory simcred made: remove it or choose "
                           "another --out")
