@@ -170,6 +170,8 @@ def compare(
 ) -> None:
     """Compare two trace sets: a chain verdict and the fraction of distinguishable transitions
     (Neurohr et al.)."""
+    check_count(baseline, "permutations", "--baseline", minimum=0)  # before any work: each
+    check_count(bootstrap, "permutations", "--bootstrap", minimum=0)  # repeats the whole test
     extra = dict(baseline=baseline, bootstrap=bootstrap, relevance=relevance) \
         if test is Test.RUNS else {}
     if test is Test.RESPONSE:
