@@ -354,7 +354,7 @@ def example(
     out: Annotated[Path, typer.Option(help="Directory to write baseline/ and variant/ into.")],
     runs: Annotated[int, typer.Option(help="Runs per set.")] = 300,
     steps: Annotated[int, typer.Option(help="Steps per run.")] = 100,
-    seed: Annotated[int, typer.Option(help="Seed.")] = 0,
+    seed: Annotated[int, typer.Option(min=0, help="Seed.")] = 0,
     duration_scale: Annotated[float, typer.Option(help="Lane-change duration of the variant "
                                                        "relative to the baseline.")] = 0.8,
     parquet: Annotated[bool, typer.Option(help="Write Parquet files instead of CSV "

@@ -3,6 +3,8 @@ and the column limit every tabular format enforces."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 import pyarrow as pa
 
@@ -18,6 +20,15 @@ def check_width(count: int, where: str) -> None:
     if count > MAX_COLUMNS:
         raise TraceSetError(f"{where}: {count} columns, more than {MAX_COLUMNS} (the limit of "
                             "simcred.io._columns.MAX_COLUMNS)")
+
+
+def check_csv_header(names: Sequence[str], where: str) -> None:
+    """One line for a column name a CSV header cannot hold unquoted (a comma, a quote or a line
+    break), before a CSV writer starts."""
+    for name in names:
+        if any(c in name for c in ',"\r\n'):
+            raise TraceSetError(f"{where}: column {name!r} cannot be a CSV header cell (a comma, "
+                                "a quote or a line break): write Parquet")
 
 
 def check_table(table: pa.Table, where: str) -> pa.Table:

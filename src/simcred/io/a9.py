@@ -258,6 +258,7 @@ def read_a9(path: str | Path) -> A9Recording:
     table = _Table(str(path), header, rows)
     columns = {c: table.numbers(c, required=True) for c in EGO_COLUMNS}
     _check_time(table, columns["timestamp"])
+    _check_coordinates(str(path), columns["lat"], columns["long"])
     proj = _projection(columns["lat"][0], columns["long"][0])
     ego, offset, rms = _ego(columns, proj)
     objects = {k: _object(table, k, columns["timestamp"], ego)
@@ -356,6 +357,15 @@ def _object_ids(where: str, header: Sequence[str]) -> list[int]:
 
 
 # -- geometry -------------------------------------------------------------------------------------
+
+
+def _check_coordinates(where: str, lat: np.ndarray, lon: np.ndarray) -> None:
+    """One line for a fix off the globe (latitude beyond ±90°, longitude beyond ±180°)."""
+    for name, values, bound in (("lat", lat, 90.0), ("long", lon, 180.0)):
+        bad = np.flatnonzero(np.abs(values) > bound)
+        if bad.size:
+            raise TraceSetError(f"{where}: column '{name}', row {int(bad[0]) + 1}: "
+                                f"{values[bad[0]]:g} is outside [-{bound:g}, {bound:g}] degrees")
 
 
 def _projection(lat0: float, lon0: float) -> pyproj.Proj:

@@ -11,6 +11,7 @@ form, so write → read is exact.
 from __future__ import annotations
 
 import json
+import os
 import re
 import stat
 from pathlib import Path
@@ -21,10 +22,17 @@ import pyarrow.csv as pacsv
 
 from simcred._json import read_json
 from simcred.errors import TraceSetError
-from simcred.io._columns import MAX_COLUMNS, check_table, check_width, float_column
+from simcred.io._columns import (
+    MAX_COLUMNS,
+    check_csv_header,
+    check_table,
+    check_width,
+    float_column,
+)
 from simcred.traces import TIME, TraceSet, _check_same_signals, handed_over
 
 METADATA_FILE = "traceset.json"
+NAME_MAX = 255  # bytes of a file name on common file systems (ext4, XFS, APFS, NTFS in UTF-16)
 _READ = pacsv.ConvertOptions(null_values=[""], strings_can_be_null=True)
 
 
@@ -122,6 +130,10 @@ def write(traces: TraceSet, directory: Path) -> Path:
         if (not run_id or run_id.startswith(".") or any(c in run_id for c in "/\\\x00")
                 or not run_id.isprintable()):
             raise TraceSetError(f"{traces.source}: run id {run_id!r} cannot be a file name")
+        if len(os.fsencode(run_id)) + len(".csv") > NAME_MAX:
+            raise TraceSetError(f"{traces.source}: run id {run_id[:40]!r}... is longer than a "
+                                f"file name may be ({NAME_MAX} bytes with .csv): write Parquet")
+    check_csv_header(traces.signals, traces.source)
     directory.mkdir(parents=True, exist_ok=True)
     for old in directory.glob("*.csv"):
         old.unlink()

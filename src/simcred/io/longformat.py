@@ -44,7 +44,7 @@ import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 
 from simcred.errors import OptionError, TraceSetError
-from simcred.io._columns import check_table, check_width, float_column
+from simcred.io._columns import check_csv_header, check_table, check_width, float_column
 from simcred.io._paths import local
 from simcred.io.longformat_records import (
     MISSING,
@@ -350,5 +350,6 @@ def write(traces: TraceSet, path: str | Path, *, run_column: str = "run",
         meta = json.dumps(dict(traces.metadata), sort_keys=True).encode()
         pq.write_table(table.replace_schema_metadata({METADATA_KEY: meta}), local(path))
     else:
+        check_csv_header(table.column_names, traces.source)
         pacsv.write_csv(table, path, write_options=pacsv.WriteOptions(quoting_header="none"))
     return path
