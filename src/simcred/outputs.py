@@ -123,8 +123,13 @@ def _refuse_foreign(directory: Path, what: str) -> None:
                           "or choose another path")
 
 
-def _mark(directory: Path) -> None:
-    (directory / MARKER).write_bytes(MARKER_TEXT)
+def _make_partial(partial: Path) -> None:
+    """Create ``partial`` holding its :data:`MARKER`, atomically: a kill at any moment leaves
+    no partial output without its marker (which could then be neither resumed nor replaced)."""
+    partial.parent.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=f".{partial.name}-", dir=partial.parent))
+    (staging / MARKER).write_bytes(MARKER_TEXT)
+    os.rename(staging, partial)
 
 
 @contextmanager
@@ -162,21 +167,18 @@ def output_path(out: Path, inputs: Sequence[Path] = (), *, kind: str = "director
                           "another --out")
     lock, inherited = None, partial.exists()
     if inherited:
+        _refuse_foreign(partial, "the partial output")
         lock = _lock(partial)  # refuses a partial output another command is writing now
         if not resume:
             if not overwrite:
                 _unlock(lock)
                 raise OptionError(f"{partial} holds the output of an interrupted run: continue "
                                   "it with --resume or start over with --overwrite")
-            try:
-                _refuse_foreign(partial, "the partial output")
-            finally:
-                lock = _unlock(lock)
+            lock = _unlock(lock)
             shutil.rmtree(partial)
             inherited = False
     if not inherited:
-        partial.mkdir(parents=True, exist_ok=True)
-        _mark(partial)
+        _make_partial(partial)
     lock = lock if lock is not None else _lock(partial)
     try:
         yield partial if kind == "directory" else partial / out.name
