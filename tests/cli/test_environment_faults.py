@@ -160,3 +160,14 @@ def test_work_that_grows_with_an_option_is_bounded_before_it_starts(option, tmp_
     err = done.stderr.decode().strip()
     assert done.returncode == 2, err
     assert len(err.splitlines()) == 1 and "limit" in err
+
+
+def test_a_fifo_traceset_json_inside_a_csv_directory_is_refused(tmp_path):
+    runs = tmp_path / "runs"
+    runs.mkdir()
+    (runs / "run_0.csv").write_text("t,x\n0,1\n1,2\n")
+    os.mkfifo(runs / "traceset.json")
+    done = simcred_cli("convert", str(runs), str(tmp_path / "out.parquet"))
+    err = done.stderr.decode().strip()
+    assert done.returncode == 2 and len(err.splitlines()) == 1, err
+    assert "traceset.json: not a regular file" in err

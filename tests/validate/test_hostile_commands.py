@@ -67,3 +67,22 @@ def test_validate_places_the_output_of_a_command_without_out(tmp_path):
         assert Path(made[name].path).resolve() == (tmp_path / "DIR" / "runs" / name).resolve()
         assert sorted(p.name for p in (tmp_path / "DIR" / "runs" / name).glob("*.csv")) == \
             ["run_00000.csv", "run_00001.csv"]
+
+
+def test_a_disk_fault_in_a_candidates_simulation_is_exit_74(tmp_path, monkeypatch, capsys):
+    """The nested simulate leaves the fault to validate, which reports it once."""
+    import errno
+    import os
+
+    import pyarrow.csv as pacsv
+
+    def full(table, where, *args, **kwargs):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(where))
+
+    path = write_universe(tmp_path, runs=10, steps=20, candidates={
+        "sim": {"simulate": {"command": SIMPLECAR, "output": "."}}})
+    monkeypatch.setattr(pacsv, "write_csv", full)
+    assert run(["-q", "validate", str(path), "--out", str(tmp_path / "DIR")]) == 74
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "no space left" in err
+    assert not (tmp_path / "DIR").exists() and not (tmp_path / "DIR.partial").exists()

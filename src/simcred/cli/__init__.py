@@ -54,8 +54,8 @@ def run(argv: Sequence[str] | None = None, *, propagate_interrupt: bool = False)
     Bad input and usage: exit 2. The environment refused (disk full, read-only, permission,
     name too long, out of memory): exit 74 with one line naming the path. Ctrl-C: exit 130
     (a command that can resume keeps ``OUT.partial`` and says so), or, with
-    ``propagate_interrupt`` (a command run inside another), the interruption is raised to the
-    caller, which reports it once. A defect of
+    ``propagate_interrupt`` (a command run inside another), the interruption or environment
+    fault is raised to the caller, which reports it once. A defect of
     simcred itself: exit 70 with one line, the traceback only under ``--debug``.
     """
     args = list(sys.argv[1:] if argv is None else argv) or ["--help"]
@@ -75,8 +75,8 @@ def run(argv: Sequence[str] | None = None, *, propagate_interrupt: bool = False)
         error_line(str(exc))
         return EXIT_BAD_INPUT
     except (OSError, MemoryError) as exc:  # the system refused: not a defect of simcred
-        if State.debug or "--debug" in args:
-            raise
+        if State.debug or "--debug" in args or propagate_interrupt:
+            raise  # a nested command leaves it to the outer one, which reports it once
         error_line(environment_fault(exc))
         return EXIT_ENVIRONMENT
     except Exception as exc:
