@@ -92,3 +92,13 @@ def test_duplicate_column_names_are_one_line(reader, tmp_path):
                                             names=["run", "t", "x", "x"]), path)
     with pytest.raises(TraceSetError, match=r"'x' appears more than once|matches for .*\(x\)"):
         reader(path)
+
+
+def test_an_a9_recording_over_the_limit_is_refused(tmp_path):
+    from simcred.io.a9 import read_a9
+
+    path = tmp_path / "a9.csv"
+    names = ["timestamp", *(f"c{j}" for j in range(MAX_COLUMNS))]
+    path.write_text(",".join(names) + "\n" + ",".join(["0"] * len(names)) + "\n")
+    with pytest.raises(TraceSetError, match="more than 10000"):
+        read_a9(path)

@@ -35,6 +35,7 @@ import numpy as np
 import pyproj
 
 from simcred.errors import TraceSetError
+from simcred.io._columns import check_width
 from simcred.kinematics import MOTION_SIGNALS, Track, read_only
 from simcred.traces import TIME, TraceSet
 
@@ -287,7 +288,8 @@ def _read_rows(path: Path) -> tuple[list[str], list[tuple[int, list[str]]]]:
     if not header:
         raise TraceSetError(f"{path}: empty file (no header row)")
     header = [h.strip() for h in header]
-    duplicates = sorted({h for h in header if header.count(h) > 1})
+    check_width(len(header), str(path))
+    duplicates = sorted(h for h, n in Counter(header).items() if n > 1)  # linear, not quadratic
     if duplicates:
         raise TraceSetError(f"{path}: duplicate column names {duplicates}")
     if len(rows) < 2:
