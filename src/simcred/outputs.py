@@ -128,8 +128,12 @@ def _make_partial(partial: Path) -> None:
     no partial output without its marker (which could then be neither resumed nor replaced)."""
     partial.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{partial.name}-", dir=partial.parent))
-    (staging / MARKER).write_bytes(MARKER_TEXT)
-    os.rename(staging, partial)
+    try:
+        (staging / MARKER).write_bytes(MARKER_TEXT)
+        os.rename(staging, partial)
+    except BaseException:  # e.g. the disk is full: nothing is left behind
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
 
 
 @contextmanager
