@@ -187,6 +187,8 @@ def output_path(out: Path, inputs: Sequence[Path] = (), *, kind: str = "director
     try:
         yield partial if kind == "directory" else partial / out.name
     except BaseException as exc:
+        if isinstance(exc, OSError) and exc.filename is None:  # pyarrow names no file
+            exc.filename = str(out)
         # a resumed run never removes what an earlier run finished, even when it is refused
         keep = inherited or (keep_partial(exc) if callable(keep_partial) else keep_partial)
         if not keep:

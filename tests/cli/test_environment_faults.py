@@ -22,14 +22,16 @@ EXAMPLE = ["-q", "example", "--runs", "3", "--steps", "5"]
 SRC = str(Path(simcred.__file__).resolve().parents[1])
 
 
-def simcred_cli(*args: str, limit_mb: int | None = None) -> subprocess.CompletedProcess:
-    """``simcred ARGS`` in a fresh interpreter (optionally under ``ulimit -v``), 10 s at most."""
+def simcred_cli(*args: str, limit_mb: int | None = None,
+                timeout: float = 10) -> subprocess.CompletedProcess:
+    """``simcred ARGS`` in a fresh interpreter (optionally under ``ulimit -v``), 10 s at most
+    by default (a hang is a failure)."""
     prelude = "" if limit_mb is None else (
         f"import resource; resource.setrlimit(resource.RLIMIT_AS, ({limit_mb << 20},) * 2); ")
     code = prelude + "import sys; from simcred.cli import run; sys.exit(run(sys.argv[1:]))"
     env = {**os.environ, "PYTHONPATH": SRC, "OPENBLAS_NUM_THREADS": "1"}
-    return subprocess.run([sys.executable, "-c", code, *args], capture_output=True, timeout=10,
-                          env=env)
+    return subprocess.run([sys.executable, "-c", code, *args], capture_output=True,
+                          timeout=timeout, env=env)
 
 
 def tree(root: Path) -> dict[str, bytes]:
@@ -77,7 +79,8 @@ def test_a_name_too_long_is_one_line_exit_74(tmp_path, capsys):
 def test_out_of_memory_under_ulimit_is_one_line_exit_74(tmp_path):
     """90,000 runs of 1,000 steps need more than 1.5 GB of address space."""
     done = simcred_cli("-q", "example", "--runs", "90000", "--steps", "1000", "--out",
-                       str(tmp_path / "big.parquet"), limit_mb=1500)
+                       str(tmp_path / "big.parquet"), limit_mb=1500,
+                       timeout=30)  # about 3 s alone; the allocation pages memory in
     err = done.stderr.decode().strip()
     assert done.returncode == EXIT_ENVIRONMENT, err
     assert len(err.splitlines()) == 1 and "out of memory" in err
@@ -171,3 +174,48 @@ def test_a_fifo_traceset_json_inside_a_csv_directory_is_refused(tmp_path):
     err = done.stderr.decode().strip()
     assert done.returncode == 2 and len(err.splitlines()) == 1, err
     assert "traceset.json: not a regular file" in err
+
+
+@pytest.fixture
+def small_disk(tmp_path):
+    """A 1 MB tmpfs (needs the right to mount; skipped without it)."""
+    folder = tmp_path / "small"
+    folder.mkdir()
+    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=1m", "tmpfs", str(folder)],
+                             capture_output=True)
+    if mounted.returncode != 0:
+        pytest.skip("cannot mount a tmpfs here")
+    try:
+        yield folder
+    finally:
+        subprocess.run(["umount", str(folder)], check=True)
+
+
+def test_a_real_full_disk_keeps_the_old_output_and_says_what_was_kept(small_disk, capsys):
+    out = small_disk / "out"
+    assert run([*EXAMPLE, "--parquet", "--out", str(out)]) == 0
+    before = tree(small_disk)
+    for args in ([*EXAMPLE[:2], "--runs", "300", "--steps", "100", "--parquet", "--out",
+                  str(out), "--overwrite"],
+                 [*EXAMPLE[:2], "--runs", "300", "--steps", "100", "--out", str(out),
+                  "--overwrite"]):
+        capsys.readouterr()
+        assert run(args) == EXIT_ENVIRONMENT
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and f"{out}: no space left" in err, err
+        assert tree(small_disk) == before and not partial_path(out).exists()
+    # a resumable command keeps its finished chunks and says so
+    target = small_disk / "t.parquet"
+    assert run(["-q", "simulate", "tjunction", "--runs", "50", "--out", str(target)]) == \
+        EXIT_ENVIRONMENT
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "kept in" in err and "--resume" in err, err
+    assert not target.exists() and partial_path(target).is_dir()
+
+
+def test_a_read_only_file_system_is_one_line_exit_74(small_disk, capsys):
+    subprocess.run(["mount", "-o", "remount,ro", str(small_disk)], check=True)
+    assert run([*EXAMPLE, "--out", str(small_disk / "out")]) == EXIT_ENVIRONMENT
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "read-only" in err and str(small_disk) in err, err
+    assert list(small_disk.iterdir()) == []

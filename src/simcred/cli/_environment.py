@@ -31,19 +31,20 @@ _ADVICE = {
 def environment_fault(exc: BaseException) -> str | None:
     """The one line for an environment fault (an ``OSError`` or a ``MemoryError``), else None.
 
-    A command that fails so has removed its partial output (a resumable one keeps its finished
-    chunks), as on any other error.
+    A command that fails so has removed its partial output, as on any other error; a resumable
+    one keeps its finished chunks and says so (a note on the exception).
     """
+    kept = "; ".join(getattr(exc, "__notes__", ()))  # what a resumable command kept
     if isinstance(exc, MemoryError):
-        return ("out of memory: use smaller inputs or options (runs, permutations, bins, "
+        line = ("out of memory: use smaller inputs or options (runs, permutations, bins, "
                 "resample period), or a machine with more memory")
-    if not isinstance(exc, OSError):
+    elif isinstance(exc, OSError):
+        names = [str(n) for n in (exc.filename, exc.filename2) if n is not None]
+        where = " -> ".join(names) if names else "a file"
+        line = f"{where}: {_ADVICE.get(exc.errno, exc.strerror or type(exc).__name__)}"
+    else:
         return None
-    names = [str(n) for n in (exc.filename, exc.filename2) if n is not None]
-    where = " -> ".join(names) if names else "a file"
-    advice = _ADVICE.get(exc.errno, exc.strerror or type(exc).__name__)
-    return f"{where}: {advice} (nothing partial was left; no output was changed)" \
-        if exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG) else f"{where}: {advice}"
+    return line + (f" ({kept})" if kept else "")
 
 
 def undecodable_name(exc: BaseException) -> str | None:

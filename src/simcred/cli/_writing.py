@@ -114,6 +114,11 @@ def writing(out: Path, *inputs: Path, kind: str = "directory", overwrite: bool =
             yield holder[0]
     except KeyboardInterrupt:
         raise Interrupted(_interrupted(out, holder[0] if holder else None)) from None
+    except (OSError, MemoryError) as exc:  # reported by the CLI (exit 74) with this note
+        if holder and holder[0].kept():
+            exc.add_note(f"{_chunks(holder[0].kept())} kept in {partial}: --resume continues "
+                         "once the cause is fixed")
+        raise
     except SimcredError as exc:
         if holder and holder[0].kept():
             raise SimcredError(f"{exc} ({_chunks(holder[0].kept())} kept in {partial}: "
