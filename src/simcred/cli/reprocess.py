@@ -68,7 +68,7 @@ def reprocess(
              "never bridged silently).")] = 0.5,
     long_gaps: Annotated[LongGaps, typer.Option(
         help="A longer gap: error, or reprocess the longest stretch without one.")] = "error",
-    seed: Annotated[int, typer.Option(help="Seed of the resimulations' sensor noise.")] = 0,
+    seed: Annotated[int, typer.Option(min=0, help="Seed of the resimulations' sensor noise.")] = 0,
     threshold: Annotated[float, typer.Option(help="Position RMSE [m] at which the fit stops "
                                                   "adding sections.")] = 0.02,
     scenario_based: Annotated[bool, typer.Option(
@@ -167,7 +167,7 @@ def vary(
                                                      "descriptions/fit_GT.json of reprocess).")],
     out: Annotated[Path, typer.Option(help="Directory for variations, runs and figures.")],
     n: Annotated[int, typer.Option("-n", "--n", help="Variations to generate.")] = 300,
-    seed: Annotated[int, typer.Option(help="Seed: variation i uses SeedSequence(seed, "
+    seed: Annotated[int, typer.Option(min=0, help="Seed: variation i uses SeedSequence(seed, "
                                            "spawn_key=(i,)); paper 002 varies with its seed "
                                            "+ 1.")] = 0,
     vehicle: ResimVehicle = "ks",

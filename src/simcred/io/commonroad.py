@@ -122,6 +122,9 @@ def read(path: str | Path, *, layout: str = "obstacles", missing: str = "error")
     path = Path(path)
     scenario = _open(path)
     dt = float(scenario.dt)
+    if not (math.isfinite(dt) and dt > 0):  # a negative step would reverse every run's time
+        raise TraceSetError(f"{path}: timeStepSize must be a positive number of seconds, got "
+                            f"{scenario.dt}")
     moving = [o for o in scenario.dynamic_obstacles if len(obstacle_states(o)) >= 2]
     still = [o.obstacle_id for o in scenario.dynamic_obstacles if len(obstacle_states(o)) < 2]
     if not moving:
