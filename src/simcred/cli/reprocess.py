@@ -34,6 +34,11 @@ class CrossingSide(StrEnum):
     right = "right"
 
 
+class RoadFrame(StrEnum):
+    given = "given"
+    ego = "ego"
+
+
 class LongGaps(StrEnum):
     error = "error"
     longest = "longest"
@@ -63,6 +68,13 @@ def reprocess(
         help="Long format: the run to reprocess when the table has several.")] = None,
     gt: Annotated[Path | None, typer.Option(
         help="Long format: a second table with the ground truth (same columns).")] = None,
+    time_scale: Annotated[float, typer.Option(
+        help="Long format: seconds per unit of the time column (0.001 for milliseconds).")
+    ] = 1.0,
+    road_frame: Annotated[RoadFrame, typer.Option(
+        help="Long format: 'given' (the table's x axis is the road, refused if the EGO does "
+             "not travel along +x) or 'ego' (rotate into the EGO's direction of travel, a "
+             "straight road assumed).")] = "given",
     max_gap: Annotated[float, typer.Option(
         help="Longest gap [s] in an object's samples that is reprocessed (gaps are reported, "
              "never bridged silently).")] = 0.5,
@@ -93,8 +105,13 @@ def reprocess(
     if object_id is not None and object_id.lower() == "all":
         _reprocess_all(measurement, ego, config, out, as_json, overwrite)
         return
-    columns = (None if all(v is None for v in (time_column, run_column, object_column, run))
-               else LongColumns(time_column or "t", run_column, object_column, run))
+    check_finite(time_scale, "--time-scale", minimum=0, open_minimum=True)
+    long_options = (time_column, run_column, object_column, run,
+                    None if time_scale == 1.0 else time_scale,
+                    None if road_frame is RoadFrame.given else road_frame)
+    columns = (None if all(v is None for v in long_options)
+               else LongColumns(time_column or "t", run_column, object_column, run,
+                                time_scale, road_frame.value))
     with writing(out, *inputs, overwrite=overwrite) as target:
         drive = read_measurement(measurement, object_id, ego=ego, long=columns, gt=gt)
         try:

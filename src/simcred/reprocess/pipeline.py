@@ -37,6 +37,7 @@ from simcred.reprocess.reaction import Reaction, ReactionCriteria, reaction, rea
 from simcred.reprocess.representation import GT, SD, Rep, Source
 from simcred.reprocess.representation import Sensor as SensorKind
 from simcred.reprocess.timebase import MAX_GAP, Aligned, Drive, align
+from simcred.reprocess.units import check_units
 from simcred.risk import VehicleStates, risk, time_headway, time_to_collision
 from simcred.scenario.description import ScenarioDescription
 from simcred.scenario.fit import ScenarioFit, fit_scenario
@@ -126,6 +127,7 @@ def reprocess(measurement: Measurement | Drive, config: ReprocessConfig | None =
     say = progress or (lambda _: None)
     objects = (c.ego, *c.objects)
     drive = measurement if isinstance(measurement, Drive) else Drive.of_measurement(measurement)
+    check_units(drive, objects)
     aligned = align(drive, objects, max_gap=c.max_gap, long_gaps=c.long_gaps)
     times = aligned.times
     raw = {name: aligned.tracks[str(name)] for name in (SD, GT) if str(name) in aligned.tracks}
