@@ -39,6 +39,11 @@ class RoadFrame(StrEnum):
     ego = "ego"
 
 
+class AdParameters(StrEnum):
+    recording = "recording"
+    default = "default"
+
+
 class LongGaps(StrEnum):
     error = "error"
     longest = "longest"
@@ -80,6 +85,15 @@ def reprocess(
              "never bridged silently).")] = 0.5,
     long_gaps: Annotated[LongGaps, typer.Option(
         help="A longer gap: error, or reprocess the longest stretch without one.")] = "error",
+    ad_parameters: Annotated[AdParameters | None, typer.Option(
+        help="The resimulated EGO's set speed and lanes: 'recording' (the recorded EGO's highest "
+             "speed, its lane centred on its first position; default for A9, CommonRoad and "
+             "long-format input) or 'default' (100 km/h, lanes at y = 0 and 3.5 m: the "
+             "manufactured universe's AD function; default for a measurement directory).")
+    ] = None,
+    set_speed: Annotated[float | None, typer.Option(
+        help="Set speed [m/s] of the resimulated EGO's ACC (instead of the recorded or "
+             "default one).")] = None,
     seed: Annotated[int, typer.Option(help="Seed of the resimulations' sensor noise.")] = 0,
     threshold: Annotated[float, typer.Option(help="Position RMSE [m] at which the fit stops "
                                                   "adding sections.")] = 0.02,
@@ -101,7 +115,8 @@ def reprocess(
     inputs = (measurement, *([gt] if gt is not None else []))
     config = ReprocessConfig(vehicle=vehicle, seed=seed, threshold=threshold,
                              scenario_based=scenario_based, max_gap=max_gap,
-                             long_gaps=long_gaps.value)
+                             long_gaps=long_gaps.value,
+                             **_ad_options(measurement, ad_parameters, set_speed))
     if object_id is not None and object_id.lower() == "all":
         _reprocess_all(measurement, ego, config, out, as_json, overwrite)
         return
@@ -123,9 +138,25 @@ def reprocess(
         sys.stdout.write(summary)
     elif not State.quiet:
         _print_input(result.input_report)
+        _print_ad_function(result.ad_function)
         _print_reactions(result)
         say(f"wrote errors.json, reaction.json, descriptions, scenario.xosc and "
             f"figures to {out}")
+
+
+def _ad_options(measurement: Path, parameters: AdParameters | None,
+                set_speed: float | None) -> dict:
+    """``driver`` and ``from_recording`` of the ReprocessConfig for the AD-function options."""
+    from simcred.sim.driver import DriverConfig
+
+    if parameters is None:
+        parameters = AdParameters.default if measurement.is_dir() else AdParameters.recording
+    recorded = ("set_speed", "lanes") if parameters is AdParameters.recording else ()
+    if set_speed is None:
+        return {"from_recording": recorded}
+    check_finite(set_speed, "--set-speed", minimum=0, open_minimum=True)
+    return {"driver": DriverConfig(set_speed=set_speed),
+            "from_recording": tuple(p for p in recorded if p != "set_speed")}
 
 
 def _reprocess_all(path: Path, ego: str | None, config, out: Path, as_json: bool,
@@ -247,8 +278,16 @@ def _print_campaign(summary: dict) -> None:
     out_console.print(plain_table("variation campaign", ("what", "value"), rows))
 
 
+def _print_ad_function(ad: dict) -> None:
+    """The resimulated EGO's AD function and where its parameters came from."""
+    lanes = ", ".join(f"{y:.2f}" for y in ad["lane_centres"])
+    say(f"AD function: set speed {ad['set_speed']:.2f} m/s ({ad['from']['set_speed']}), lanes "
+        f"at y = {lanes} m ({ad['from']['lanes']})")
+
+
 def _print_reactions(result) -> None:
-    rows = [(str(name), r.manoeuvre, "—" if r.time != r.time else f"{r.time:.2f}",
+    rows = [(str(name), r.manoeuvre, "—" if r.time != r.time else
+             f"{r.time:.2f}{'' if r.measurable else ' (at the start: not measurable)'}",
              f"{result.risk[name]['risk'].max():.3g}") for name, r in result.reactions.items()]
     out_console.print(plain_table("EGO reaction per representation",
                                   ("trace", "manoeuvre", "reaction time [s]", "max risk"), rows))

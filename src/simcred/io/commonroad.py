@@ -146,12 +146,25 @@ def read(path: str | Path, *, layout: str = "obstacles", missing: str = "error")
     )
     metadata = {"format": "commonroad", "scenario_id": str(scenario.scenario_id), "dt": dt,
                 "layout": layout}
+    metadata["obstacles"] = {str(o.obstacle_id): _obstacle_kind(o) for o in moving}
     if still:
         metadata["obstacles_without_trajectory"] = still
     if partial:
         metadata["partial_quantities"] = partial
     return to_traceset(records, objects_as="runs" if layout == "obstacles" else "signals",
                        missing=missing, metadata=metadata, source=str(path))
+
+
+def _obstacle_kind(obstacle) -> dict:
+    """The obstacle's type (CommonRoad ``ObstacleType`` value) and, for a rectangle or a circle,
+    its footprint ``length`` × ``width`` (m; a circle: its diameter both)."""
+    kind = {"type": str(obstacle.obstacle_type.value)}
+    shape = obstacle.obstacle_shape
+    if hasattr(shape, "length") and hasattr(shape, "width"):
+        kind.update(length=float(shape.length), width=float(shape.width))
+    elif hasattr(shape, "radius"):
+        kind.update(length=2 * float(shape.radius), width=2 * float(shape.radius))
+    return kind
 
 
 # -- choosing the EGO for reprocessing one obstacle ------------------------------------------------

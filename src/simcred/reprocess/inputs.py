@@ -7,6 +7,8 @@
 * a **CommonRoad XML** scenario: one obstacle is the TO, the EGO is another recorded obstacle
   (given, or the TO's follower, :func:`simcred.io.commonroad.follower`); both over the time steps
   they share, in a road frame (:func:`road_frame`); the recording enters the pipeline as SD;
+  each one's CommonRoad type and footprint (rectangle; a circle's diameter) go into the
+  metadata (``objects``), and a pedestrian or bicycle is refused as the EGO;
 * a **long-format CSV/Parquet** table (:mod:`simcred.io.longformat`): the EGO's and the TO's
   ``x, y`` and optionally ``v, heading`` per time (by object column, or as ``<name>.x``
   columns; a missing ``v`` / ``heading`` column is derived from the positions, central
@@ -49,6 +51,7 @@ from simcred.scenario.frenet import to_path_frame
 from simcred.traces import TIME, TraceSet
 
 EGO, TO = "ego", "to"
+NOT_DRIVEN = ("pedestrian", "bicycle")  # CommonRoad types an ACC does not drive: never the EGO
 ROAD_TOLERANCE = 0.2  # rad: a long table's EGO must travel this close to +x (else no road frame)
 ROAD_FRAMES = ("given", "ego")
 MIN_CHORD = 5.0  # m: an EGO that moves less than this gives the road direction by its heading
@@ -174,13 +177,21 @@ def commonroad_drive(path: str | Path, obstacle: int | str, ego: int | str | Non
         ego_run, rule = _obstacle_run(path, traces, ego, "--ego"), "given (--ego)"
         if ego_run == to_run:
             raise OptionError(f"{path}: --ego and --object are both obstacle {obstacle}")
+    kinds = traces.metadata.get("obstacles", {})
+    objects = {role: kinds.get(run[3:], {"type": "unknown"})
+               for role, run in ((EGO, ego_run), (TO, to_run))}
+    if objects[EGO]["type"] in NOT_DRIVEN:
+        raise TraceSetError(f"{path}: obstacle {ego_run[3:]} is a {objects[EGO]['type']}: it "
+                            "cannot be the EGO, whose resimulation is a car's ACC (choose a "
+                            "vehicle with --ego)")
     tracks = _shared_steps(path, {EGO: _obstacle_track(traces, ego_run),
                                   TO: _obstacle_track(traces, to_run)}, ego_run, to_run)
     tracks, frame = road_frame(tracks)
     selection = f"to={to_run[3:]} ego={ego_run[3:]}"
     metadata = {"source": str(path), "format": "commonroad",
                 "scenario_id": traces.metadata.get("scenario_id"), "object": int(to_run[3:]),
-                "ego": int(ego_run[3:]), "ego_choice": rule, "frame": frame}
+                "ego": int(ego_run[3:]), "ego_choice": rule, "frame": frame,
+                "objects": objects}
     digest = tracks_digest(tracks, _file_sha256(path), selection)
     return Drive(Recording(str(path), tracks, digest), None, metadata)
 

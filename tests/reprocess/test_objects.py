@@ -1,0 +1,80 @@
+"""Objects as they are (issue 24 item 2): CommonRoad type and footprint flow into the fit, the
+risk and the .xosc; a pedestrian or bicycle is never the EGO driven by the ACC."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from simcred.errors import SimcredError
+from simcred.io import commonroad
+from simcred.reprocess.inputs import commonroad_drive
+from simcred.reprocess.pipeline import ReprocessConfig, reprocess
+
+US101 = Path(__file__).parents[1] / "data" / "commonroad-ngsim" / "USA_US101-3_3_T-1.xml"
+TRUCK = 387  # 10.5 m long; its follower 408 is a 4.7 m car
+
+
+def _xml_kinds(text: str) -> dict[str, tuple[str, float, float]]:
+    """Type, length and width of every obstacle, read literally from the XML text."""
+    kinds = {}
+    for block in re.findall(r'<obstacle id="(\d+)">(.*?)</obstacle>', text, flags=re.S):
+        number, body = block
+        kinds[number] = (re.search(r"<type>(\w+)</type>", body)[1],
+                         float(re.search(r"<length>([\d.]+)</length>", body)[1]),
+                         float(re.search(r"<width>([\d.]+)</width>", body)[1]))
+    return kinds
+
+
+def test_the_reader_keeps_every_obstacles_type_and_footprint():
+    traces = commonroad.read(US101)
+    literal = _xml_kinds(US101.read_text())
+    kinds = traces.metadata["obstacles"]
+    assert set(kinds) == {r[3:] for r in traces.run_ids}
+    for number, kind in kinds.items():
+        assert (kind["type"], kind["length"], kind["width"]) == literal[number]
+
+
+@pytest.fixture(scope="module")
+def truck():
+    return reprocess(commonroad_drive(US101, TRUCK), ReprocessConfig(scenario_based=False))
+
+
+def test_a_trucks_footprint_is_its_recorded_shape_in_every_description(truck):
+    literal = _xml_kinds(US101.read_text())
+    ego = truck.input_report["drive"]["ego"]
+    for description in truck.descriptions.values():
+        for role, number in (("to", str(TRUCK)), ("ego", str(ego))):
+            track = description.objects[role]
+            assert (track.length, track.width) == literal[number][1:]
+    assert literal[str(TRUCK)][1] > 10.0  # not the 4.5 m car it used to be
+
+
+def test_the_headway_is_bumper_to_bumper_with_the_recorded_lengths(truck):
+    description = truck.descriptions["fit(SD)"]
+    t = truck.risk["SD"]["t"]
+    e, o = description.objects["ego"].states(t), description.objects["to"].states(t)
+    length = 0.5 * (description.objects["ego"].length + description.objects["to"].length)
+    width = 0.5 * (description.objects["ego"].width + description.objects["to"].width)
+    lead = (o.x > e.x) & (np.abs(o.y - e.y) < width)
+    speed = e.v * np.cos(e.heading)  # along the road
+    literal = np.where(lead, np.maximum(np.abs(o.x - e.x) - length, 0) / speed, np.inf)
+    assert lead.sum() > 10
+    np.testing.assert_allclose(truck.risk["SD"]["thw"], literal, rtol=1e-12)
+
+
+def test_a_pedestrian_is_never_the_ego(tmp_path):
+    text = US101.read_text()
+    ego = commonroad_drive(US101, TRUCK).metadata["ego"]
+    changed = re.sub(rf'(<obstacle id="{ego}">\s*<role>dynamic</role>\s*<type>)car(</type>)',
+                     r"\1pedestrian\2", text)
+    assert changed != text
+    path = tmp_path / "pedestrian.xml"
+    path.write_text(changed)
+    with pytest.raises(SimcredError, match=f"obstacle {ego} is a pedestrian: it cannot be the "
+                                           "EGO") as info:
+        commonroad_drive(path, TRUCK)
+    assert len(str(info.value).splitlines()) == 1
