@@ -78,3 +78,28 @@ def test_a_pedestrian_is_never_the_ego(tmp_path):
                                            "EGO") as info:
         commonroad_drive(path, TRUCK)
     assert len(str(info.value).splitlines()) == 1
+
+
+def test_the_xosc_has_the_recorded_categories_footprints_and_pedestrians(tmp_path):
+    import xml.etree.ElementTree as ET
+
+    from simcred.scenario.fit import fit_scenario
+    from simcred.scenario.openscenario import to_openscenario, validate_openscenario
+
+    t = np.arange(0.0, 4.0 + 1e-9, 0.1)
+    series = {"ego": (t, 10 * t, 0 * t), "to": (t, 30 + 12 * t, 0 * t + 3.5),
+              "walker": (t, 50 + 0 * t, -5 + 1.4 * t)}
+    kinds = {"ego": {"type": "car"}, "to": {"type": "truck"}, "walker": {"type": "pedestrian"}}
+    description = fit_scenario(series, dimensions={"to": (14.0, 2.5), "walker": (0.6, 0.6)},
+                               metadata={"objects": kinds}).description
+    path = to_openscenario(description, tmp_path / "scene.xosc")
+    validate_openscenario(path)
+    objects = {o.get("name"): o for o in ET.parse(path).getroot().iter("ScenarioObject")}
+    truck = objects["to"].find("Vehicle")
+    assert truck.get("vehicleCategory") == "truck"
+    assert float(truck.find("BoundingBox/Dimensions").get("length")) == 14.0
+    assert objects["ego"].find("Vehicle").get("vehicleCategory") == "car"
+    walker = objects["walker"].find("Pedestrian")
+    assert objects["walker"].find("Vehicle") is None and walker is not None
+    assert walker.get("pedestrianCategory") == "pedestrian"
+    assert float(walker.find("BoundingBox/Dimensions").get("width")) == 0.6

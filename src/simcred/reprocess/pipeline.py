@@ -147,11 +147,13 @@ def reprocess(measurement: Measurement | Drive, config: ReprocessConfig | None =
               for name, tracks in raw.items()}
     fits, resims = {}, {}
     dimensions = footprints(drive, objects)
+    recorded = {o: dict(k) for o, k in drive.metadata.get("objects", {}).items() if o in objects}
+    kinds = {"objects": recorded} if recorded else None  # types for the .xosc, stated
     for name, tracks in raw.items():
         say(f"fit {name}")
         fits[name.fit()] = fit_scenario({o: (t.t, t.x, t.y) for o, t in tracks.items()},
                                         objects=list(objects), threshold=c.threshold,
-                                        dimensions=dimensions)
+                                        dimensions=dimensions, metadata=kinds)
     sensor_model = c.sensor_model if c.sensor_model is not None else (
         _sensor_model(times, states, c) if c.scenario_based and GT in raw else None)
     driver, ad_report = _ad_function(fits[(GT if GT in raw else SD).fit()].description, c)
@@ -165,7 +167,8 @@ def reprocess(measurement: Measurement | Drive, config: ReprocessConfig | None =
             states[key] = _interpolated_tracks(resims[key], times, objects)
             say(f"refit {key}")
             fits[key.fit()] = fit_scenario(resims[key], objects=list(objects),
-                                           threshold=c.threshold, dimensions=dimensions)
+                                           threshold=c.threshold, dimensions=dimensions,
+                                           metadata=kinds)
     descriptions = {k: f.description for k, f in fits.items()}
     for key, description in descriptions.items():
         states[key] = _description_tracks(description, times, objects)
