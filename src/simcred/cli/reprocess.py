@@ -25,7 +25,7 @@ from simcred.cli._app import (
     say,
 )
 from simcred.cli._writing import Overwrite, Resume, writing
-from simcred.errors import SimcredError
+from simcred.errors import OptionError, SimcredError
 from simcred.limits import check_count, check_finite
 
 
@@ -37,6 +37,7 @@ class CrossingSide(StrEnum):
 class RoadFrame(StrEnum):
     given = "given"
     ego = "ego"
+    lanelet = "lanelet"
 
 
 class AdParameters(StrEnum):
@@ -76,10 +77,15 @@ def reprocess(
     time_scale: Annotated[float, typer.Option(
         help="Long format: seconds per unit of the time column (0.001 for milliseconds).")
     ] = 1.0,
-    road_frame: Annotated[RoadFrame, typer.Option(
-        help="Long format: 'given' (the table's x axis is the road, refused if the EGO does "
-             "not travel along +x) or 'ego' (rotate into the EGO's direction of travel, a "
-             "straight road assumed).")] = "given",
+    road_frame: Annotated[RoadFrame | None, typer.Option(
+        help="The road frame. Long format: 'given' (default: the table's x axis is the road, "
+             "refused if the EGO does not travel along +x) or 'ego' (rotate into the EGO's "
+             "direction of travel, a straight road assumed). CommonRoad: 'ego' (default, the "
+             "same rotation) or 'lanelet' (Frenet frame along the lanelet centre line through "
+             "the EGO's start).")] = None,
+    reference_path: Annotated[Path | None, typer.Option(
+        help="Long format: a lane centre line (table with columns x, y in driving direction); "
+             "the drive is reprocessed in its Frenet frame.")] = None,
     max_gap: Annotated[float, typer.Option(
         help="Longest gap [s] in an object's samples that is reprocessed (gaps are reported, "
              "never bridged silently).")] = 0.5,
@@ -112,23 +118,32 @@ def reprocess(
     vehicle_model(vehicle)  # validates the name before any work
     check_finite(threshold, "--threshold", minimum=0, open_minimum=True)
     check_finite(max_gap, "--max-gap", minimum=0, open_minimum=True)
-    inputs = (measurement, *([gt] if gt is not None else []))
+    inputs = (measurement, *(p for p in (gt, reference_path) if p is not None))
+    check_finite(time_scale, "--time-scale", minimum=0, open_minimum=True)
+    is_xml = measurement.suffix.lower() == ".xml"
+    if road_frame is RoadFrame.lanelet and not is_xml:
+        raise OptionError("--road-frame lanelet is for a CommonRoad scenario (.xml)")
+    if is_xml and road_frame is RoadFrame.given:
+        raise OptionError("--road-frame given is for long-format tables (CommonRoad: ego or "
+                          "lanelet)")
+    frame = road_frame.value if is_xml and road_frame is not None else None
     config = ReprocessConfig(vehicle=vehicle, seed=seed, threshold=threshold,
                              scenario_based=scenario_based, max_gap=max_gap,
                              long_gaps=long_gaps.value,
                              **_ad_options(measurement, ad_parameters, set_speed))
     if object_id is not None and object_id.lower() == "all":
-        _reprocess_all(measurement, ego, config, out, as_json, overwrite)
+        _reprocess_all(measurement, ego, config, out, as_json, overwrite, frame or "ego")
         return
-    check_finite(time_scale, "--time-scale", minimum=0, open_minimum=True)
+    table_frame = None if is_xml or road_frame is None else road_frame.value
     long_options = (time_column, run_column, object_column, run,
-                    None if time_scale == 1.0 else time_scale,
-                    None if road_frame is RoadFrame.given else road_frame)
+                    None if time_scale == 1.0 else time_scale, table_frame, reference_path)
     columns = (None if all(v is None for v in long_options)
                else LongColumns(time_column or "t", run_column, object_column, run,
-                                time_scale, road_frame.value))
+                                time_scale, table_frame or "given",
+                                None if reference_path is None else str(reference_path)))
     with writing(out, *inputs, overwrite=overwrite) as target:
-        drive = read_measurement(measurement, object_id, ego=ego, long=columns, gt=gt)
+        drive = read_measurement(measurement, object_id, ego=ego, long=columns, gt=gt,
+                                 frame=frame)
         try:
             result = run_pipeline(drive, config, _steps("reprocessing"))
         except SimcredError as exc:  # a step's message names the object, not the input
@@ -160,10 +175,9 @@ def _ad_options(measurement: Path, parameters: AdParameters | None,
 
 
 def _reprocess_all(path: Path, ego: str | None, config, out: Path, as_json: bool,
-                   overwrite: bool) -> None:
+                   overwrite: bool, frame: str) -> None:
     """``--object all``: every CommonRoad obstacle; exit 1 if any could not be reprocessed."""
     from simcred._json import dumps, envelope
-    from simcred.errors import OptionError
     from simcred.report.seed002 import write_reprocessed
     from simcred.reprocess.obstacles import reprocess_obstacles
 
@@ -172,7 +186,7 @@ def _reprocess_all(path: Path, ego: str | None, config, out: Path, as_json: bool
                           "(each obstacle gets its follower)")
     with writing(out, path, overwrite=overwrite) as target:
         batch = reprocess_obstacles(path, config, target.path, write_reprocessed,
-                                    _steps("reprocessing"))
+                                    _steps("reprocessing"), frame=frame)
         summary = dumps(envelope("reprocess_all", batch.to_dict()))
         (target.path / "reprocess_all.json").write_text(summary)
     if as_json:

@@ -155,6 +155,16 @@ def read(path: str | Path, *, layout: str = "obstacles", missing: str = "error")
                        missing=missing, metadata=metadata, source=str(path))
 
 
+def lanelets(path: str | Path) -> dict[int, dict]:
+    """The scenario's lanelet network: per lanelet id its ``centre`` line ((n, 2) array, in
+    driving direction) and its ``successors`` and ``predecessors`` (ids)."""
+    scenario = _open(Path(path))
+    return {int(lane.lanelet_id): {"centre": np.asarray(lane.center_vertices, dtype=np.float64),
+                                   "successors": [int(i) for i in lane.successor],
+                                   "predecessors": [int(i) for i in lane.predecessor]}
+            for lane in scenario.lanelet_network.lanelets}
+
+
 def _obstacle_kind(obstacle) -> dict:
     """The obstacle's type (CommonRoad ``ObstacleType`` value) and, for a rectangle or a circle,
     its footprint ``length`` × ``width`` (m; a circle: its diameter both)."""

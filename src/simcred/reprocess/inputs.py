@@ -8,7 +8,9 @@
   (given, or the TO's follower, :func:`simcred.io.commonroad.follower`); both over the time steps
   they share, in a road frame (:func:`road_frame`); the recording enters the pipeline as SD;
   each one's CommonRoad type and footprint (rectangle; a circle's diameter) go into the
-  metadata (``objects``), and a pedestrian or bicycle is refused as the EGO;
+  metadata (``objects``), and a pedestrian or bicycle is refused as the EGO; with
+  ``frame="lanelet"`` the road frame is instead the Frenet frame along the lanelet centre line
+  through the EGO's start (:mod:`simcred.reprocess.road`);
 * a **long-format CSV/Parquet** table (:mod:`simcred.io.longformat`): the EGO's and the TO's
   ``x, y`` and optionally ``v, heading`` per time (by object column, or as ``<name>.x``
   columns; a missing ``v`` / ``heading`` column is derived from the positions, central
@@ -19,7 +21,8 @@
   reaction rules assume a straight road along +x, so a table whose EGO does not travel along +x
   (within :data:`ROAD_TOLERANCE`) is refused with one line, unless ``road_frame="ego"``
   rotates it rigidly into the EGO's direction of travel (:func:`road_frame`, as for CommonRoad;
-  a straight road is then assumed, and stated in the metadata).
+  a straight road is then assumed, and stated in the metadata), or ``LongColumns.reference``
+  names a lane centre line file whose Frenet frame is used (:mod:`simcred.reprocess.road`).
 
 A single recording (A9, CommonRoad, long format without GT) runs the SD half of the pipeline:
 "SD" then means "the one recording there is"; there is no sensor error, sensor model or
@@ -45,6 +48,7 @@ from simcred.io.a9 import read_a9
 from simcred.io.a9_lanes import lane_changer
 from simcred.io.measurement import INDEX, Measurement
 from simcred.kinematics import TIME_TOLERANCE, Track
+from simcred.reprocess.road import lanelet_line, reference_line_file, to_frenet
 from simcred.reprocess.timebase import Drive, Recording, tracks_digest
 from simcred.scenario.fit import MIN_SAMPLES
 from simcred.scenario.frenet import to_path_frame
@@ -52,8 +56,9 @@ from simcred.traces import TIME, TraceSet
 
 EGO, TO = "ego", "to"
 NOT_DRIVEN = ("pedestrian", "bicycle")  # CommonRoad types an ACC does not drive: never the EGO
+COMMONROAD_FRAMES = ("ego", "lanelet")
 ROAD_TOLERANCE = 0.2  # rad: a long table's EGO must travel this close to +x (else no road frame)
-ROAD_FRAMES = ("given", "ego")
+ROAD_FRAMES = ("given", "ego")  # long format without a reference path
 MIN_CHORD = 5.0  # m: an EGO that moves less than this gives the road direction by its heading
 LONG_SUFFIXES = (".parquet", ".pq")
 REQUIRED_SIGNALS = ("x", "y")
@@ -70,11 +75,12 @@ class LongColumns:
     run: str | None = None  # the run to reprocess when the table has several
     time_scale: float = 1.0  # seconds per unit of the time column (0.001: milliseconds)
     road_frame: str = "given"  # or "ego": rotate into the EGO's direction of travel
+    reference: str | None = None  # a reference path file (x, y): its Frenet frame instead
 
 
 def read_measurement(path: str | Path, object_id: int | str | None = None, *,
                      ego: str | None = None, long: LongColumns | None = None,
-                     gt: str | Path | None = None) -> Drive:
+                     gt: str | Path | None = None, frame: str | None = None) -> Drive:
     """The drive in ``path`` (see the module docstring for what each kind gives).
 
     Parameters
@@ -92,6 +98,9 @@ def read_measurement(path: str | Path, object_id: int | str | None = None, *,
         Column names of a long-format table.
     gt : path, optional
         Long format: a second table with the GT (same columns and labels).
+    frame : {"ego", "lanelet"}, optional
+        CommonRoad: the rigid frame of the EGO's direction (default) or the lanelet centre
+        line's Frenet frame (long format: ``long.road_frame`` and ``long.reference``).
     """
     path = Path(path)
     if not path.exists():
@@ -100,6 +109,9 @@ def read_measurement(path: str | Path, object_id: int | str | None = None, *,
     if gt is not None and not (long is not None or suffix in LONG_SUFFIXES):
         raise OptionError("--gt is for long-format tables (a measurement directory has its own "
                           "gt.parquet)")
+    if frame is not None and suffix != ".xml":
+        raise OptionError("--road-frame lanelet is for a CommonRoad scenario (a long table "
+                          "takes --road-frame given|ego or --reference-path)")
     if path.is_dir():
         _no_choice(path, object_id, ego, "a measurement directory")
         return Drive.of_measurement(Measurement.read(path))
@@ -107,7 +119,7 @@ def read_measurement(path: str | Path, object_id: int | str | None = None, *,
         if object_id is None:
             raise OptionError(f"{path}: a CommonRoad scenario needs --object ID (an obstacle "
                               "id, or 'all')")
-        return commonroad_drive(path, object_id, ego)
+        return commonroad_drive(path, object_id, ego, frame=frame or "ego")
     if long is not None or suffix in LONG_SUFFIXES:
         return long_drive(path, long or LongColumns(), to=object_id, ego=ego, gt=gt)
     if suffix == ".csv":
@@ -155,7 +167,7 @@ def commonroad_obstacles(path: str | Path) -> tuple[TraceSet, list[int]]:
 
 
 def commonroad_drive(path: str | Path, obstacle: int | str, ego: int | str | None = None, *,
-                     traces: TraceSet | None = None) -> Drive:
+                     traces: TraceSet | None = None, frame: str = "ego") -> Drive:
     """Obstacle ``obstacle`` as the TO of a CommonRoad scenario, with its EGO.
 
     The EGO is obstacle ``ego`` if given, else the TO's follower
@@ -186,11 +198,20 @@ def commonroad_drive(path: str | Path, obstacle: int | str, ego: int | str | Non
                             "vehicle with --ego)")
     tracks = _shared_steps(path, {EGO: _obstacle_track(traces, ego_run),
                                   TO: _obstacle_track(traces, to_run)}, ego_run, to_run)
-    tracks, frame = road_frame(tracks)
-    selection = f"to={to_run[3:]} ego={ego_run[3:]}"
+    if frame not in COMMONROAD_FRAMES:
+        raise OptionError(f"a CommonRoad scenario's road frame is one of "
+                          f"{', '.join(COMMONROAD_FRAMES)}, got {frame!r}")
+    if frame == "lanelet":
+        line, chain = lanelet_line(commonroad.lanelets(path), tracks[EGO], str(path))
+        tracks = to_frenet(tracks, line)
+        placed = {"road": "Frenet frame along the lanelet centre line through the EGO's start",
+                  "lanelets": chain}
+    else:
+        tracks, placed = road_frame(tracks)
+    selection = f"to={to_run[3:]} ego={ego_run[3:]}" + ("" if frame == "ego" else f" {frame}")
     metadata = {"source": str(path), "format": "commonroad",
                 "scenario_id": traces.metadata.get("scenario_id"), "object": int(to_run[3:]),
-                "ego": int(ego_run[3:]), "ego_choice": rule, "frame": frame,
+                "ego": int(ego_run[3:]), "ego_choice": rule, "frame": placed,
                 "objects": objects}
     digest = tracks_digest(tracks, _file_sha256(path), selection)
     return Drive(Recording(str(path), tracks, digest), None, metadata)
@@ -267,16 +288,26 @@ def long_drive(path: str | Path, columns: LongColumns = LongColumns(), *,
     if columns.road_frame not in ROAD_FRAMES:
         raise OptionError(f"road_frame must be one of {', '.join(ROAD_FRAMES)}, got "
                           f"{columns.road_frame!r}")
+    if columns.reference is not None and columns.road_frame != "given":
+        raise OptionError("--reference-path gives the road frame: not with --road-frame "
+                          f"{columns.road_frame}")
     if not (math.isfinite(columns.time_scale) and columns.time_scale > 0):
         raise OptionError(f"--time-scale must be a finite number > 0 (seconds per unit of the "
                           f"time column), got {columns.time_scale!r}")
     sd, derived = _long_recording(Path(path), columns, names)
     gt_recording, gt_derived = (None, []) if gt is None else _long_recording(Path(gt), columns,
                                                                              names)
-    frame = _long_frame(Path(path), sd, columns.road_frame)
-    if frame is not None:
-        sd = _rotated(sd, frame)
-        gt_recording = None if gt_recording is None else _rotated(gt_recording, frame)
+    if columns.reference is not None:
+        line = reference_line_file(columns.reference)
+        sd, gt_recording = (None if r is None else _moved(r, to_frenet(r.tracks, line))
+                            for r in (sd, gt_recording))
+        frame = {"road": f"Frenet frame along the reference path {columns.reference} (x: arc "
+                         "length, y: left offset)", "vertices": len(line)}
+    else:
+        frame = _long_frame(Path(path), sd, columns.road_frame)
+        if frame is not None:
+            sd, gt_recording = (None if r is None else _moved(r, _rotate(
+                r.tracks, frame["origin"], frame["angle"])) for r in (sd, gt_recording))
     metadata = {"source": str(path), "format": "long", "ego": names[0], "object": names[1],
                 "time_scale": columns.time_scale,
                 "frame": frame or {"road": "the table's x axis (straight road along +x)"},
@@ -302,11 +333,9 @@ def _long_frame(path: Path, sd: Recording, rule: str) -> dict[str, Any] | None:
     return None
 
 
-def _rotated(recording: Recording, frame: dict[str, Any]) -> Recording:
-    """``recording`` in the rigid frame ``frame`` (origin, angle) of :func:`road_frame`."""
-    return Recording(recording.source, _rotate(recording.tracks, frame["origin"],
-                                               frame["angle"]),
-                     recording.digest, recording.dropouts)
+def _moved(recording: Recording, tracks: Mapping[str, Track]) -> Recording:
+    """``recording`` with its tracks in another frame (same source, digest and dropouts)."""
+    return Recording(recording.source, dict(tracks), recording.digest, recording.dropouts)
 
 
 def _long_recording(path: Path, columns: LongColumns, names: tuple[str, str]
