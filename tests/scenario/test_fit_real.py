@@ -238,3 +238,31 @@ def test_urban_lane_change_at_5_hz_keeps_refining():
     steps = [s for s, _ in fit.history]
     assert steps[:3] == [4, 6, 9] and fit.sections > 9  # it went on past the step without gain
     assert_plausible(fit)
+
+
+def test_a_reached_fit_with_a_phantom_acceleration_is_flagged():
+    # issue 24: constant 12 m/s, 3 cm noise, 10 samples: the fit "reaches" 2 cm with |v̇| = 6.3
+    t = np.arange(10) * 0.1
+    rng = np.random.default_rng(45)
+    x, y = 12 * t + rng.normal(0, 0.03, 10), rng.normal(0, 0.03, 10)
+    fit = fit_track(t, x, y, threshold=0.02)
+    dense = np.linspace(t[0], t[-1], 200)
+    assert fit.reached and np.abs(fit.track.speed.derivative(dense)).max() > 6.0
+    assert fit.phantom_acceleration and fit.to_dict()["phantom_acceleration"]
+
+
+def _braking(s):
+    """25 m/s, braking from 2 s, the deceleration ramping to 8 m/s² at 10 m/s³."""
+    decel = np.clip(10 * (s - 2), 0, 8)
+    return 25 - np.concatenate([[0.0], np.cumsum(0.5 * (decel[1:] + decel[:-1]) * np.diff(s))])
+
+
+@pytest.mark.parametrize("speed", [lambda s: 10 + 3 * s, _braking])  # real accelerations
+def test_a_real_acceleration_is_not_flagged(speed):
+    t = np.arange(0, 5.0001, 0.1)
+    fine = np.linspace(0, 5, 5001)
+    v = speed(fine)
+    x = np.interp(t, fine, np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * 0.001)]))
+    x, y = noisy(x, np.zeros_like(t), 0.01, 5)
+    fit = fit_track(t, x, y, threshold=0.02)
+    assert fit.reached and not fit.phantom_acceleration

@@ -123,7 +123,8 @@ class Reprocessed(JsonResult):
             "input": self.input_report,
             "ad_function": self.ad_function,
             "fits": {name: {obj: {"sections": f.sections, "rmse": f.rmse,
-                                  "stop_reason": str(f.stop_reason)}
+                                  "stop_reason": str(f.stop_reason),
+                                  "phantom_acceleration": f.phantom_acceleration}
                             for obj, f in fit.fits.items()} for name, fit in self.fits.items()},
             "sensor_model": None if self.sensor_model is None else self.sensor_model.to_dict(),
             "reactions": {k: r.to_dict() for k, r in self.reactions.items()},

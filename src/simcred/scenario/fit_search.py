@@ -26,6 +26,7 @@ import numpy as np
 from simcred.scenario.fit_problem import PositionProblem, Solution
 from simcred.scenario.fit_result import StopReason, TrackFit
 from simcred.scenario.fit_robust import glitches
+from simcred.scenario.fit_support import unsupported_acceleration
 from simcred.scenario.plausibility import PlausibilityLimits, check_plausibility
 
 NOISE_FACTOR = 1.2
@@ -78,7 +79,7 @@ def search_result(data: tuple, steps: list[Step], reason: StopReason, settings: 
     chosen = _best(steps, reason, settings)
     best = chosen if settings.limits is None else _plausible(data, chosen, settings)
     extra = best.iterations - chosen.iterations
-    return _result(steps, best, extra, reason, settings, turns, length, width)
+    return _result(data, steps, best, extra, reason, settings, turns, length, width)
 
 
 def _plausible(data: tuple, step: Step, settings: SearchSettings) -> Step:
@@ -133,7 +134,7 @@ def _best(steps: list[Step], reason: StopReason, settings: SearchSettings) -> St
     return next(step for step in steps if step.solution.rmse <= (1.0 + settings.min_gain) * lowest)
 
 
-def _result(steps: list[Step], best: Step, extra: int, reason: StopReason,
+def _result(data: tuple, steps: list[Step], best: Step, extra: int, reason: StopReason,
             settings: SearchSettings, turns: tuple[float, ...], length: float, width: float
             ) -> TrackFit:
     if reason is StopReason.THRESHOLD and best.solution.rmse > settings.threshold:
@@ -144,10 +145,15 @@ def _result(steps: list[Step], best: Step, extra: int, reason: StopReason,
     violations = () if settings.limits is None else tuple(
         check_plausibility(track, settings.limits))
     s = best.solution
+    t, x, y, _ = data
+    keep = ~best.glitches
+    unsupported = unsupported_acceleration(track, t[keep], x[keep], y[keep],
+                                           max(settings.noise, s.rmse))
     return TrackFit(track=track, rmse=s.rmse, max_error=s.max_error, sections=s.sections,
                     history=tuple((step.solution.sections, step.solution.rmse) for step in steps),
                     iterations=sum(step.iterations for step in steps) + extra,
                     stop_reason=reason,
                     threshold=settings.threshold, min_gain=settings.min_gain,
                     noise=settings.noise, glitches=tuple(int(i) for i in np.flatnonzero(
-                        best.glitches)), reversals=turns, violations=violations)
+                        best.glitches)), reversals=turns, violations=violations,
+                    unsupported_acceleration=unsupported)
