@@ -103,3 +103,33 @@ def test_the_xosc_has_the_recorded_categories_footprints_and_pedestrians(tmp_pat
     assert objects["walker"].find("Vehicle") is None and walker is not None
     assert walker.get("pedestrianCategory") == "pedestrian"
     assert float(walker.find("BoundingBox/Dimensions").get("width")) == 0.6
+
+
+def _long_table(path: Path, ego_type: str = "car") -> Path:
+    t = np.round(np.arange(0.0, 4.0 + 0.05, 0.1), 10)
+    lines = ["t,object,x,y,length,width,type"]
+    for k, time in enumerate(map(float, t)):
+        lines += [f"{time!r},ego,{20 * time!r},0.0,4.6,1.9,{ego_type}",
+                  # the TO's length is noisy by a centimetre: its median counts
+                  f"{time!r},to,{40 + 15 * time!r},3.5,{12.0 + 0.01 * (k % 3 - 1)!r},2.5,"
+                  f"{'Truck' if k else ''}"]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_a_long_tables_length_width_and_type_columns_are_the_objects(tmp_path):
+    from simcred.reprocess.inputs import LongColumns, long_drive
+    from simcred.reprocess.pipeline import footprints
+
+    drive = long_drive(_long_table(tmp_path / "d.csv"), LongColumns(object_column="object"))
+    assert drive.metadata["objects"] == {"ego": {"length": 4.6, "width": 1.9, "type": "car"},
+                                         "to": {"length": 12.0, "width": 2.5, "type": "truck"}}
+    assert footprints(drive, ("ego", "to")) == {"ego": (4.6, 1.9), "to": (12.0, 2.5)}
+
+
+def test_a_long_tables_pedestrian_is_never_the_ego(tmp_path):
+    from simcred.reprocess.inputs import LongColumns, long_drive
+
+    with pytest.raises(SimcredError, match="object 'ego' is a pedestrian: it cannot be the EGO"):
+        long_drive(_long_table(tmp_path / "d.csv", "pedestrian"),
+                   LongColumns(object_column="object"))

@@ -14,15 +14,17 @@
 * a **long-format CSV/Parquet** table (:mod:`simcred.io.longformat`): the EGO's and the TO's
   ``x, y`` and optionally ``v, heading`` per time (by object column, or as ``<name>.x``
   columns; a missing ``v`` / ``heading`` column is derived from the positions, central
-  differences, and listed in the metadata as ``derived``); times are scaled by
-  ``LongColumns.time_scale`` (stated); rows with a missing or NaN value are dropouts (removed,
-  counted, and their gaps reported by :func:`~simcred.reprocess.timebase.align`); the table is
-  SD, an optional second table GT. There is no map: the pipeline's AD function, risk and
-  reaction rules assume a straight road along +x, so a table whose EGO does not travel along +x
-  (within :data:`ROAD_TOLERANCE`) is refused with one line, unless ``road_frame="ego"``
-  rotates it rigidly into the EGO's direction of travel (:func:`road_frame`, as for CommonRoad;
-  a straight road is then assumed, and stated in the metadata), or ``LongColumns.reference``
-  names a lane centre line file whose Frenet frame is used (:mod:`simcred.reprocess.road`).
+  differences, and listed in the metadata as ``derived``; optional ``length``, ``width`` and
+  ``type`` columns give the objects' footprints and types, metadata ``objects``); times are
+  scaled by ``LongColumns.time_scale`` (stated); rows with a missing or NaN value are
+  dropouts (removed, counted, and their gaps reported by
+  :func:`~simcred.reprocess.timebase.align`); the table is SD, an optional second table GT.
+  There is no map: the pipeline's AD function, risk and reaction rules assume a straight road
+  along +x, so a table whose EGO does not travel along +x (within :data:`ROAD_TOLERANCE`) is
+  refused with one line, unless ``road_frame="ego"`` rotates it rigidly into the EGO's
+  direction of travel (:func:`road_frame`, as for CommonRoad; a straight road is then assumed,
+  and stated in the metadata), or ``LongColumns.reference`` names a lane centre line file
+  whose Frenet frame is used (:mod:`simcred.reprocess.road`).
 
 A single recording (A9, CommonRoad, long format without GT) runs the SD half of the pipeline:
 "SD" then means "the one recording there is"; there is no sensor error, sensor model or
@@ -61,6 +63,7 @@ ROAD_TOLERANCE = 0.2  # rad: a long table's EGO must travel this close to +x (el
 ROAD_FRAMES = ("given", "ego")  # long format without a reference path
 MIN_CHORD = 5.0  # m: an EGO that moves less than this gives the road direction by its heading
 LONG_SUFFIXES = (".parquet", ".pq")
+SHAPE_COLUMNS = ("length", "width", "type")  # optional per object: footprint (m) and type
 REQUIRED_SIGNALS = ("x", "y")
 OPTIONAL_SIGNALS = ("v", "heading")  # derived from the positions where a table has none
 
@@ -308,8 +311,12 @@ def long_drive(path: str | Path, columns: LongColumns = LongColumns(), *,
         if frame is not None:
             sd, gt_recording = (None if r is None else _moved(r, _rotate(
                 r.tracks, frame["origin"], frame["angle"])) for r in (sd, gt_recording))
+    objects = _recorded_objects(Path(path), columns, names)
+    if objects.get(EGO, {}).get("type") in NOT_DRIVEN:
+        raise TraceSetError(f"{path}: object {names[0]!r} is a {objects[EGO]['type']}: it "
+                            "cannot be the EGO, whose resimulation is a car's ACC")
     metadata = {"source": str(path), "format": "long", "ego": names[0], "object": names[1],
-                "time_scale": columns.time_scale,
+                "time_scale": columns.time_scale, **({"objects": objects} if objects else {}),
                 "frame": frame or {"road": "the table's x axis (straight road along +x)"},
                 **({"derived": sorted({*derived, *gt_derived})} if derived or gt_derived
                    else {}),
@@ -370,6 +377,76 @@ def _long_recording(path: Path, columns: LongColumns, names: tuple[str, str]
         dropouts[role] = int(dropped.get(key, 0))
     return Recording(str(path), tracks, tracks_digest(tracks, _file_sha256(path)),
                      dropouts), derived
+
+
+def _recorded_objects(path: Path, columns: LongColumns, names: tuple[str, str]
+                      ) -> dict[str, dict[str, Any]]:
+    """Each role's ``length``, ``width`` (m, the median of its rows) and ``type`` (its one
+    value, lower case) where the table has such columns (``<name>.length`` without an object
+    column); roles without any are left out."""
+    header = _column_names(path)
+    by_object = columns.object_column is not None
+    wanted = {role: {c: (c if by_object else f"{name}.{c}") for c in SHAPE_COLUMNS
+                     if (c if by_object else f"{name}.{c}") in header}
+              for role, name in zip((EGO, TO), names, strict=True)}
+    needed = sorted({c for by in wanted.values() for c in by.values()})
+    if not needed:
+        return {}
+    keys = [k for k in (columns.object_column, columns.run_column) if k is not None]
+    table = _columns(path, [*keys, *needed])
+    rows = np.ones(table.num_rows, dtype=bool)
+    if columns.run is not None:
+        rows &= _text(table, columns.run_column) == columns.run
+    out = {}
+    for (role, by), name in zip(wanted.items(), names, strict=True):
+        mine = rows
+        if by_object:
+            label = name[3:] if name.startswith("obj") and name[3:].isdigit() else name
+            mine = rows & (_text(table, columns.object_column) == label)
+        kind = {}
+        for key, column in by.items():
+            values = table.column(column).to_numpy(zero_copy_only=False)[mine]
+            kind[key] = _shape_value(path, name, key, values)
+        kind = {k: v for k, v in kind.items() if v is not None}
+        if kind:
+            out[role] = kind
+    return out
+
+
+def _columns(path: Path, names: list[str]) -> pa.Table:
+    import pyarrow.csv as pacsv
+
+    if path.suffix.lower() in LONG_SUFFIXES:
+        return pq.read_table(path, columns=names)
+    options = pacsv.ConvertOptions(include_columns=names, strings_can_be_null=True)
+    parse = pacsv.ParseOptions(delimiter=longformat.csv_delimiter(path))
+    return pacsv.read_csv(path, parse_options=parse, convert_options=options)
+
+
+def _text(table: pa.Table, column: str) -> np.ndarray:
+    return np.asarray(table.column(column).cast(pa.string()).to_numpy(zero_copy_only=False),
+                      dtype=object)
+
+
+def _shape_value(path: Path, name: str, key: str, values: np.ndarray) -> float | str | None:
+    """One object's footprint length or width (median, finite > 0) or type (its one value)."""
+    present = [v for v in values if v is not None and not (isinstance(v, float) and
+                                                           math.isnan(v))]
+    if not present:
+        return None
+    if key == "type":
+        kinds = sorted({str(v).strip().lower() for v in present})
+        if len(kinds) > 1:
+            raise TraceSetError(f"{path}: object {name!r} has several types "
+                                f"({', '.join(kinds)})")
+        return kinds[0]
+    try:
+        value = float(np.median(np.asarray(present, dtype=np.float64)))
+    except (TypeError, ValueError):
+        raise TraceSetError(f"{path}: object {name!r}: column {key!r} is not numeric") from None
+    if not (math.isfinite(value) and value > 0):
+        raise TraceSetError(f"{path}: object {name!r}: {key} must be > 0 m, got {value:g}")
+    return value
 
 
 def _column_names(path: Path) -> set[str]:
