@@ -95,6 +95,20 @@ def test_on_a_straight_road_the_lanelet_frame_is_the_rigid_frame_shifted():
     assert math.isfinite(float(lanelet.sd.tracks["to"].y[0]))
 
 
+@pytest.mark.parametrize("args, message", [
+    (["--road-frame", "given"], "--road-frame given is for long-format tables"),
+    (["--reference-path", "centre.csv"], "--reference-path is for long-format tables"),
+])
+def test_commonroad_frame_options_that_do_not_fit_are_one_line(tmp_path, capsys, args,
+                                                               message):
+    _, centre = _curved(tmp_path)
+    args = [str(centre) if a == "centre.csv" else a for a in args]
+    assert run(["reprocess", str(US101), "--object", "394", "--out", str(tmp_path / "o"),
+                *args]) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and len(err.splitlines()) == 1
+
+
 def test_cli_reprocesses_a_commonroad_obstacle_in_the_lanelet_frame(tmp_path):
     import json
 

@@ -126,6 +126,9 @@ def reprocess(
     if is_xml and road_frame is RoadFrame.given:
         raise OptionError("--road-frame given is for long-format tables (CommonRoad: ego or "
                           "lanelet)")
+    if is_xml and reference_path is not None:
+        raise OptionError("--reference-path is for long-format tables (CommonRoad: "
+                          "--road-frame lanelet)")
     frame = road_frame.value if is_xml and road_frame is not None else None
     config = ReprocessConfig(vehicle=vehicle, seed=seed, threshold=threshold,
                              scenario_based=scenario_based, max_gap=max_gap,
