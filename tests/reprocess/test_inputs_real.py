@@ -102,6 +102,10 @@ def test_cli_reprocesses_every_obstacle_of_a_scenario_and_writes_a_summary(tmp_p
     assert summary["kind"] == "reprocess_all"
     first = summary["outcomes"][0]
     assert (out / first["directory"] / "reprocess.json").is_file()
+    for outcome in summary["outcomes"]:  # a reaction at the start is named as not measurable
+        reactions = json.loads((out / outcome["directory"] / "reaction.json").read_text())
+        assert sorted(outcome["reactions_not_measurable"]) == sorted(
+            k for k, r in reactions["reactions"].items() if r["measurable"] is False)
     assert (out / first["directory"] / "figures" / "fig7_velocity_risk.png").is_file()
 
 

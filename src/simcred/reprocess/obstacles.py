@@ -100,4 +100,6 @@ def _summary(result: Reprocessed, out: Path) -> dict[str, Any]:
             "directory": out.name, "samples": result.input_report.get("samples"),
             "gaps": len(result.input_report.get("gaps", [])),
             "reactions": {k: r.manoeuvre for k, r in result.reactions.items()},
+            "reactions_not_measurable": [k for k, r in result.reactions.items()
+                                         if not r.measurable],
             "max_risk": {k: float(r["risk"].max()) for k, r in result.risk.items()}}
