@@ -254,13 +254,14 @@ def _permuted_plugin(entries: _Entries, keep: np.ndarray, assignments: np.ndarra
                                              np.repeat(unit, width))),
                            shape=(n_states * width, n_units))
     totals = np.bincount(entries.unit, weights=entries.count, minlength=n_units)
+    pooled = np.asarray(matrix.sum(axis=1)).reshape(n_states, width, 1)
     side_a = assignments.T.astype(np.float64)  # (units, P + 1)
     out = np.zeros((j, assignments.shape[0]))
     for start in range(0, side_a.shape[1], 256):
         cols = side_a[:, start:start + 256]
-        sides = [np.asarray(matrix @ s).reshape(n_states, width, -1) for s in (cols, 1 - cols)]
-        total = [totals @ s for s in (cols, 1 - cols)]
-        out[:, start:start + 256] = _plugin(sides, total, j)
+        a = np.asarray(matrix @ cols).reshape(n_states, width, -1)
+        total_a = totals @ cols
+        out[:, start:start + 256] = _plugin([a, pooled - a], [total_a, totals.sum() - total_a], j)
     return out
 
 
