@@ -166,6 +166,38 @@ def test_cli_compare_on_two_bag_sets(tmp_path, capsys, phi_b, same):
     assert doc["units"] == ["m/s"]
 
 
+def one_bag(path: Path, seed: int, phi: float) -> Path:
+    """One bag of 40 vehicles (namespaces /car0 ... /car39), 30 odometry messages each."""
+    rng = np.random.default_rng(seed)
+    messages = {}
+    for car in range(40):
+        v = [rng.normal()]
+        for _ in range(29):
+            v.append(phi * v[-1] + rng.normal())
+        messages[f"/car{car}/odom"] = [odometry(100.0 + 0.1 * k, 0.0, 0.0, 0.0, v[k])
+                                       for k in range(30)]
+    return write_bag(path, messages)
+
+
+@pytest.mark.parametrize("phi_b, same", [(0.8, True), (-0.8, False)])
+def test_cli_compare_on_two_single_bags_with_a_reader_option(tmp_path, capsys, phi_b, same):
+    a = one_bag(tmp_path / "a", seed=1, phi=0.8)
+    b = one_bag(tmp_path / "b", seed=1, phi=phi_b)
+    assert run(["compare", str(a), str(b), "-f", "vx", "--bins", "4", "--permutations", "99",
+                "--seed", "2", "--read", "runs=namespace", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["chain"]["rejected"] is (not same)
+    assert (doc["distance"] == 0.0) is same
+
+
+def test_cli_compare_reader_option_errors_are_one_line(tmp_path, capsys):
+    a = one_bag(tmp_path / "a", seed=1, phi=0.8)
+    assert run(["compare", str(a), str(a), "-f", "vx", "--read", "runs"]) == 2
+    assert "--read expects KEY=VALUE" in capsys.readouterr().err
+    assert run(["compare", str(a), str(a), "-f", "vx", "--read", "runs=lanes"]) == 2
+    assert "runs must be one of bag, namespace" in capsys.readouterr().err
+
+
 # -- malformed bags: one line, exit 2 --------------------------------------------------------------
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
 from typing import Annotated
@@ -92,6 +93,22 @@ StopEarly = Annotated[bool, typer.Option(
          "alpha are then sequential estimates), or always draw all permutations.")]
 
 
+def _reader_options(items: list[str] | None) -> dict:
+    """``--read KEY=VALUE`` pairs: a JSON value (number, true/false, list) where it parses, a
+    comma list as a list of text, else the text itself."""
+    options = {}
+    for item in items or ():
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            raise OptionError(f"--read expects KEY=VALUE (a reader option), got {item!r}")
+        try:
+            parsed = json.loads(value)
+        except ValueError:
+            parsed = [p.strip() for p in value.split(",")] if "," in value else value
+        options[key.strip()] = parsed
+    return options
+
+
 def _margin(text: str | None) -> float | dict[str, float] | None:
     """``0.2`` (every response feature) or ``v=0.1,gap=0.3``."""
     if text is None:
@@ -163,6 +180,10 @@ def compare(
              "number for every response feature, or FEATURE=NUMBER,...")] = None,
     continue_on_start_difference: Continue = False,
     stop_early: StopEarly = True,
+    read: Annotated[list[str] | None, typer.Option(
+        "--read", help="A reader option KEY=VALUE for both inputs, repeatable (the format's own, "
+                       "as in `simcred convert`: e.g. runs=namespace for ROS 2 bags, "
+                       "topics=/a/odom,/b/odom).")] = None,
     out: Annotated[Path | None, typer.Option(help="Directory for comparison.json and "
                                                   "state_map.png.")] = None,
     overwrite: Overwrite = False,
@@ -182,19 +203,30 @@ def compare(
     options = _options(features, bins, kernel, estimator, test, alpha, permutations, seed,
                        continue_on_start_difference, stop_early, multiplicity, chain, one_sided,
                        history, time_bins, resample)
+    sets = _read_sets(a, b, _reader_options(read))
     if out is None:
-        result = compare_sets(a, b, progress=progress("testing states"), **extra, **options)
+        result = compare_sets(*sets, progress=progress("testing states"), **extra, **options)
     else:
         from simcred.report.figures import state_map
 
         with writing(out, a, b, overwrite=overwrite) as target:
-            result = compare_sets(a, b, progress=progress("testing states"), **extra, **options)
+            result = compare_sets(*sets, progress=progress("testing states"), **extra,
+                                  **options)
             (target.path / "comparison.json").write_text(result.to_json())
             state_map(result, target.path / "state_map.png")
     if as_json:
         sys.stdout.write(result.to_json())
     elif not State.quiet:
         _print_comparison(result, out)
+
+
+def _read_sets(a: Path, b: Path, reader: dict) -> tuple:
+    """The two inputs: paths as given (compare reads them), or read here with ``reader``."""
+    if not reader:
+        return a, b
+    from simcred.io import read as read_set
+
+    return read_set(a, **reader), read_set(b, **reader)
 
 
 def _print_comparison(result, out: Path | None) -> None:
