@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import json
 import sys
+from enum import StrEnum
 from pathlib import Path
 from typing import Annotated
 
@@ -29,6 +31,13 @@ from simcred.compare.runs import ChainStatistic, Multiplicity, OneSided
 from simcred.errors import OptionError
 from simcred.limits import check_count, check_finite
 from simcred.seeds import resolve_seed
+
+
+class Side(StrEnum):
+    """The recorded side of an observed comparison."""
+
+    A = "a"
+    B = "b"
 
 
 def _split(text: str | None) -> list[str] | None:
@@ -163,6 +172,12 @@ def compare(
              "number for every response feature, or FEATURE=NUMBER,...")] = None,
     continue_on_start_difference: Continue = False,
     stop_early: StopEarly = True,
+    observed: Annotated[Side | None, typer.Option(
+        help="The side that is a sensor's recording; the other side's ground truth is pushed "
+             "through --sensor before the comparison (docs/observed.md).")] = None,
+    sensor: Annotated[Path | None, typer.Option(
+        help="Sensor model JSON for --observed (declared, or written by estimate-sensor).")
+    ] = None,
     out: Annotated[Path | None, typer.Option(help="Directory for comparison.json and "
                                                   "state_map.png.")] = None,
     overwrite: Overwrite = False,
@@ -170,6 +185,9 @@ def compare(
 ) -> None:
     """Compare two trace sets: a chain verdict and the fraction of distinguishable transitions
     (Neurohr et al.)."""
+    if (observed is None) != (sensor is None):
+        raise OptionError("--observed and --sensor go together: name the recorded side and its "
+                          "sensor model")
     extra = dict(baseline=baseline, bootstrap=bootstrap, relevance=relevance) \
         if test is Test.RUNS else {}
     if test is Test.RESPONSE:
@@ -180,6 +198,10 @@ def compare(
     options = _options(features, bins, kernel, estimator, test, alpha, permutations, seed,
                        continue_on_start_difference, stop_early, multiplicity, chain, one_sided,
                        history, time_bins, resample)
+    if observed is not None:
+        _compare_observed(a, b, observed.value, sensor, out, overwrite, as_json,
+                          **extra, **options)
+        return
     if out is None:
         result = compare_sets(a, b, progress=progress("testing states"), **extra, **options)
     else:
@@ -193,6 +215,64 @@ def compare(
         sys.stdout.write(result.to_json())
     elif not State.quiet:
         _print_comparison(result, out)
+
+
+def _compare_observed(a, b, observed, sensor, out, overwrite, as_json, **options) -> None:
+    """``compare --observed``: the observation-model route (issue 23)."""
+    from simcred.compare.observed import compare_observed
+
+    def run():
+        return compare_observed(a, b, observed=observed, sensor=sensor, sensor_effect=True,
+                                progress=progress("testing states"), **options)
+
+    if out is None:
+        result = run()
+    else:
+        with writing(out, a, b, overwrite=overwrite) as target:
+            result = run()
+            (target.path / "comparison.json").write_text(json.dumps(result.to_dict(), indent=2))
+    if as_json:
+        sys.stdout.write(json.dumps(result.to_dict(), indent=2))
+    elif not State.quiet:
+        _print_comparison(result.comparison, out)
+        effect = result.sensor_effect
+        truth = "A" if observed == "b" else "B"
+        out_console.print(
+            f"side {observed.upper()} observed: side {truth} pushed through the sensor model, "
+            f"both cropped by {result.cropped} samples; "
+            f"{len(result.sensor.draws)} parameter draws carry its estimation uncertainty")
+        if effect is not None and effect.chain is not None:
+            out_console.print(f"the sensor alone: {truth}'s ground truth against its own "
+                              f"observation, chain p = {effect.chain.pvalue:.3g}, distance "
+                              f"{100 * (effect.distance or 0):.2f} %")
+
+
+@app.command("estimate-sensor")
+@one_line_errors
+def estimate_sensor(
+    truth: Annotated[Path, typer.Argument(help="Ground truth of the calibration runs.")],
+    recorded: Annotated[Path, typer.Argument(help="The sensor's recording of the same runs "
+                                                  "(paired by run id, same times).")],
+    out: Annotated[Path, typer.Option(help="Sensor model JSON to write.")],
+    features: Features = None,
+    max_delay: Annotated[float, typer.Option(help="Largest delay considered (s).")] = 2.0,
+    bootstrap: Annotated[int, typer.Option(help="Bootstrap draws of the parameters (runs "
+                                                "resampled): the estimation uncertainty.")] = 200,
+    seed: Seed = None,
+) -> None:
+    """Estimate a per-signal sensor model (offset, delay, noise, dropouts) from GT/SD pairs."""
+    from simcred.compare.observed import estimate_sensor as estimate
+    from simcred.traces import TraceSet
+
+    check_finite(max_delay, "--max-delay", minimum=0)
+    model = estimate(TraceSet.read(truth), TraceSet.read(recorded), signals=_split(features),
+                     max_delay=max_delay, bootstrap=bootstrap, seed=seed)
+    model.write(out)
+    if not State.quiet:
+        for name, s in model.signals.items():
+            out_console.print(f"{name}: offset {s.offset:.4g}, delay {s.delay:.3g} s, noise "
+                              f"{s.noise_sd:.4g}, dropouts {100 * s.dropout:.1f} %")
+        out_console.print(f"wrote {out}")
 
 
 def _print_comparison(result, out: Path | None) -> None:
