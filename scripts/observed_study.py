@@ -73,6 +73,8 @@ def main(argv=None) -> None:
     parser.add_argument("--out", default="observed.json")
     args = parser.parse_args(argv)
     table = {}
+    out = {"args": vars(args), "options": OPTIONS, "laws": LAWS, "sensor":
+           universe.SENSOR.to_dict(), "table": table}
     start = time.perf_counter()
     for name in args.laws.split(","):
         hits = np.array([[replicate(LAWS[name], rep, args)[r] for r in ROUTES]
@@ -82,10 +84,8 @@ def main(argv=None) -> None:
                            "se": float(np.sqrt(rate[k] * (1 - rate[k]) / args.reps))}
                        for k, r in enumerate(ROUTES)}
         print(name, {r: round(v["rejection"], 3) for r, v in table[name].items()}, flush=True)
-    out = {"args": vars(args), "options": OPTIONS, "laws": LAWS, "sensor":
-           universe.SENSOR.to_dict(), "table": table,
-           "seconds": round(time.perf_counter() - start, 1)}
-    Path(args.out).write_text(json.dumps(out, indent=2) + "\n")
+        out["seconds"] = round(time.perf_counter() - start, 1)
+        Path(args.out).write_text(json.dumps(out, indent=2) + "\n")
 
 
 if __name__ == "__main__":
