@@ -87,3 +87,22 @@ def test_compare_hidden_keeps_the_level_and_sees_the_reaction_delay():
     first = run(0)
     assert first.lags == (3,) and 0.03 < first.dropout < 0.08
     assert sum(run(100 + rep, reaction=10).rejected for rep in range(6)) >= 4
+
+
+def test_cli_path_b_and_its_one_line_refusals(tmp_path, capsys):
+    from simcred.cli import run
+
+    rng = stream(6, 0)
+    gt, sd = universe.calibration_pairs(rng, 10, 60)
+    sim, rec = universe.truth(rng, 20, 60), universe.recording(rng, 20, 60)
+    p = {name: ts.write(tmp_path / f"{name}.parquet")
+         for name, ts in (("gt", gt), ("sd", sd), ("sim", sim), ("rec", rec))}
+    base = ["compare", str(p["sim"]), str(p["rec"]), "--observed", "b", "--calibration",
+            f"{p['gt']},{p['sd']}", "--permutations", "9", "--seed", "1"]
+    assert run([*base, "-f", "v", "--bins", "3", "--json"]) == 0
+    assert '"method": "hmm"' in capsys.readouterr().out
+    assert run([*base, "-f", "u,v", "--bins", "9"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "never observed in the calibration runs" in err[0]
+    assert run([*base, "-f", "v", "--sensor", str(tmp_path / "x.json")]) == 2
+    assert "one of --sensor" in capsys.readouterr().err

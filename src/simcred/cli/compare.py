@@ -178,6 +178,10 @@ def compare(
     sensor: Annotated[Path | None, typer.Option(
         help="Sensor model JSON for --observed (declared, or written by estimate-sensor).")
     ] = None,
+    calibration: Annotated[str | None, typer.Option(
+        help="Path b for --observed: GT,SD — ground truth and sensor recording of the same "
+             "calibration runs; the observed side's hidden chain is estimated by an HMM "
+             "(features and bins as given; docs/observed.md).")] = None,
     out: Annotated[Path | None, typer.Option(help="Directory for comparison.json and "
                                                   "state_map.png.")] = None,
     overwrite: Overwrite = False,
@@ -185,9 +189,14 @@ def compare(
 ) -> None:
     """Compare two trace sets: a chain verdict and the fraction of distinguishable transitions
     (Neurohr et al.)."""
-    if (observed is None) != (sensor is None):
-        raise OptionError("--observed and --sensor go together: name the recorded side and its "
-                          "sensor model")
+    if (observed is None) != (sensor is None and calibration is None) \
+            or (sensor is not None and calibration is not None):
+        raise OptionError("--observed goes with one of --sensor (observation model) or "
+                          "--calibration (path b, HMM): name the recorded side and how it is seen")
+    if calibration is not None:
+        _compare_hidden(a, b, observed.value, calibration, features, bins, alpha, permutations,
+                        seed, as_json)
+        return
     extra = dict(baseline=baseline, bootstrap=bootstrap, relevance=relevance) \
         if test is Test.RUNS else {}
     if test is Test.RESPONSE:
@@ -245,6 +254,41 @@ def _compare_observed(a, b, observed, sensor, out, overwrite, as_json, **options
             out_console.print(f"the sensor alone: {truth}'s ground truth against its own "
                               f"observation, chain p = {effect.chain.pvalue:.3g}, distance "
                               f"{100 * (effect.distance or 0):.2f} %")
+
+
+def _compare_hidden(a, b, observed, calibration, features, bins, alpha, resamples, seed,
+                    as_json) -> None:
+    """``compare --observed --calibration``: path b (issue 23)."""
+    from simcred.compare.hidden import compare_hidden
+    from simcred.traces import TraceSet
+
+    paths = _split(calibration) or []
+    if len(paths) != 2:
+        raise OptionError(f"--calibration must be GT,SD (two paths), got {calibration!r}")
+    names = _split(features)
+    if names is None:
+        raise OptionError("--calibration needs --features (the hidden state's signals)")
+    number = _bins(bins)
+    if not isinstance(number, int):
+        raise OptionError("--calibration takes one --bins for every feature")
+    check_finite(alpha, "--alpha", minimum=MIN_ALPHA, maximum=1, open_maximum=True)
+    check_count(resamples, "permutations", "--permutations")
+    result = compare_hidden(a, b, observed=observed, features=names, bins=number, alpha=alpha,
+                            calibration=(TraceSet.read(paths[0]), TraceSet.read(paths[1])),
+                            n_resamples=resamples, seed=seed)
+    if as_json:
+        sys.stdout.write(json.dumps(result.to_dict(), indent=2))
+    elif not State.quiet:
+        verdict = "DIFFERENT hidden chains" if result.rejected else "no difference detected"
+        out_console.print(
+            f"path b (HMM, side {observed.upper()} observed): {verdict}, p = {result.pvalue:.3g}"
+            f" ({result.n_resamples} parametric-bootstrap replicates), statistic "
+            f"{result.statistic:.4g}, {result.n_states} hidden states, delays {result.lags} "
+            f"samples, {100 * result.dropout:.1f} % dropouts")
+        out_console.print(
+            f"assumption checks: first-order Markov p = {result.markov_pvalue:.3g}, "
+            f"time-invariant emissions p = {result.emission_pvalue:.3g} (small: the level is "
+            "not guaranteed)")
 
 
 @app.command("estimate-sensor")

@@ -5,6 +5,7 @@ multiplicity-controlled per-state verdicts); the paper's bound and per-transitio
 tests remain available (``test="bound"`` / ``"permutation"``).
 """
 
+from simcred.compare.hidden import HiddenComparison, compare_hidden
 from simcred.compare.observed import (
     ObservedComparison,
     SensorModel,
@@ -25,4 +26,5 @@ from simcred.compare.result import (
 
 __all__ = ["compare", "matrix", "Comparison", "DistanceMatrix", "ChainVerdict", "Baseline",
            "DistanceInterval", "FeatureRelevance", "compare_observed", "estimate_sensor",
-           "observe", "ObservedComparison", "SensorModel", "SignalSensor"]
+           "observe", "ObservedComparison", "SensorModel", "SignalSensor", "compare_hidden",
+           "HiddenComparison"]

@@ -41,7 +41,7 @@ from simcred.traces import TraceSet
 
 HIDDEN_KEY = 2**42 + 2
 SMOOTH = 0.5  # added to every emission count (Jeffreys)
-BATCH = 25  # bootstrap replicates fitted together (memory: BATCH · rows · states floats)
+CELLS = 4_000_000  # floats per batched array: bootstrap replicates fitted together ≤ this
 
 
 def _edges(values: np.ndarray, bins: int) -> np.ndarray:
@@ -318,8 +318,9 @@ def compare_hidden(a: TraceSet | str | Path, b: TraceSet | str | Path, *, observ
         B_stars.append(_emissions(gt_states, cal_obs, n_states, n_symbols,
                                   rng.integers(len(gt_states), size=len(gt_states))))
     null = np.empty(n_resamples)
-    for lo in range(0, n_resamples, BATCH):
-        A_star = baum_welch(emitted[lo:lo + BATCH], np.stack(B_stars[lo:lo + BATCH]), seen)[0]
+    batch = max(1, CELLS // (sum(len(o) for o in rec_obs) * n_states))
+    for lo in range(0, n_resamples, batch):
+        A_star = baum_welch(emitted[lo:lo + batch], np.stack(B_stars[lo:lo + batch]), seen)[0]
         for j, A_j in enumerate(A_star):
             null[lo + j] = _distance(A_j, *full_stats[lo + j])
     pvalue = float((1 + np.sum(null >= statistic)) / (1 + n_resamples))
