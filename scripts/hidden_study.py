@@ -64,6 +64,8 @@ def main(argv=None) -> None:
     parser.add_argument("--cal-runs", type=int, default=20)
     parser.add_argument("--resamples", type=int, default=49)
     parser.add_argument("--seed", type=int, default=2323)
+    parser.add_argument("--first", type=int, default=0, help="first replication index (to "
+                        "extend a study with fresh replications)")
     parser.add_argument("--laws", default="H0,reaction,gain")
     parser.add_argument("--out", default="observed_hmm.json")
     args = parser.parse_args(argv)
@@ -71,7 +73,8 @@ def main(argv=None) -> None:
            "sensor": universe.SENSOR.to_dict(), "table": {}}
     start = time.perf_counter()
     for name in args.laws.split(","):
-        results = [replicate(LAWS[name], rep, args) for rep in range(args.reps)]
+        results = [replicate(LAWS[name], rep, args)
+                   for rep in range(args.first, args.first + args.reps)]
         hits = np.array([[r[0][k] for k in ROUTES] for r in results])
         checks = np.array([[r[1][k] for k in ("pvalue", "markov_pvalue", "emission_pvalue")]
                            for r in results])
