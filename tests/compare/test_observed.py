@@ -157,7 +157,7 @@ def test_cli_observed_and_estimate_sensor(tmp_path, capsys):
     doc = json.loads(capsys.readouterr().out)
     assert doc["observed"] == "b" and doc["cropped"] == 3 and doc["sensor_effect"] is not None
     assert run(["compare", str(paths["sim"]), str(paths["rec"]), "--observed", "b"]) == 2
-    assert "--observed and --sensor go together" in capsys.readouterr().err
+    assert "--observed goes with one of --sensor" in capsys.readouterr().err
     bad = tmp_path / "bad.json"
     bad.write_text('{"u": {"dropout": 2}}')
     assert run(["compare", str(paths["sim"]), str(paths["rec"]), "--observed", "a",
