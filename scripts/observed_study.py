@@ -70,8 +70,11 @@ def main(argv=None) -> None:
     parser.add_argument("--cal-bootstrap", type=int, default=30)
     parser.add_argument("--seed", type=int, default=23)
     parser.add_argument("--laws", default="H0,gain,reaction")
+    parser.add_argument("--features", default="u,v")
+    parser.add_argument("--bins", type=int, default=4)
     parser.add_argument("--out", default="observed.json")
     args = parser.parse_args(argv)
+    OPTIONS.update(features=args.features.split(","), bins=args.bins)
     table = {}
     out = {"args": vars(args), "options": OPTIONS, "laws": LAWS, "sensor":
            universe.SENSOR.to_dict(), "table": table}
