@@ -10,8 +10,16 @@
     setup, vectorised with numpy (the closed form of interval propagation), in the same run:
     same optimum, and the speed-up (target ≥ 10×);
 (b) monitors: samples per second on invariant clauses over 10⁷ samples, against a hand-written
-    numpy expression of the same clauses in the same run.
-Usage: python benchmarks/contracts.py [--quick]
+    numpy expression of the same clauses in the same run;
+(f) configuration of generated libraries (benchmarks/contract_libraries.py: non-convex chains
+    20 × 6 and 30 × 8, fan-in 10 × 4 and 20 × 6): the path configure takes (0-1 optimisation)
+    against the generator's independent optimum, and the counterexample-guided path (the method
+    before issue 28) in the same run, stopped after CEGIS_LIMIT_S seconds;
+(e) ``until`` over 10⁶ samples at 100 Hz with a 10 s window (1,000 samples), the block
+    decomposition against the loop over window offsets (the method before issue 28) on 10⁵
+    samples of the same signal, in samples per second (target: 10⁶ samples < 2 s).
+Usage: python benchmarks/contracts.py [--quick] [--only SECTION ...]
+(``--only`` writes benchmarks/results/contracts-SECTION….json, leaving contracts.json alone.)
 """
 
 from __future__ import annotations
@@ -243,15 +251,87 @@ def bench_temporal(samples: int) -> list[dict]:
                    "speedup_vs_rtamt": (runs * steps / seconds) / (n / rt_seconds)}]
 
 
+def bench_until(samples: int) -> list[dict]:
+    """(e): module docs."""
+    from simcred.contracts.temporal import Timeline, _until_offsets, until
+
+    rng = np.random.default_rng(2)
+    t = np.arange(samples) * 0.01
+    phi, psi = rng.normal(size=samples), rng.normal(size=samples)
+    timeline = Timeline.single(t)
+    rows = []
+    for past, name in ((False, "until"), (True, "since")):
+        seconds, _ = best_of(lambda past=past: until(phi, psi, timeline, 0, 10, past=past,
+                                                     boolean=False), 3)
+        m = min(samples, 10**5)
+        part = Timeline.single(t[:m])
+        start, stop = part.window(0, 10, past=past)
+        loop, _ = best_of(lambda past=past, start=start, stop=stop, m=m: _until_offsets(
+            phi[:m], psi[:m], start, stop, past=past), 1)
+        rows.append({"case": f"(e) {name}[0, 10] at 100 Hz, {samples:,} samples",
+                     "seconds": seconds, "samples_per_s": samples / seconds,
+                     "loop_samples": m, "loop_seconds": loop, "loop_samples_per_s": m / loop,
+                     "speedup_vs_loop": (samples / seconds) / (m / loop),
+                     "target": "10⁶ samples < 2 s"})
+    return rows
+
+
+CEGIS_LIMIT_S = 30
+
+
+def bench_library(seeds) -> list[dict]:
+    """(f): module docs."""
+    import signal
+
+    from contract_libraries import fan_in, non_convex
+
+    def stop(signum, frame):
+        raise TimeoutError
+
+    rows = []
+    for make, size in ((non_convex, (20, 6)), (non_convex, (30, 8)), (fan_in, (10, 4)),
+                       (fan_in, (20, 6))):
+        for seed in seeds:
+            library, oracle = make(*size, seed)
+            seconds, found = best_of(lambda library=library: configure(library, "tc"), 1)
+            previous = signal.signal(signal.SIGALRM, stop)
+            signal.alarm(CEGIS_LIMIT_S)
+            try:
+                cegis_seconds, cegis = best_of(
+                    lambda library=library: configure(library, "tc", search="cegis"), 1)
+                cegis_cost = cegis.cost
+            except TimeoutError:
+                cegis_seconds, cegis_cost = None, "no answer"
+            finally:
+                signal.alarm(0)
+                signal.signal(signal.SIGALRM, previous)
+            rows.append({"case": f"(f) {make.__name__} {size[0]} × {size[1]}, seed {seed}",
+                         "seconds": seconds, "status": found.status.value, "cost": found.cost,
+                         "oracle_cost": oracle, "optimal": found.cost == oracle,
+                         "method": found.method.split(";")[0],
+                         "cegis_seconds": cegis_seconds, "cegis_cost": cegis_cost,
+                         "cegis_limit_s": CEGIS_LIMIT_S,
+                         "speedup_vs_cegis": (cegis_seconds or CEGIS_LIMIT_S) / seconds})
+    return rows
+
+
+SECTIONS = ("configuration", "scale", "monitor", "temporal", "until", "library")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--quick", action="store_true")
+    parser.add_argument("--only", nargs="+", choices=SECTIONS, default=list(SECTIONS))
     args = parser.parse_args()
-    results = {"machine": machine(),
-               "configuration": bench_configuration(range(2) if args.quick else range(5)),
-               "scale": bench_dag(range(2) if args.quick else range(5)),
-               "monitor": bench_monitor(10**6 if args.quick else 10**7),
-               "temporal": bench_temporal(10**5 if args.quick else 10**6)}
+    quick = args.quick
+    benches = {"configuration": lambda: bench_configuration(range(2) if quick else range(5)),
+               "scale": lambda: bench_dag(range(2) if quick else range(5)),
+               "monitor": lambda: bench_monitor(10**6 if quick else 10**7),
+               "temporal": lambda: bench_temporal(10**5 if quick else 10**6),
+               "until": lambda: bench_until(10**5 if quick else 10**6),
+               "library": lambda: bench_library(range(1) if quick else range(2))}
+    results = {"machine": machine()}
+    results.update({name: benches[name]() if name in args.only else [] for name in SECTIONS})
     table = Table(title="simcred contracts benchmarks")
     for column in ("case", "seconds", "result", "note"):
         table.add_column(column)
@@ -274,9 +354,24 @@ def main() -> None:
                 f"({r['rtamt_samples_per_s']:.3g})" if "speedup_vs_rtamt" in r else r["rtamt"])
         table.add_row(r["case"], f"{r['seconds']:.3f}", f"{r['samples_per_s']:.3g} samples/s",
                       note)
+    for r in results["library"]:
+        cegis = (f"CEGIS {r['cegis_seconds']:.1f} s, cost {r['cegis_cost']}"
+                 if r["cegis_seconds"] is not None
+                 else f"CEGIS no answer in {r['cegis_limit_s']} s")
+        table.add_row(r["case"], f"{r['seconds']:.2f}",
+                      f"{r['status']}, cost {r['cost']}, optimal (generator's DP): "
+                      f"{r['optimal']}",
+                      f"{'≥ ' if r['cegis_seconds'] is None else ''}"
+                      f"{r['speedup_vs_cegis']:.0f}× faster ({cegis}); target < 10 s")
+    for r in results["until"]:
+        table.add_row(r["case"], f"{r['seconds']:.3f}", f"{r['samples_per_s']:.3g} samples/s",
+                      f"{r['speedup_vs_loop']:.0f}× the loop over window offsets "
+                      f"({r['loop_samples_per_s']:.3g} samples/s on {r['loop_samples']:,}); "
+                      f"{r['target']}")
     Console(width=160).print(table)
-    out = ROOT / "benchmarks" / "results" / ("contracts-quick.json" if args.quick
-                                             else "contracts.json")
+    name = "contracts" + ("-quick" if quick else "") + (
+        "" if set(args.only) == set(SECTIONS) else "-" + "-".join(args.only))
+    out = ROOT / "benchmarks" / "results" / f"{name}.json"
     out.write_text(json.dumps(results, indent=1) + "\n")
     print(f"wrote {out}")
 

@@ -1,10 +1,17 @@
 """Coverage of the response test's effect intervals, and the size of its equivalence test.
 
 For each design (tests/response_designs.py ``defect`` kinds, paired, known nonzero deviation):
-the "true" response deviation of every response feature is the estimate on one draw of
-``--truth-runs`` runs (the population value of the same estimand); then ``--reps`` draws at
-``--runs`` runs give the share of 90 % and 95 % intervals that contain it, and the share of
-equivalence declarations at margin = the true deviation (must be ≤ α: the boundary of H0).
+the true response deviation of every response feature is the population value of the estimand
+(effect.py: states holding ≥ 0.5 % of each side's transitions, weighted by the average share,
+both shares of the two laws, so the same quantity at every number of runs), computed as
+``√(mean θ̃)`` over ``--truth-draws`` independent draws of ``--truth-runs`` pairs (θ̃ the
+bias-corrected squared deviation: unbiased, so the mean over draws converges to it; its
+standard error is printed). Then ``--reps`` draws at ``--runs`` runs give the share of 90 % and
+95 % intervals that contain it (and on which side they miss), and the share of equivalence
+declarations at margin = the true deviation (must be ≤ α = 0.05: the boundary of H0).
+
+``--null-sizes``: the same-law control (kind ``none``): mean estimate, mean one-sided 95 %
+upper bound and the share of estimates that are exactly 0, per number of pairs.
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/response_coverage.py --reps 400
 """
@@ -14,6 +21,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -22,12 +30,72 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from response_designs import defect  # noqa: E402
 from simcred.compare import compare  # noqa: E402
 
+LEVELS = (0.90, 0.95)
 
-def estimate(d, seed, level_bootstrap, margin=None):
+
+def effects(d, seed, bootstrap, margin=None):
     result = compare(d.a, d.b, features=list(d.features), test="response", pair_by=d.pair_by,
-                     bins=4, permutations=19, seed=seed, alpha=0.05, bootstrap=level_bootstrap,
+                     bins=4, permutations=19, seed=seed, alpha=0.05, bootstrap=bootstrap,
                      margin=margin)
     return {f.feature: f for f in result.response.effect.features}
+
+
+def truth(kind, draws, runs):
+    """Per feature: (true deviation, its standard error) from ``draws`` draws of ``runs``."""
+    squared = {}
+    for i in range(draws):
+        for name, f in effects(defect(np.random.default_rng(10**6 + i), kind, runs=runs),
+                               i, 2).items():
+            squared.setdefault(name, []).append(f.squared)
+    out = {}
+    for name, values in squared.items():
+        mean, se = float(np.mean(values)), float(np.std(values, ddof=1) / np.sqrt(draws))
+        root = np.sqrt(max(mean, 0.0))
+        out[name] = (float(root), float(se / (2 * root)) if root > 0 else float("nan"))
+    return out
+
+
+def coverage(kind, true, reps, runs, bootstrap, seed0=0):
+    counts = {name: {"cover": {lv: 0 for lv in LEVELS}, "low_above": {lv: 0 for lv in LEVELS},
+                     "high_below": {lv: 0 for lv in LEVELS}, "width95": 0.0, "equivalent": 0,
+                     "estimate": 0.0} for name in true}
+    for rep in range(seed0, seed0 + reps):
+        d = defect(np.random.default_rng(rep), kind, runs=runs)
+        found = effects(d, rep, bootstrap, margin={n: t for n, t in true.items() if t > 1e-9})
+        for name, f in found.items():
+            c, t = counts[name], true[name]
+            for lv in LEVELS:
+                low, high = f.bounds((1 - lv) / 2)
+                c["cover"][lv] += low <= t <= high
+                c["low_above"][lv] += low > t
+                c["high_below"][lv] += high < t
+                if lv == 0.95:
+                    c["width95"] += high - low
+            c["equivalent"] += bool(f.equivalent) if t > 1e-9 else 0
+            c["estimate"] += f.estimate
+    return {name: {"coverage": {str(lv): c["cover"][lv] / reps for lv in LEVELS},
+                   "low_above_truth": {str(lv): c["low_above"][lv] / reps for lv in LEVELS},
+                   "high_below_truth": {str(lv): c["high_below"][lv] / reps for lv in LEVELS},
+                   "mean_width_95": c["width95"] / reps, "mean_estimate": c["estimate"] / reps,
+                   "equivalent_at_truth": c["equivalent"] / reps}
+            for name, c in counts.items()}
+
+
+def null_check(sizes, reps, bootstrap):
+    out = {}
+    for runs in sizes:
+        rows = {}
+        for rep in range(reps):
+            d = defect(np.random.default_rng(50_000 + rep), "none", runs=runs)
+            for name, f in effects(d, rep, bootstrap).items():
+                r = rows.setdefault(name, {"estimate": [], "upper": [], "zero": []})
+                r["estimate"].append(f.estimate)
+                r["upper"].append(f.upper)
+                r["zero"].append(f.estimate == 0)
+        out[runs] = {name: {k: float(np.mean(v)) for k, v in r.items()}
+                     for name, r in rows.items()}
+        print("none", runs, json.dumps(out[runs]), flush=True)
+    return out
 
 
 def main(argv=None):
@@ -35,36 +103,27 @@ def main(argv=None):
     parser.add_argument("--reps", type=int, default=400)
     parser.add_argument("--runs", type=int, default=40)
     parser.add_argument("--truth-runs", type=int, default=1500)
+    parser.add_argument("--truth-draws", type=int, default=30)
     parser.add_argument("--kinds", default="variance,delay,clip")
     parser.add_argument("--bootstrap", type=int, default=500)
+    parser.add_argument("--seed0", type=int, default=0, help="first replication's seed")
+    parser.add_argument("--null-sizes", default="")
+    parser.add_argument("--null-reps", type=int, default=50)
     parser.add_argument("--out", default="coverage.json")
     args = parser.parse_args(argv)
-    from simcred.compare import conditional
-
     table = {}
-    for kind in args.kinds.split(","):
-        truth = estimate(defect(np.random.default_rng(10**6), kind, runs=args.truth_runs),
-                         0, 50)
-        true = {name: f.plugin for name, f in truth.items()}
-        hits = {level: {name: 0 for name in true} for level in (0.90, 0.95)}
-        equivalent = {name: 0 for name in true}
-        for rep in range(args.reps):
-            d = defect(np.random.default_rng(rep), kind, runs=args.runs)
-            for level in (0.90, 0.95):
-                conditional.INTERVAL_LEVEL = level
-                found = estimate(d, rep, args.bootstrap,
-                                 margin={n: true[n] for n in true} if level == 0.95 else None)
-                for name, f in found.items():
-                    hits[level][name] += f.low <= true[name] <= f.high
-                    if level == 0.95:
-                        equivalent[name] += bool(f.equivalent)
-        conditional.INTERVAL_LEVEL = 0.95
-        table[kind] = {"truth": true,
-                       "coverage": {str(level): {n: k / args.reps for n, k in h.items()}
-                                    for level, h in hits.items()},
-                       "equivalent_at_truth": {n: k / args.reps for n, k in equivalent.items()}}
-        print(kind, json.dumps(table[kind]), flush=True)
-    Path(args.out).write_text(json.dumps({"args": vars(args), "table": table}, indent=1))
+    for kind in filter(None, args.kinds.split(",")):
+        start = time.time()
+        true = truth(kind, args.truth_draws, args.truth_runs)
+        cov = coverage(kind, {n: t for n, (t, _) in true.items()}, args.reps, args.runs,
+                       args.bootstrap, args.seed0)
+        table[kind] = {name: {"truth": true[name][0], "truth_se": true[name][1], **cov[name]}
+                       for name in true}
+        print(kind, f"{time.time() - start:.0f}s", json.dumps(table[kind]), flush=True)
+    null = null_check([int(s) for s in args.null_sizes.split(",") if s], args.null_reps,
+                      args.bootstrap)
+    Path(args.out).write_text(json.dumps({"args": vars(args), "table": table, "null": null},
+                                         indent=1))
 
 
 if __name__ == "__main__":

@@ -14,8 +14,9 @@ recordings, unpaired (truth: valid — the same response law, other scenarios). 
 whole leader-speed range, cells 0-15-30 m/s
 (K = 2); features gap, v, v_leader with v_leader an input; tolerance on the acceleration response
 (the rate of v): ``TOLERANCE`` = 0.012 m/s², the true deviation of a 0.15 s reaction delay
-(scripts/validate_truth.py on 8,000 episodes per side: 0.0123 / 0.0115 in the two cells), so
-every injected defect lies beyond it (0.017-0.224 m/s² in every cell) and the same model within.
+(scripts/validate_truth.py on 8,000 episodes per side: 0.0124 / 0.0112 in the two cells), so
+every injected delay lies beyond it (0.022-0.233 m/s² in every cell), the clip is at it (0.0129
+/ 0.0112) and the same model within.
 A test case that tolerates a reaction-time error below 0.15 s.
 
 For each candidate and size (episodes per side), ``--seeds`` draws; the counts of VALID /

@@ -7,11 +7,11 @@ docs of simcred.validate.synthetic):
 
 * ``same`` (effect 0 everywhere, deviation 0): truly valid. Measured: how often the test case
   comes out NOT VALID (family-wise false NOT VALID; bound alpha = 0.05) and how often VALID;
-* ``within`` (effect 0.05 everywhere, deviation 0.29-0.36 < 0.5): truly valid, not identical;
+* ``within`` (effect 0.05 everywhere, deviation 0.31-0.35 < 0.5): truly valid, not identical;
   NOT VALID here is also wrong (bound alpha);
-* ``beyond`` (effect 0.1 everywhere, deviation 0.67-0.76 > 0.5): truly not valid. VALID is a
+* ``beyond`` (effect 0.1 everywhere, deviation 0.71-0.73 > 0.5): truly not valid. VALID is a
   false validation (bound alpha; intersection-union over the cells);
-* ``above 20`` (effect 0.15 above 20 m/s only): truly not valid (deviation ≥ 1.06 in two cells).
+* ``above 20`` (effect 0.15 above 20 m/s only): truly not valid (deviation ≥ 1.18 in two cells).
 
 Each candidate against a fresh reference per seed, ``--seeds`` seeds (default 200) at each size
 (runs per set). Rates with Clopper-Pearson 95 % intervals; JSON with ``--out``.

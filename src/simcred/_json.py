@@ -86,7 +86,10 @@ def loads(text: str | bytes, where: str, error: type[SimcredError] = SimcredErro
 
 
 def read_json(path: Path, error: type[SimcredError] = SimcredError) -> Any:
-    """Read and parse a JSON file (see :func:`loads`); unreadable files are one-line errors."""
+    """Read and parse a JSON file (see :func:`loads`); unreadable files, and special files (a
+    FIFO or a device, which could block or never end), are one-line errors."""
+    if path.exists() and not path.is_file():
+        raise error(f"{path}: not a regular file")
     try:
         data = path.read_bytes()
     except OSError as exc:

@@ -2,8 +2,10 @@
 
 Every command writes into a *partial* sibling of its output (``OUT.partial``) and renames it into
 place only when everything was written, so an output that exists is complete. ``--out`` may never
-be, contain or lie inside an input. An existing non-empty output is replaced only when the caller
-says so (``--overwrite``), never merged. A command that can resume keeps the partial directory when
+be, contain or lie inside an input, compared as resolved paths and by identity. An existing
+non-empty output is replaced only when the caller says so (``--overwrite``), never merged, and only
+if simcred wrote it (its :data:`MARKER` file); never the working or home directory or a folder
+above them. A command that can resume keeps the partial directory when
 it is interrupted; :class:`Checkpoint` stores finished pieces there atomically.
 """
 
@@ -21,35 +23,77 @@ from simcred.errors import OptionError
 PARTIAL_SUFFIX = ".partial"
 CHECKPOINTS = "checkpoints"
 MANIFEST = "job.json"
+#: The file simcred puts in every directory it writes (an output, its partial directory):
+#: ``--overwrite`` replaces a directory only if it holds this file, never one simcred did not make.
+MARKER = ".simcred-output"
+MARKER_TEXT = b"written by simcred; --overwrite may replace this folder\n"
 
 
 def partial_path(out: Path) -> Path:
-    """Where the output is assembled before it is renamed into place."""
-    return out.with_name(out.name + PARTIAL_SUFFIX)
+    """Where the output is assembled before it is renamed into place: beside the resolved
+    ``out`` (so ``out`` typed relative, absolute or through a link has one partial output)."""
+    target = real(out)
+    if not target.name:
+        raise OptionError(f"--out {out} is the root folder: choose a folder of its own")
+    return target.with_name(target.name + PARTIAL_SUFFIX)
+
+
+def real(path: Path) -> Path:
+    """``path`` absolute, with every symbolic link and ``..`` resolved as the system would (a
+    ``..`` after a link climbs from the link's target, not from the link)."""
+    return Path(os.path.realpath(path))
+
+
+def contains(outer: Path, inner: Path) -> bool:
+    """Whether ``inner`` is ``outer`` or lies below it, compared as resolved paths and by the
+    identity (device and inode) of ``outer`` and every existing folder above ``inner`` (a bind
+    mount or a hard link is the same file under another name)."""
+    outer, inner = real(outer), real(inner)
+    if inner.is_relative_to(outer):
+        return True
+    try:
+        identity = os.stat(outer)
+    except OSError:  # does not exist: nothing lies below it
+        return False
+    for place in (inner, *inner.parents):
+        try:
+            if os.path.samestat(identity, os.stat(place)):
+                return True
+        except OSError:
+            continue
+    return False
 
 
 def check_out(out: Path, inputs: Sequence[Path] = (), *, overwrite: bool = False,
               kind: str = "directory") -> None:
     """Refuse an output that is, contains or lies inside an input, or that would be clobbered.
 
+    Paths are compared resolved (links, ``..``) and by identity (:func:`contains`). An existing
+    output is never a symbolic link, the working or home directory or a folder above them, and
+    ``overwrite`` replaces a directory only if simcred wrote it (:data:`MARKER`).
+
     Raises :class:`~simcred.errors.OptionError` naming the path and the way out.
     """
-    target = Path(os.path.abspath(out))
+    if out.is_symlink():
+        raise OptionError(f"--out {out} is a symbolic link (to {os.readlink(out)}): name the "
+                          "real path, or another one")
     for item in inputs:
-        source = Path(os.path.abspath(item))
-        if target == source or source.is_relative_to(target) or target.is_relative_to(source):
+        if contains(out, item) or contains(item, out):
             raise OptionError(f"--out {out} would overwrite the input {item}: choose another "
                               "output path")
-    if target.exists() or target.is_symlink():
+    target = real(out)
+    if target.exists():
+        _refuse_replacing_a_home(out)
         if kind == "directory" and not target.is_dir():
             raise OptionError(f"--out {out} exists and is not a directory")
         if kind == "file" and target.is_dir():
             raise OptionError(f"--out {out} is a directory, expected a file")
-        if not overwrite and (target.is_file() or any(target.iterdir())):
-            raise OptionError(f"--out {out} exists and is not empty: choose another path or "
-                              "pass --overwrite to replace it")
-    if overwrite and target.is_dir():
-        _refuse_replacing_a_home(out, target)
+        if target.is_file() or any(target.iterdir()):
+            if not overwrite:
+                raise OptionError(f"--out {out} exists and is not empty: choose another path "
+                                  "or pass --overwrite to replace it")
+            if target.is_dir():
+                _refuse_foreign(out, "--out")
     for parent in target.parents:
         if parent.exists():
             if not parent.is_dir():
@@ -57,13 +101,39 @@ def check_out(out: Path, inputs: Sequence[Path] = (), *, overwrite: bool = False
             break
 
 
-def _refuse_replacing_a_home(out: Path, target: Path) -> None:
-    """``--overwrite`` replaces a folder whole: never the working directory, a folder holding
-    it, or the home directory."""
-    cwd = Path(os.path.abspath(Path.cwd()))
-    if cwd.is_relative_to(target) or target == Path(os.path.abspath(Path.home())):
-        raise OptionError(f"--out {out} holds the working or home directory: --overwrite would "
-                          "delete it; choose a folder of its own")
+def _refuse_replacing_a_home(out: Path) -> None:
+    """An existing output is replaced whole: never the working directory, the home directory or
+    a folder holding either."""
+    places = [Path.cwd()]
+    home = os.environ.get("HOME")
+    if home:
+        places.append(Path(home))
+    for place in places:
+        if contains(out, place):
+            raise OptionError(f"--out {out} holds the working or home directory: --overwrite "
+                              "would delete it; choose a folder of its own")
+
+
+def _refuse_foreign(directory: Path, what: str) -> None:
+    """One line unless ``directory`` holds simcred's :data:`MARKER` (a regular file)."""
+    marker = directory / MARKER
+    if marker.is_symlink() or not marker.is_file():
+        raise OptionError(f"{what} {directory} was not written by simcred (no {MARKER} in it): "
+                          "--overwrite replaces only simcred's outputs; move it away yourself "
+                          "or choose another path")
+
+
+def _make_partial(partial: Path) -> None:
+    """Create ``partial`` holding its :data:`MARKER`, atomically: a kill at any moment leaves
+    no partial output without its marker (which could then be neither resumed nor replaced)."""
+    partial.parent.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=f".{partial.name}-", dir=partial.parent))
+    try:
+        (staging / MARKER).write_bytes(MARKER_TEXT)
+        os.rename(staging, partial)
+    except BaseException:  # e.g. the disk is full: nothing is left behind
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
 
 
 @contextmanager
@@ -95,25 +165,32 @@ def output_path(out: Path, inputs: Sequence[Path] = (), *, kind: str = "director
         half-written remains.
     """
     check_out(out, inputs, overwrite=overwrite, kind=kind)
-    partial = partial_path(out)
-    if partial.exists() and not partial.is_dir():
-        raise OptionError(f"{partial} is not a directory: remove it or choose another --out")
-    lock = None
-    if partial.exists() or partial.is_symlink():
+    partial, out = partial_path(out), real(out)
+    if partial.is_symlink() or (partial.exists() and not partial.is_dir()):
+        raise OptionError(f"{partial} is not a directory simcred made: remove it or choose "
+                          "another --out")
+    lock, inherited = None, partial.exists()
+    if inherited:
+        _refuse_foreign(partial, "the partial output")
         lock = _lock(partial)  # refuses a partial output another command is writing now
         if not resume:
             if not overwrite:
                 _unlock(lock)
                 raise OptionError(f"{partial} holds the output of an interrupted run: continue "
                                   "it with --resume or start over with --overwrite")
-            _remove(partial)
             lock = _unlock(lock)
-    partial.mkdir(parents=True, exist_ok=True)
+            shutil.rmtree(partial)
+            inherited = False
+    if not inherited:
+        _make_partial(partial)
     lock = lock if lock is not None else _lock(partial)
     try:
         yield partial if kind == "directory" else partial / out.name
     except BaseException as exc:
-        keep = keep_partial(exc) if callable(keep_partial) else keep_partial
+        if isinstance(exc, OSError) and exc.filename is None:  # pyarrow names no file
+            exc.filename = str(out)
+        # a resumed run never removes what an earlier run finished, even when it is refused
+        keep = inherited or (keep_partial(exc) if callable(keep_partial) else keep_partial)
         if not keep:
             shutil.rmtree(partial, ignore_errors=True)
         raise
@@ -158,13 +235,6 @@ def output_dir(out: Path, inputs: Sequence[Path] = (), *, overwrite: bool = Fals
     with output_path(out, inputs, overwrite=overwrite, resume=resume,
                      keep_partial=keep_partial) as partial:
         yield partial
-
-
-def _remove(path: Path) -> None:
-    if path.is_dir() and not path.is_symlink():
-        shutil.rmtree(path)
-    else:
-        path.unlink()
 
 
 def _replace_dir(partial: Path, out: Path) -> None:
@@ -232,7 +302,9 @@ class Checkpoint:
         manifest is refused, so stale pieces are never mixed into a different job."""
         path = self.directory / MANIFEST
         if path.is_file() and path.read_text(encoding="utf-8") != manifest:
+            kept = len(self.keys())
             raise OptionError(f"{self.directory.parent} was started with other options or "
-                              "inputs: rerun that command with --resume, or start over with "
-                              "--overwrite")
+                              f"inputs ({path} names them); its {kept} finished piece"
+                              f"{'' if kept == 1 else 's'} are kept: rerun that command with "
+                              "--resume to continue, or start over with --overwrite")
         write_atomic(path, manifest)

@@ -357,6 +357,9 @@ class TraceSet:
 
     def _validate(self) -> None:
         src = self.source
+        if not isinstance(self.metadata, Mapping):  # e.g. a JSON list stored by another tool
+            raise TraceSetError(f"{src}: metadata must be a JSON object, not "
+                                f"{type(self.metadata).__name__}")
         if self.n_runs < 1 or self.n_rows == 0:
             raise TraceSetError(f"{src}: the trace set is empty (no runs)")
         if TIME in self.signals:

@@ -324,3 +324,35 @@ def test_validate_resumes_after_ctrl_c_with_the_same_bytes(tmp_path, monkeypatch
     # simulate on resume
     assert "IDM" not in models and "Krauss" in models
     assert tree(tmp_path / "v") == tree(tmp_path / "whole")
+
+
+def test_a_refused_resume_keeps_every_checkpoint(tmp_path, monkeypatch, capsys):
+    """Other options: refused with one line saying how to go on, every finished chunk kept;
+    the same --out typed relative instead of absolute resumes."""
+    from simcred.sim.experiments import simplecar_sweep
+
+    assert run(_simulate(tmp_path / "whole")) == 0
+    expected = tree(tmp_path / "whole")
+    real = simplecar_sweep.simulate
+
+    def interrupted(indices, seed, **params):
+        if indices[0] == 4:
+            raise KeyboardInterrupt
+        return real(indices, seed, **params)
+
+    monkeypatch.setattr(simplecar_sweep, "simulate", interrupted)
+    out = tmp_path / "out"
+    assert run(_simulate(out)) == 130
+    monkeypatch.setattr(simplecar_sweep, "simulate", real)
+    checkpoints = partial_path(out) / "checkpoints"
+    kept = tree(checkpoints)
+    assert len([k for k in kept if k.startswith("map")]) == 4
+    capsys.readouterr()
+    assert run([*_simulate(out, "--resume"), "--lambda", "0.9"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "4 finished pieces are kept" in err
+    assert "--resume" in err and "job.json" in err
+    assert tree(checkpoints) == kept  # nothing removed
+    monkeypatch.chdir(tmp_path)
+    assert run(_simulate(Path("out"), "--resume")) == 0  # relative now, absolute before
+    assert tree(out) == expected

@@ -316,9 +316,44 @@ def test_composition_is_associative_up_to_mutual_refinement(examples):
         c1, c2, c3 = drawn[1]
         left, right = c1.compose(c2).compose(c3), c1.compose(c2.compose(c3))
         assert equivalent(left, right).holds
-        assert compose_all([c1, c2, c3]) == left
+        assert equivalent(compose_all([c1, c2, c3]), left).holds  # the flat form (z3)
 
     check()
+
+
+@pytest.mark.parametrize("examples", sizes(40))
+def test_flat_composition_equals_the_nested_one_and_grows_linearly(examples):
+    """compose_all of n contracts is equivalent (z3, mutual refinement) to the pairwise nesting,
+    and its tree has 2·Σ|Ci'| + |∧Ai| + O(1) nodes, while the nesting roughly doubles per
+    contract."""
+    @law(examples)
+    @given(contract_tuples(4))
+    def check(drawn):
+        items = list(drawn[1])
+        nested = items[0]
+        for c in items[1:]:
+            nested = nested.compose(c)
+        flat = compose_all(items)
+        assert equivalent(flat, nested).holds
+        parts = sum(_size(c.saturated_guarantee) for c in items)
+        assert _size(flat.guarantee) <= parts + 1
+        assert _size(flat.assumption) <= sum(_size(c.assumption) for c in items) + parts + 4
+
+    check()
+
+
+def _size(e) -> int:
+    from simcred.contracts.expr import children
+
+    return 1 + sum(_size(c) for c in children(e))
+
+
+def test_flat_composition_of_20_contracts_is_linear():
+    items = [Contract.from_strings(f"0 <= x{k} <= 10", f"x{k + 1} <= x{k} + 1")
+             for k in range(20)]
+    sizes_ = [_size(compose_all(items[:n]).assumption) for n in (5, 10, 20)]
+    step = sizes_[1] - sizes_[0]
+    assert sizes_[2] - sizes_[1] == 2 * step  # exactly linear: equal increments per contract
 
 
 @pytest.mark.parametrize("examples", sizes(100))

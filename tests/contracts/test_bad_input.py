@@ -149,6 +149,14 @@ CASES = [
     ("vacuous-nonlinear", contract("M2a", assumption="q * q < 0"), "unsatisfiable", None),
     ("vacuous-test-case", tc(assumption="v > 3 and v < 3"), "unsatisfiable", None),
     ("no-contract", lambda s: s["models"]["M1"].pop("contract"), "models.M1.contract", None),
+    ("contract-empty-list", model("M1", contract=[]), "at least one contract", None),
+    ("division-by-constant-zero", contract("M2a", guarantee="err <= q / (2 - 2)"),
+     "division by zero", None),
+    ("division-by-decimal-zero", contract("M2a", guarantee="err <= q / (0.1 + 0.2 - 0.3)"),
+     "division by zero", None),
+    ("variable-named-t", lambda s: (s["variables"].update(t={"unit": "s"}),
+                                    s["components"]["I2"]["inputs"].append("t")),
+     "time column", None),
     ("contract-word", model("M1", contract="nonsense"), "models.M1.contract", None),
     ("name-reused", lambda s: s["test_cases"].update(M1={"assumption": "v <= 1"}),
      "also used in models", None),
@@ -241,3 +249,12 @@ def test_monitor_setup_names_a_model_of_another_component(tmp_path, capsys):
     assert run(["monitor", str(FIGURE2), str(runs), "--setup", "I2=M1"]) == 2
     err = capsys.readouterr().err
     assert "'M1' is not a model of component 'I2'" in err and err.count("\n") == 1
+
+
+def test_monitor_setup_with_two_models_of_one_component(tmp_path, capsys):
+    runs = tmp_path / "runs"
+    runs.mkdir()
+    (runs / "r0.csv").write_text("t,v,q,err\n0,1,1,0\n0.1,1,1,0\n")
+    assert run(["monitor", str(FIGURE2), str(runs), "--setup", "I1=M1,I2=M2a,I2=M2b"]) == 2
+    err = capsys.readouterr().err
+    assert "component 'I2' has two models" in err and err.count("\n") == 1

@@ -99,14 +99,17 @@ def test_configuration_is_the_cheapest_by_z3_enumeration_and_cegis(seed):
         assert result.proof.holds
 
 
-def test_outside_the_fragment_cegis_is_used():
+def test_outside_the_fragment_optimisation_or_cegis_is_used():
+    """A sum in an assumption with box guarantees: 0-1 optimisation; a guarantee that is not a
+    box: counterexample-guided."""
     lib = random_dag(3)
     spec = lib.spec.model_dump()
     spec["models"]["M00"]["contract"] = {"assumption": "e0 + e1 <= 20" if "e1" in
                                          spec["components"]["C0"]["inputs"] else "e0 * 2 <= 9",
                                          "guarantee": "y0 <= 3"}
-    lib = Library.from_dict(spec)
-    assert "CEGIS" in configure(lib, "tc").method
+    assert "0-1 optimisation" in configure(Library.from_dict(spec), "tc").method
+    spec["models"]["M00"]["contract"]["guarantee"] = "y0 <= 3 or y0 >= 100"
+    assert "CEGIS" in configure(Library.from_dict(spec), "tc").method
 
 
 @pytest.mark.parametrize(("text", "expected"), [

@@ -27,28 +27,32 @@ FORMULAS = 1_200
 UNARY = ("always", "eventually", "historically", "once")
 
 
-def random_formula(rng, depth: int = 0):
+def random_formula(rng, depth: int = 0, step: Fraction = Fraction(1)):
+    """A random formula; windows are whole multiples of ``step`` (the sampling period)."""
     kind = rng.integers(0, 10) if depth < 3 else 0
+
+    def sub():
+        return random_formula(rng, depth + 1, step)
+
     if kind <= 2:
         name = ("x", "y")[rng.integers(0, 2)]
         op = ("<=", "<", ">=", ">")[rng.integers(0, 4)]
         return Compare(op, Var(name), Num(Fraction(f"{rng.normal():.2f}")))
     if kind <= 4:
         lo = int(rng.integers(0, 3))
-        return Temporal(UNARY[rng.integers(0, 4)], lo, lo + int(rng.integers(0, 4)),
-                        (random_formula(rng, depth + 1),))
+        return Temporal(UNARY[rng.integers(0, 4)], lo * step,
+                        (lo + int(rng.integers(0, 4))) * step, (sub(),))
     if kind == 5:
-        return Temporal("previous", 0, 0, (random_formula(rng, depth + 1),))
+        return Temporal("previous", 0, 0, (sub(),))
     if kind == 6:
         lo = int(rng.integers(0, 2))
-        return Temporal(("until", "since")[rng.integers(0, 2)], lo, lo + int(rng.integers(0, 4)),
-                        (random_formula(rng, depth + 1), random_formula(rng, depth + 1)))
+        return Temporal(("until", "since")[rng.integers(0, 2)], lo * step,
+                        (lo + int(rng.integers(0, 4))) * step, (sub(), sub()))
     if kind == 7:
-        return Logic("not", (random_formula(rng, depth + 1),))
+        return Logic("not", (sub(),))
     if kind == 8:
-        return Logic("implies", (random_formula(rng, depth + 1), random_formula(rng, depth + 1)))
-    return Logic(("and", "or")[rng.integers(0, 2)],
-                 (random_formula(rng, depth + 1), random_formula(rng, depth + 1)))
+        return Logic("implies", (sub(), sub()))
+    return Logic(("and", "or")[rng.integers(0, 2)], (sub(), sub()))
 
 
 def rtamt_text(e) -> str:
@@ -61,20 +65,27 @@ def rtamt_text(e) -> str:
         return "(" + f" {e.op} ".join(rtamt_text(a) for a in e.args) + ")"
     if e.op == "previous":
         return f"(prev {rtamt_text(e.args[0])})"
-    window = f"[{int(e.lo)},{int(e.hi)}]"
+    window = f"[{_decimal(e.lo)},{_decimal(e.hi)}]"
     if e.op in ("until", "since"):
         return f"({rtamt_text(e.args[0])} {e.op}{window} {rtamt_text(e.args[1])})"
     return f"({e.op}{window} {rtamt_text(e.args[0])})"
 
 
-def rtamt_robustness(e, x, y) -> np.ndarray:
+def _decimal(value: Fraction) -> str:
+    from simcred.contracts.expr import decimal_text
+
+    return decimal_text(Fraction(value)) or str(float(value))
+
+
+def rtamt_robustness(e, x, y, time=None, step: Fraction = Fraction(1)) -> np.ndarray:
     spec = rtamt.StlDiscreteTimeSpecification()
     spec.declare_var("x", "float")
     spec.declare_var("y", "float")
     spec.spec = rtamt_text(e)
-    spec.set_sampling_period(1, "s", 0.1)
+    spec.set_sampling_period(float(step), "s", 0.1)
     spec.parse()
-    out = spec.evaluate({"time": list(range(len(x))), "x": x.tolist(), "y": y.tolist()})
+    time = list(range(len(x))) if time is None else [float(t) for t in time]
+    out = spec.evaluate({"time": time, "x": x.tolist(), "y": y.tolist()})
     return np.array([v for _, v in out], dtype=float)
 
 
@@ -96,6 +107,43 @@ def test_robustness_and_verdict_equal_rtamt_on_random_formulas_and_signals():
         assert (verdict[decided] == (expected[decided] > 0)).all(), to_text(e)
         checked += 1
     assert checked >= 1_000
+
+
+# sampling of the runs: (period, first time stamp); decimal periods accumulate rounding in
+# np.arange (0.1 * 3 = 0.30000000000000004), epoch time stamps at 1 kHz are 2.4e-7 apart in
+# floating point — issue 28: past operators near t = 0 dropped a sample, epoch windows widened
+SAMPLINGS = {"decimal-0.1": (Fraction(1, 10), 0.0), "decimal-0.3": (Fraction(3, 10), 0.0),
+             "epoch-1kHz": (Fraction(1, 1000), 1.7e9), "epoch-100Hz": (Fraction(1, 100), 1.7e9)}
+
+
+@pytest.mark.parametrize("sampling", sorted(SAMPLINGS))
+def test_robustness_equals_rtamt_with_decimal_steps_and_epoch_time_stamps(sampling):
+    """300 formulas per sampling (1,200 in all), windows in multiples of the period: every
+    sample equal to rtamt's, including past operators at t < window (early samples)."""
+    step, t0 = SAMPLINGS[sampling]
+    rng = np.random.default_rng(hash(sampling) % 2**32)
+    for _ in range(300):
+        e = parse(to_text(random_formula(rng, step=step)))
+        n = int(rng.integers(2, 14))
+        x, y = rng.normal(size=n).round(3), rng.normal(size=n).round(3)
+        time = t0 + np.arange(n) * float(step)
+        expected = rtamt_robustness(e, x, y, time, step)
+        robustness = np.broadcast_to(margin(e, {"x": x, "y": y}, Timeline.single(time)), (n,))
+        np.testing.assert_array_equal(robustness, expected, err_msg=to_text(e))
+
+
+def test_the_issue_examples_of_time_windows():
+    """once[0.3, 0.3] at t = 0.3 (steps of 0.1) sees t = 0; an eventually[0.001, 0.006] at
+    1 kHz on epoch time stamps spans exactly 6 samples."""
+    time = np.arange(7) * 0.1
+    x = np.arange(7, dtype=float)
+    once = margin(parse("once[0.3, 0.3] x >= 0"), {"x": x}, Timeline.single(time))
+    assert list(once) == [-np.inf, -np.inf, -np.inf, 0, 1, 2, 3]
+    time = 1.7e9 + np.arange(20) * 0.001
+    x = np.zeros(20)
+    x[10] = 1
+    seen = evaluate(parse("eventually[0.001, 0.006] x >= 1"), {"x": x}, Timeline.single(time))
+    assert list(np.flatnonzero(seen)) == [4, 5, 6, 7, 8, 9]
 
 
 def literal_window(time, offsets, values, lo, hi, *, past, reduce, empty):
@@ -158,3 +206,74 @@ def test_temporal_evaluation_needs_runs():
 def test_bad_windows_and_operands_are_one_line_errors(text):
     with pytest.raises(ExpressionError):
         parse(text)
+
+
+def brute_until(phi, psi, first, last, *, past):
+    """Literal definition on one uniformly sampled run (offsets in samples)."""
+    n, out = len(phi), []
+    for i in range(n):
+        best = -np.inf
+        for j in (range(i - last, i - first + 1) if past else range(i + first, i + last + 1)):
+            if 0 <= j < n:
+                between = phi[j + 1:i + 1] if past else phi[i:j]
+                best = max(best, min([psi[j], *between]))
+        out.append(best)
+    return np.array(out)
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_until_and_since_in_samples_equal_the_definition_and_the_offset_loop(seed):
+    """The O(n log w) block decomposition against the literal definition (small runs) and the
+    O(n·w) loop over window offsets (longer runs, windows up to 60 samples, several runs)."""
+    from simcred.contracts.temporal import _until_offsets, until
+
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 25))
+    phi, psi = rng.normal(size=n).round(1), rng.normal(size=n).round(1)
+    first = int(rng.integers(0, 6))
+    last = first + int(rng.integers(0, 8))
+    step = Fraction(1, 10)
+    timeline = Timeline.single(np.arange(n) * 0.1)
+    for past in (False, True):
+        got = until(phi, psi, timeline, first * step, last * step, past=past, boolean=False)
+        np.testing.assert_array_equal(got, brute_until(phi, psi, first, last, past=past))
+        verdict = until(phi > 0, psi > 0, timeline, first * step, last * step, past=past,
+                        boolean=True)
+        np.testing.assert_array_equal(verdict, brute_until(phi, psi, first, last,
+                                                           past=past) > 0)
+    lengths = rng.integers(1, 400, size=3)
+    offsets = np.concatenate([[0], np.cumsum(lengths)])
+    time = np.concatenate([np.arange(k) * 0.01 for k in lengths])
+    timeline = Timeline(time, offsets)
+    phi, psi = rng.normal(size=len(time)), rng.normal(size=len(time))
+    first = int(rng.integers(0, 20))
+    last = first + int(rng.integers(0, 60))
+    for past in (False, True):
+        lo, hi = Fraction(first, 100), Fraction(last, 100)
+        start, stop = timeline.window(lo, hi, past=past)
+        expected = np.concatenate([
+            _until_offsets(phi[a:b], psi[a:b], start[a:b] - a, stop[a:b] - a, past=past)
+            for a, b in zip(offsets[:-1], offsets[1:], strict=True)])
+        got = until(phi, psi, timeline, lo, hi, past=past, boolean=False)
+        np.testing.assert_array_equal(got, expected)
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_until_on_non_uniform_sampling_equals_the_definition(seed):
+    from simcred.contracts.temporal import until
+
+    rng = np.random.default_rng(seed)
+    time = np.cumsum(rng.choice([0.125, 0.25, 0.5], size=int(rng.integers(2, 20))))
+    phi, psi = rng.normal(size=len(time)), rng.normal(size=len(time))
+    lo, hi = sorted(rng.choice([0, 0.25, 0.5, 1.0], size=2))
+    for past in (False, True):
+        expected = []
+        for i, t in enumerate(time):
+            best = -np.inf
+            for j, u in enumerate(time):
+                if (t - hi <= u <= t - lo) if past else (t + lo <= u <= t + hi):
+                    between = phi[j + 1:i + 1] if past else phi[i:j]
+                    best = max(best, min([psi[j], *between]))
+            expected.append(best)
+        got = until(phi, psi, Timeline.single(time), lo, hi, past=past, boolean=False)
+        np.testing.assert_array_equal(got, np.array(expected))

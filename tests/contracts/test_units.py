@@ -16,7 +16,7 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from simcred.contracts.evaluate import evaluate
-from simcred.contracts.expr import Arith, Compare, ExpressionError, Quantity, Var, to_text
+from simcred.contracts.expr import Arith, Compare, ExpressionError, Num, Quantity, Var, to_text
 from simcred.contracts.parse import parse
 from simcred.contracts.units import _registry
 
@@ -135,7 +135,10 @@ def test_ill_dimensioned_assertions_are_refused(c):
     ("v2 <= 10 m/s", "v2 <= 36"),
     ("lx >= 1 lux", "lx >= 1"),
     ("d1 <= 1 mile", "d1 <= 1609.344"),
-    ("v1 + v2 <= 3", "v1 + (5/18) * v2 <= 3"),  # a variable in another unit is scaled exactly
+    ("v1 + v2 <= 3 m/s", "v1 + (5/18) * v2 <= 3"),  # another unit is scaled exactly
+    ("v1 + v2 <= 0", "v1 + (5/18) * v2 <= 0"),  # 0 is 0 in every unit
+    ("v1 + 18 km/h <= 30", "v1 + 5 <= 30"),  # a literal's unit is converted: 30 is m/s
+    ("18 km/h + v1 <= 30", "5 + v1 <= 30"),  # in either order
     ("a1 <= 1 g0", "a1 <= 9.80665"),
     ("v1 <= 30", "v1 <= 30"),  # a bare number takes the unit of what it meets
     ("d1 <= v1 * 2 s", "d1 <= v1 * 2"),
@@ -164,3 +167,69 @@ def test_library_assertions_are_dimension_checked():
     lib = Library.from_dict(spec)
     assert to_text(lib.model_contracts["M"].guarantee) == "q <= v * 1 + 0.05"
     assert to_text(lib.model_contracts["M"].assumption) == "v <= (250/9)"
+
+
+# -- operand order never changes meaning (issue 28, item 6) ------------------------------------
+
+
+@pytest.mark.parametrize("text", ["v1 + v2 <= 3", "v2 + v1 <= 3", "3 >= v1 + v2",
+                                  "max(v1, v2) <= 3", "(v1 + v2) * 2 <= 3",
+                                  "1 km/h + 1 mph + 3 <= 9 m/s", "v1 - v2 + 1 <= 2 m/s",
+                                  "v1 + 1 <= v2"])
+def test_a_bare_number_among_operands_of_different_units_is_refused(text):
+    with pytest.raises(ExpressionError, match="bare number .* operand order"):
+        parse(text, units=UNITS)
+
+
+SPEED_TERMS = st.one_of(st.sampled_from([Var("v1"), Var("v2")]),
+                        st.builds(Quantity, positive, st.sampled_from(LITERAL_UNITS["speed"])),
+                        st.builds(Num, positive))
+
+
+def _sum(terms):
+    out = terms[0]
+    for t in terms[1:]:
+        out = Arith("+", (out, t))
+    return out
+
+
+def _meaning(terms, op, right, points):
+    """'refused', or the truth values at ``points`` of ``sum(terms) op right``."""
+    try:
+        resolved = parse(to_text(Compare(op, _sum(terms), right)), units=UNITS)
+    except ExpressionError as exc:
+        assert "operand order" in str(exc), str(exc)
+        return "refused"
+    columns = {n: np.array([p[n] for p in points], dtype=object) for n in UNITS}
+    return tuple(bool(x) for x in np.asarray(evaluate(resolved, columns)).reshape(-1))
+
+
+@SETTINGS
+@given(st.lists(SPEED_TERMS, min_size=2, max_size=5), SPEED_TERMS,
+       st.sampled_from(["<=", "<", ">=", ">"]), st.randoms(use_true_random=False))
+def test_operand_order_never_changes_meaning(terms, right, op, rnd):
+    """Every permutation of a sum's operands (and the mirrored comparison) is refused alike or
+    true at the same points (exact rationals, no rounding)."""
+    points = [{n: Fraction(rnd.randint(0, 300), rnd.randint(1, 7)) for n in UNITS}
+              for _ in range(6)]
+    mirror = {"<=": ">=", "<": ">", ">=": "<=", ">": "<"}
+    first = _meaning(terms, op, right, points)
+    orders = [terms[::-1], rnd.sample(terms, len(terms)), rnd.sample(terms, len(terms))]
+    for order in orders:
+        assert _meaning(order, op, right, points) == first, (terms, order)
+    try:  # right op sum(terms)
+        resolved = parse(to_text(Compare(mirror[op], right, _sum(terms))), units=UNITS)
+    except ExpressionError:
+        assert first == "refused"
+        return
+    columns = {n: np.array([p[n] for p in points], dtype=object) for n in UNITS}
+    assert tuple(bool(x) for x in np.asarray(evaluate(resolved, columns)).reshape(-1)) == first
+
+
+def test_the_order_test_sees_accepted_sums_with_bare_numbers():
+    """Not every case is refused: a bare number next to one unit is accepted in any order."""
+    points = [{n: Fraction(k) for n in UNITS} for k in range(6)]
+    terms = [Var("v1"), Num(Fraction(3)), Quantity(Fraction(18), "km/h")]
+    meaning = _meaning(terms, "<=", Num(Fraction(10)), points)
+    assert meaning == (True, True, True, False, False, False)  # v1 + 3 + 5 <= 10 ⇔ v1 <= 2
+    assert _meaning(terms[::-1], "<=", Num(Fraction(10)), points) == meaning

@@ -7,7 +7,21 @@ from pathlib import Path
 import pytest
 
 from simcred.errors import OptionError
-from simcred.outputs import Checkpoint, check_out, output_dir, partial_path, write_atomic
+from simcred.outputs import (
+    MARKER,
+    Checkpoint,
+    check_out,
+    output_dir,
+    partial_path,
+    write_atomic,
+)
+
+
+def listing(folder: Path) -> list[str]:
+    """The files of ``folder`` besides simcred's marker."""
+    names = sorted(p.name for p in folder.iterdir())
+    assert MARKER in names
+    return [n for n in names if n != MARKER]
 
 
 @pytest.fixture()
@@ -27,13 +41,24 @@ def test_out_may_not_be_contain_or_lie_inside_an_input(tmp_path, runs, relative)
 
 def test_existing_nonempty_output_needs_overwrite(tmp_path):
     out = tmp_path / "out"
-    out.mkdir()
-    (out / "old.json").write_text("{}")
+    with output_dir(out) as partial:
+        (partial / "old.json").write_text("{}")
     with pytest.raises(OptionError, match="--overwrite"), output_dir(out):
         pass
     with output_dir(out, overwrite=True) as partial:
         (partial / "new.json").write_text("[]")
-    assert sorted(p.name for p in out.iterdir()) == ["new.json"]  # replaced, never merged
+    assert listing(out) == ["new.json"]  # replaced, never merged
+
+
+def test_overwrite_replaces_only_a_folder_simcred_wrote(tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "old.json").write_text("{}")
+    with pytest.raises(OptionError, match="not written by simcred"), \
+            output_dir(out, overwrite=True):
+        pass
+    assert sorted(p.name for p in out.iterdir()) == ["old.json"]
+    assert not partial_path(out).exists()
 
 
 def test_existing_file_is_not_a_directory(tmp_path):
@@ -77,7 +102,7 @@ def test_resume_continues_the_partial_run(tmp_path):
         assert "chunk_0" in checkpoint and "chunk_1" not in checkpoint
         assert checkpoint.load("chunk_0") == b"zero" and checkpoint.keys() == ["chunk_0"]
         (partial / "result.json").write_text("{}")
-    assert sorted(p.name for p in out.iterdir()) == ["result.json"]  # checkpoints dropped
+    assert listing(out) == ["result.json"]  # checkpoints dropped
 
 
 def test_write_atomic_leaves_no_temporary_on_failure(tmp_path):

@@ -15,6 +15,8 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from simcred.outputs import MARKER, MARKER_TEXT
+
 Builder = Callable[[Path, dict], list[str]]
 
 
@@ -293,6 +295,7 @@ def _leftover(root: Path, manifest: str | None = None) -> Path:
     """``root/sc.partial``: what an interrupted run left (with a checkpoint manifest)."""
     checkpoints = root / "sc.partial" / "checkpoints"
     checkpoints.mkdir(parents=True)
+    (root / "sc.partial" / MARKER).write_bytes(MARKER_TEXT)  # simcred's, not a user's folder
     if manifest is not None:
         (checkpoints / "job.json").write_text(manifest)
     return root

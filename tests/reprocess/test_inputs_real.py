@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from simcred import data
@@ -23,12 +24,22 @@ DATA = Path(__file__).parents[1] / "data" / "commonroad-ngsim"
 SCENARIOS = sorted(DATA.glob("*.xml"))
 
 
+RESULTS: dict = {}  # (scenario, obstacle) -> Reprocessed, filled by the outcomes fixture
+STATED_DISTANCE = 8.0  # m: the resimulated EGO stays this close to a recorded one not reacting
+
+
 @pytest.fixture(scope="module")
 def outcomes():
-    """Every obstacle of every scenario, pipeline only (figures: see the CLI test)."""
+    """Every obstacle of every scenario in the lanelet frame, with the AD function's set speed
+    and lanes from the recorded EGO (as the CLI does), pipeline only (figures: see the CLI
+    test)."""
     found = {}
+    config = ReprocessConfig(from_recording=("set_speed", "lanes"))
     for path in SCENARIOS:
-        batch = reprocess_obstacles(path, ReprocessConfig(), "unused", lambda result, out: None)
+        def keep(result, out, stem=path.stem):
+            RESULTS[(stem, int(Path(out).name[3:]))] = result
+
+        batch = reprocess_obstacles(path, config, "unused", keep, frame="lanelet")
         found.update({(path.stem, o.obstacle): o for o in batch.outcomes})
     return found
 
@@ -55,6 +66,33 @@ def test_every_ngsim_obstacle_reprocesses(outcomes):
 
 
 @pytest.mark.slow
+def test_every_ngsim_obstacle_keeps_its_shape_its_egos_speed_and_honest_reactions(outcomes):
+    """Issue 24 acceptance on the shipped NGSIM scenarios (all cars)."""
+    from simcred.io.commonroad import _open  # commonroad-io's own obstacles, not our metadata
+
+    shapes = {(path.stem, o.obstacle_id): (o.obstacle_shape.length, o.obstacle_shape.width)
+              for path in SCENARIOS for o in _open(path).dynamic_obstacles}
+    near = 0
+    for (stem, obstacle), result in RESULTS.items():
+        drive = result.input_report["drive"]
+        assert drive["frame"]["lanelets"]  # map-based geometry
+        for role, number in (("to", obstacle), ("ego", drive["ego"])):
+            for description in result.descriptions.values():
+                track = description.objects[role]
+                assert (track.length, track.width) == shapes[(stem, number)]
+        for reaction in result.reactions.values():  # none at the first samples unless flagged
+            t0 = result.descriptions["fit(SD)"].t0
+            assert reaction.measurable or reaction.time - t0 < 0.5
+            assert not reaction.measurable or not reaction.time - t0 < 0.5
+        if result.reactions["SD"].manoeuvre == "none":
+            recorded, resimulated = result.states["SD"]["ego"], result.states["rSD"]["ego"]
+            distance = np.hypot(resimulated.x - recorded.x, resimulated.y - recorded.y)
+            assert distance.max() < STATED_DISTANCE, (stem, obstacle, distance.max())
+            near += 1
+    assert len(RESULTS) == 67 and near >= 10  # 13 recorded EGOs do not react (measured)
+
+
+@pytest.mark.slow
 def test_cli_reprocesses_every_obstacle_of_a_scenario_and_writes_a_summary(tmp_path):
     path = DATA / "USA_US101-3_3_T-1.xml"
     out = tmp_path / "all"
@@ -64,6 +102,10 @@ def test_cli_reprocesses_every_obstacle_of_a_scenario_and_writes_a_summary(tmp_p
     assert summary["kind"] == "reprocess_all"
     first = summary["outcomes"][0]
     assert (out / first["directory"] / "reprocess.json").is_file()
+    for outcome in summary["outcomes"]:  # a reaction at the start is named as not measurable
+        reactions = json.loads((out / outcome["directory"] / "reaction.json").read_text())
+        assert sorted(outcome["reactions_not_measurable"]) == sorted(
+            k for k, r in reactions["reactions"].items() if r["measurable"] is False)
     assert (out / first["directory"] / "figures" / "fig7_velocity_risk.png").is_file()
 
 

@@ -10,6 +10,7 @@ import pytest
 
 from simcred.io.commonroad import read
 from simcred.scenario import StopReason, fit_track
+from simcred.scenario.fit_robust import spikes
 from simcred.scenario.plausibility import VEHICLE_LIMITS, check_plausibility
 
 NGSIM = sorted((Path(__file__).parents[1] / "data" / "commonroad-ngsim").glob("*.xml"))
@@ -92,6 +93,34 @@ def test_displaced_first_sample_is_a_glitch():
     assert fit.reached and fit.rmse < 0.05
     assert_plausible(fit)
     np.testing.assert_allclose(fit.track.speed(t), 12.0, atol=0.3)
+
+
+@pytest.mark.parametrize("n", range(5, 20))
+@pytest.mark.parametrize("end", ["first", "last"])
+def test_a_short_track_with_a_displaced_end_sample_reaches_the_threshold(n, end):
+    # Issue 24: below 20 samples the glitch cap int(0.05 n) was 0, and at 20 the sample next to
+    # the displaced one was set aside (the fit's end bends towards the displaced sample).
+    t = np.arange(n) * 0.1
+    x, y = noisy(15.0 * t + 0.5 * t**2, 0.3 * np.sin(t), 0.005, n)
+    k = 0 if end == "first" else n - 1
+    without = np.arange(n) != k
+    assert fit_track(t[without], x[without], y[without], threshold=0.02).reached  # reachable
+    x[k] += 0.6
+    y[k] -= 0.3
+    fit = fit_track(t, x, y, threshold=0.02)
+    assert fit.glitches == (k,)
+    assert fit.reached
+
+
+def test_spikes_vanish_on_a_quadratic_motion_and_find_the_displaced_sample():
+    t = np.sort(np.random.default_rng(4).uniform(0.0, 3.0, 30))  # uneven sampling
+    x, y = 3.0 + 12.0 * t - 0.8 * t**2, -1.0 + 0.5 * t + 0.2 * t**2
+    assert np.abs(spikes(t, x, y)).max() < 1e-9  # a quadratic predicts itself exactly
+    x[0] += 0.3
+    y[0] += 0.4
+    spike = spikes(t, x, y)
+    assert spike[0] == pytest.approx(0.5, abs=1e-9)  # only the set after it: the true position
+    assert np.abs(spike[1:]).max() < 1e-9  # every other sample has a set without sample 0
 
 
 def test_glitch_in_the_middle_is_set_aside():
@@ -209,3 +238,31 @@ def test_urban_lane_change_at_5_hz_keeps_refining():
     steps = [s for s, _ in fit.history]
     assert steps[:3] == [4, 6, 9] and fit.sections > 9  # it went on past the step without gain
     assert_plausible(fit)
+
+
+def test_a_reached_fit_with_a_phantom_acceleration_is_flagged():
+    # issue 24: constant 12 m/s, 3 cm noise, 10 samples: the fit "reaches" 2 cm with |v̇| = 6.3
+    t = np.arange(10) * 0.1
+    rng = np.random.default_rng(45)
+    x, y = 12 * t + rng.normal(0, 0.03, 10), rng.normal(0, 0.03, 10)
+    fit = fit_track(t, x, y, threshold=0.02)
+    dense = np.linspace(t[0], t[-1], 200)
+    assert fit.reached and np.abs(fit.track.speed.derivative(dense)).max() > 6.0
+    assert fit.phantom_acceleration and fit.to_dict()["phantom_acceleration"]
+
+
+def _braking(s):
+    """25 m/s, braking from 2 s, the deceleration ramping to 8 m/s² at 10 m/s³."""
+    decel = np.clip(10 * (s - 2), 0, 8)
+    return 25 - np.concatenate([[0.0], np.cumsum(0.5 * (decel[1:] + decel[:-1]) * np.diff(s))])
+
+
+@pytest.mark.parametrize("speed", [lambda s: 10 + 3 * s, _braking])  # real accelerations
+def test_a_real_acceleration_is_not_flagged(speed):
+    t = np.arange(0, 5.0001, 0.1)
+    fine = np.linspace(0, 5, 5001)
+    v = speed(fine)
+    x = np.interp(t, fine, np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * 0.001)]))
+    x, y = noisy(x, np.zeros_like(t), 0.01, 5)
+    fit = fit_track(t, x, y, threshold=0.02)
+    assert fit.reached and not fit.phantom_acceleration

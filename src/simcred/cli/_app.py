@@ -146,7 +146,7 @@ def _log(line: str) -> None:
 
 
 
-Seed = Annotated[int | None, typer.Option(help="Seed (default: fresh entropy, stored in the "
+Seed = Annotated[int | None, typer.Option(min=0, help="Seed (default: fresh entropy, stored in the "
                                                "result).")]
 Workers = Annotated[int | None, typer.Option(help="Run on a local Dask cluster of N worker "
                                                    "processes (default: in-process).")]

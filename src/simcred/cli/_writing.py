@@ -16,6 +16,7 @@ import typer
 from simcred.cli._app import State, _log
 from simcred.engine import Engine
 from simcred.errors import SimcredError
+from simcred.outputs import real
 
 Overwrite = Annotated[bool, typer.Option(
     "--overwrite", help="Replace an existing non-empty --out (the old content is removed, never "
@@ -113,6 +114,11 @@ def writing(out: Path, *inputs: Path, kind: str = "directory", overwrite: bool =
             yield holder[0]
     except KeyboardInterrupt:
         raise Interrupted(_interrupted(out, holder[0] if holder else None)) from None
+    except (OSError, MemoryError) as exc:  # reported by the CLI (exit 74) with this note
+        if holder and holder[0].kept():
+            exc.add_note(f"{_chunks(holder[0].kept())} kept in {partial}: --resume continues "
+                         "once the cause is fixed")
+        raise
     except SimcredError as exc:
         if holder and holder[0].kept():
             raise SimcredError(f"{exc} ({_chunks(holder[0].kept())} kept in {partial}: "
@@ -144,23 +150,33 @@ def _duration(seconds: float) -> str:
 
 def _job_manifest(inputs: Sequence[Path]) -> str:
     """The command, its options (but not where or how verbosely it runs) and a fingerprint of
-    each input (names, sizes and modification times of its files)."""
+    each input (names, sizes and modification times of its files). Paths are resolved, so the
+    same files typed relative or absolute, or through a link, name the same job."""
     try:  # typer vendors click: its context stack is its own
         from typer._click.globals import get_current_context
     except ImportError:  # pragma: no cover (a typer that uses click itself)
         from click import get_current_context
 
     context = get_current_context(silent=True)
-    ignored = {"resume", "overwrite", "workers", "scheduler", "as_json"}
-    params = {} if context is None else {k: v for k, v in context.params.items()
+    ignored = {"out", "resume", "overwrite", "workers", "scheduler", "as_json"}
+    params = {} if context is None else {k: _resolved(v) for k, v in context.params.items()
                                          if k not in ignored}
     return json.dumps({"command": None if context is None else context.command_path,
                        "options": params, "inputs": [_fingerprint(p) for p in inputs]},
                       sort_keys=True, default=str, ensure_ascii=False)
 
 
+def _resolved(value: object) -> object:
+    if isinstance(value, Path):
+        return str(real(value))
+    if isinstance(value, list | tuple):
+        return [_resolved(v) for v in value]
+    return value
+
+
 def _fingerprint(path: Path) -> list:
-    files = sorted(p for p in path.rglob("*") if p.is_file()) if path.is_dir() else [path]
+    root = real(path)
+    files = sorted(p for p in root.rglob("*") if p.is_file()) if root.is_dir() else [root]
     found = []
     for file in files:
         stat = file.stat() if file.exists() else None

@@ -189,6 +189,8 @@ def compare(
 ) -> None:
     """Compare two trace sets: a chain verdict and the fraction of distinguishable transitions
     (Neurohr et al.)."""
+    check_count(baseline, "permutations", "--baseline", minimum=0)  # before any work: each
+    check_count(bootstrap, "permutations", "--bootstrap", minimum=0)  # repeats the whole test
     if (observed is None) != (sensor is None and calibration is None) \
             or (sensor is not None and calibration is not None):
         raise OptionError("--observed goes with one of --sensor (observation model) or "
@@ -476,7 +478,7 @@ def example(
     out: Annotated[Path, typer.Option(help="Directory to write baseline/ and variant/ into.")],
     runs: Annotated[int, typer.Option(help="Runs per set.")] = 300,
     steps: Annotated[int, typer.Option(help="Steps per run.")] = 100,
-    seed: Annotated[int, typer.Option(help="Seed.")] = 0,
+    seed: Annotated[int, typer.Option(min=0, help="Seed.")] = 0,
     duration_scale: Annotated[float, typer.Option(help="Lane-change duration of the variant "
                                                        "relative to the baseline.")] = 0.8,
     parquet: Annotated[bool, typer.Option(help="Write Parquet files instead of CSV "

@@ -115,6 +115,8 @@ def contracts_check(library: LibraryPath, timeout_ms: Timeout = 10_000,
                                "the component's outputs"),
                   _receptivity(f"{name} ({component})", "consistent", consist,
                                "the component's inputs")]
+    rows_loops, loop_lines = _feedback_loops(lib, options)
+    lines += loop_lines
     environment = lib.environment()
     cases = []
     for name, contract in lib.test_case_contracts.items():
@@ -128,33 +130,130 @@ def contracts_check(library: LibraryPath, timeout_ms: Timeout = 10_000,
                                   "the environment"))
     statuses = [r[k]["verdict"] for r in rows for k in ("compatible", "consistent")]
     statuses += [c["consistent"]["verdict"] for c in cases]
+    statuses += [r["realisable"]["verdict"] for r in rows_loops]
     _emit({"library": str(library), "syntax": "ok", "units": "ok", "composability": "ok",
-           "port_scope": "ok", "models": rows, "test_cases": cases}, as_json,
+           "port_scope": "ok", "models": rows, "feedback_loops": rows_loops,
+           "test_cases": cases}, as_json,
           escape(f"{library}: syntax, units, composability, port scope and non-vacuity ok\n"
                  + "\n".join(lines)))
     raise typer.Exit(_worst(statuses))
+
+
+LOOP_COMBINATIONS = 256  # model combinations of one feedback loop checked by `check`
+
+
+def _feedback_loops(lib, options) -> tuple[list[dict], list[str]]:
+    """Every combination of models of each feedback loop: can their guarantees all hold for
+    every input from outside the loop? (Each model's consistency does not imply it.)"""
+    import itertools
+    import math
+
+    from simcred.contracts.expr import is_temporal
+    from simcred.contracts.realisable import loops, setup_realisability
+
+    rows, lines = [], []
+    for group in loops(lib, lib.components()):
+        candidates = [[m for m in lib.candidates(c)
+                       if not any(map(is_temporal, (lib.model_contracts[m].assumption,
+                                                    lib.model_contracts[m].guarantee)))]
+                      for c in group]
+        count = math.prod(len(c) for c in candidates)
+        label = f"feedback loop {' → '.join(group)}"
+        if count > LOOP_COMBINATIONS:
+            lines.append(f"{label}: {count} model combinations, not checked (more than "
+                         f"{LOOP_COMBINATIONS}; configure checks the setup it chooses)")
+            continue
+        for models in itertools.product(*candidates):
+            check = setup_realisability(lib, dict(zip(group, models, strict=True)),
+                                        timeout_ms=options["timeout_ms"])
+            rows.append({"components": group, "models": list(models),
+                         "realisable": check.verdict.to_dict()})
+            head = f"{label} with {', '.join(models)}"
+            status = check.verdict.status.value
+            lines.append(f"{head}: realisable holds" if status == "holds" else
+                         f"{head}: realisable unknown ({check.verdict.reason})"
+                         if status == "unknown" else f"{head}: realisable FAILS — {check.text()}")
+    return rows, lines
 
 
 @contracts_app.command("refines")
 @one_line_errors
 def contracts_refines(
     library: LibraryPath,
-    refining: Annotated[str, typer.Option(help="The refining contract C2 (a name).")],
+    refining: Annotated[str, typer.Option(help="The refining contract C2: a name, or models "
+                                               "M1,M2,... (their composition).")],
     refined: Annotated[str, typer.Option(help="The refined contract C1 (a name).")],
     timeout_ms: Timeout = 10_000,
     as_json: Json = False,
 ) -> None:
-    """Does C2 refine C1 (C2 ≼ C1)? Exit 0 holds, 1 fails, 3 unknown."""
+    """Does C2 refine C1 (C2 ≼ C1)? A proof whose premises contradict (a guarantee that cannot
+    hold, a contradicting feedback loop) is no certificate. Exit 0 holds, 1 fails, 3 unknown."""
     from simcred.contracts.algebra import refines
     from simcred.contracts.library import Library
 
     lib = Library.read(library)
+    names = [n.strip() for n in refining.split(",")]
     with _about(library):
-        verdict = refines(lib.contract(refining), lib.contract(refined), types=lib.types,
-                          timeout_ms=timeout_ms)
+        c2, c1 = _composition(lib, names), lib.contract(refined)
+        verdict = refines(c2, c1, types=lib.types, timeout_ms=timeout_ms)
+        if verdict.holds:
+            verdict = _realisable(lib, names, c2, c1, refined, timeout_ms) or verdict
     _emit(verdict.to_dict(), as_json,
           f"{escape(refining)} ≼ {escape(refined)}: {_verdict_summary(verdict)}")
     raise typer.Exit(EXIT_CODES[verdict.status.value])
+
+
+def _composition(lib, names: list[str]):
+    """One contract by name, or the flat composition of several models (of distinct
+    components)."""
+    from simcred.contracts.configure import setup_contract
+
+    if len(names) == 1:
+        return lib.contract(names[0])
+    return setup_contract(lib, _setup_of(lib, names, "--refining"))
+
+
+def _setup_of(lib, names: list[str], option: str) -> dict[str, str]:
+    """component → model for model names; each a model, one per component."""
+    setup: dict[str, str] = {}
+    for name in names:
+        spec = lib.spec.models.get(name)
+        if spec is None:
+            raise OptionError(f"{option}: '{name}' is not a model (a composition is of models: "
+                              f"{', '.join(lib.spec.models)})")
+        if spec.implements in setup:
+            raise OptionError(f"{option}: '{setup[spec.implements]}' and '{name}' are both "
+                              f"models of component '{spec.implements}' (one model each)")
+        setup[spec.implements] = name
+    return setup
+
+
+def _realisable(lib, names, refining, refined, refined_name, timeout_ms):
+    """None if the refinement's premises can hold, else the verdict that says why not (no
+    certificate): for models, each model consistent and their loops realisable for the
+    environment a test case allows; for other contracts, A1 ∧ G2' satisfiable."""
+    from simcred.contracts.algebra import Status, Verdict, valid
+    from simcred.contracts.expr import Bool
+    from simcred.contracts.realisable import setup_realisability
+
+    if all(n in lib.spec.models for n in names):
+        target = lib.test_case_contracts.get(refined_name)
+        check = setup_realisability(lib, _setup_of(lib, names, "--refining"), target,
+                                    timeout_ms=timeout_ms)
+        if check.verdict.status is Status.HOLDS:
+            return None
+        if check.verdict.status is Status.UNKNOWN:
+            return Verdict(Status.UNKNOWN, reason="refinement holds, but whether its premises "
+                           f"can hold is undecided: {check.verdict.reason}")
+        return Verdict(Status.FAILS, check.verdict.counterexample, check.verdict.clauses,
+                       f"no certificate: the refinement holds only vacuously, {check.text()}")
+    empty = valid([refined.assumption, refining.saturated_guarantee], Bool(False),
+                  types=lib.types, timeout_ms=timeout_ms)
+    if empty.status is Status.HOLDS:
+        return Verdict(Status.FAILS, None, empty.clauses, "no certificate: the refinement holds "
+                       "only vacuously, the refined assumption and the refining guarantee "
+                       "contradict each other")
+    return None
 
 
 @contracts_app.command("configure")
@@ -226,10 +325,29 @@ def contracts_quotient(
                 "uncovered": uncovered}
     summary = (f"requirement for the missing model(s):\n  assume:    {document['assumption']}"
                f"\n  guarantee: {document['guarantee']}")
-    for item in uncovered:
-        summary += (f"\nno missing model can help: {item['model']} assumes "
-                    f"'{item['clause']}', but the test case allows {_point(item['at'])}")
+    summary += "".join(f"\n{line}" for line in _uncovered_lines(uncovered))
     _emit(document, as_json, escape(summary))
+
+
+def _uncovered_lines(uncovered: list[dict]) -> list[str]:
+    """One line per given model and kind of uncovered assumption (see
+    :func:`simcred.contracts.configure.uncovered_assumptions`)."""
+    lines = []
+    for item in uncovered:
+        if item["kind"] == "dead end":
+            lines.append(f"no missing model can help: {item['model']} assumes "
+                         f"'{item['clause']}', but the test case allows {_point(item['at'])}")
+    groups: dict[tuple[str, str], list[str]] = {}
+    for item in uncovered:
+        if item["kind"] != "dead end":
+            groups.setdefault((item["model"], item["kind"]), []).append(item["clause"])
+    for (model, kind), clauses in groups.items():
+        text = " and ".join(clauses)
+        lines.append(f"the missing model(s) must ensure '{text}' ({model} assumes it; part of "
+                     "the requirement above)" if kind == "requirement" else
+                     f"{model} assumes '{text}': whether a missing model can ensure it depends "
+                     "on what that model guarantees (see the requirement above)")
+    return lines
 
 
 @app.command("monitor")
@@ -288,8 +406,9 @@ def monitor_runs(
 
 
 def _setup_models(lib, setup: str) -> list[str]:
-    """The models of ``--setup COMPONENT=MODEL,...``; each must implement its component."""
-    models = []
+    """The models of ``--setup COMPONENT=MODEL,...``; each must implement its component, one
+    model per component."""
+    models, chosen = [], {}
     for item in setup.split(","):
         component, sep, model = (part.strip() for part in item.partition("="))
         if not sep or not component or not model:
@@ -300,5 +419,9 @@ def _setup_models(lib, setup: str) -> list[str]:
                 else f"no component '{component}'"
             raise OptionError(f"--setup: '{model}' is not a model of component '{component}' "
                               f"(models: {known})")
+        if component in chosen:
+            raise OptionError(f"--setup: component '{component}' has two models ('"
+                              f"{chosen[component]}' and '{model}'); a setup has one each")
+        chosen[component] = model
         models.append(model)
     return models

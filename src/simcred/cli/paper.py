@@ -33,7 +33,7 @@ def paper_000(
     out: Annotated[Path, typer.Option(help="Directory for figures, tables and claims.json.")],
     runs: Annotated[int | None, typer.Option(help="Runs per trace set (default: the "
                                                   "documented full size).")] = None,
-    seed: Annotated[int, typer.Option(help="Seed of every campaign and test.")] = 0,
+    seed: Annotated[int, typer.Option(min=0, help="Seed of every campaign and test.")] = 0,
     workers: Workers = None,
     scheduler: Scheduler = None,
     overwrite: Overwrite = False,
@@ -58,8 +58,8 @@ def paper_000(
 def paper_002(
     out: Annotated[Path, typer.Option(help="Directory for the measurement, the reprocessing "
                                            "results, figures and claims.json.")],
-    seed: Annotated[int, typer.Option(help="Seed of the manufactured universe (the variations "
-                                           "use seed + 1).")] = 0,
+    seed: Annotated[int, typer.Option(min=0, help="Seed of the manufactured universe (the "
+                                                  "variations use seed + 1).")] = 0,
     variations: Annotated[int, typer.Option(help="Variations of the cut-in (sec. V).")] = 300,
     workers: Workers = None,
     scheduler: Scheduler = None,
@@ -90,7 +90,7 @@ def paper_all(
     runs: Annotated[int | None, typer.Option(help="Seed 000: runs per trace set (default: the "
                                                   "documented full size).")] = None,
     variations: Annotated[int, typer.Option(help="Seed 002: variations of the cut-in.")] = 300,
-    seed: Annotated[int, typer.Option(help="Seed of every experiment.")] = 0,
+    seed: Annotated[int, typer.Option(min=0, help="Seed of every experiment.")] = 0,
     workers: Workers = None,
     scheduler: Scheduler = None,
     overwrite: Overwrite = False,

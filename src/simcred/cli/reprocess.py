@@ -25,13 +25,24 @@ from simcred.cli._app import (
     say,
 )
 from simcred.cli._writing import Overwrite, Resume, writing
-from simcred.errors import SimcredError
+from simcred.errors import OptionError, SimcredError
 from simcred.limits import check_count, check_finite
 
 
 class CrossingSide(StrEnum):
     left = "left"
     right = "right"
+
+
+class RoadFrame(StrEnum):
+    given = "given"
+    ego = "ego"
+    lanelet = "lanelet"
+
+
+class AdParameters(StrEnum):
+    recording = "recording"
+    default = "default"
 
 
 class LongGaps(StrEnum):
@@ -63,12 +74,33 @@ def reprocess(
         help="Long format: the run to reprocess when the table has several.")] = None,
     gt: Annotated[Path | None, typer.Option(
         help="Long format: a second table with the ground truth (same columns).")] = None,
+    time_scale: Annotated[float, typer.Option(
+        help="Long format: seconds per unit of the time column (0.001 for milliseconds).")
+    ] = 1.0,
+    road_frame: Annotated[RoadFrame | None, typer.Option(
+        help="The road frame. Long format: 'given' (default: the table's x axis is the road, "
+             "refused if the EGO does not travel along +x) or 'ego' (rotate into the EGO's "
+             "direction of travel, a straight road assumed). CommonRoad: 'ego' (default, the "
+             "same rotation) or 'lanelet' (Frenet frame along the lanelet centre line through "
+             "the EGO's start).")] = None,
+    reference_path: Annotated[Path | None, typer.Option(
+        help="Long format: a lane centre line (table with columns x, y in driving direction); "
+             "the drive is reprocessed in its Frenet frame.")] = None,
     max_gap: Annotated[float, typer.Option(
         help="Longest gap [s] in an object's samples that is reprocessed (gaps are reported, "
              "never bridged silently).")] = 0.5,
     long_gaps: Annotated[LongGaps, typer.Option(
         help="A longer gap: error, or reprocess the longest stretch without one.")] = "error",
-    seed: Annotated[int, typer.Option(help="Seed of the resimulations' sensor noise.")] = 0,
+    ad_parameters: Annotated[AdParameters | None, typer.Option(
+        help="The resimulated EGO's set speed and lanes: 'recording' (the recorded EGO's highest "
+             "speed, its lane centred on its first position; default for A9, CommonRoad and "
+             "long-format input) or 'default' (100 km/h, lanes at y = 0 and 3.5 m: the "
+             "manufactured universe's AD function; default for a measurement directory).")
+    ] = None,
+    set_speed: Annotated[float | None, typer.Option(
+        help="Set speed [m/s] of the resimulated EGO's ACC (instead of the recorded or "
+             "default one).")] = None,
+    seed: Annotated[int, typer.Option(min=0, help="Seed of the resimulations' sensor noise.")] = 0,
     threshold: Annotated[float, typer.Option(help="Position RMSE [m] at which the fit stops "
                                                   "adding sections.")] = 0.02,
     scenario_based: Annotated[bool, typer.Option(
@@ -86,17 +118,35 @@ def reprocess(
     vehicle_model(vehicle)  # validates the name before any work
     check_finite(threshold, "--threshold", minimum=0, open_minimum=True)
     check_finite(max_gap, "--max-gap", minimum=0, open_minimum=True)
-    inputs = (measurement, *([gt] if gt is not None else []))
+    inputs = (measurement, *(p for p in (gt, reference_path) if p is not None))
+    check_finite(time_scale, "--time-scale", minimum=0, open_minimum=True)
+    is_xml = measurement.suffix.lower() == ".xml"
+    if road_frame is RoadFrame.lanelet and not is_xml:
+        raise OptionError("--road-frame lanelet is for a CommonRoad scenario (.xml)")
+    if is_xml and road_frame is RoadFrame.given:
+        raise OptionError("--road-frame given is for long-format tables (CommonRoad: ego or "
+                          "lanelet)")
+    if is_xml and reference_path is not None:
+        raise OptionError("--reference-path is for long-format tables (CommonRoad: "
+                          "--road-frame lanelet)")
+    frame = road_frame.value if is_xml and road_frame is not None else None
     config = ReprocessConfig(vehicle=vehicle, seed=seed, threshold=threshold,
                              scenario_based=scenario_based, max_gap=max_gap,
-                             long_gaps=long_gaps.value)
+                             long_gaps=long_gaps.value,
+                             **_ad_options(measurement, ad_parameters, set_speed))
     if object_id is not None and object_id.lower() == "all":
-        _reprocess_all(measurement, ego, config, out, as_json, overwrite)
+        _reprocess_all(measurement, ego, config, out, as_json, overwrite, frame or "ego")
         return
-    columns = (None if all(v is None for v in (time_column, run_column, object_column, run))
-               else LongColumns(time_column or "t", run_column, object_column, run))
+    table_frame = None if is_xml or road_frame is None else road_frame.value
+    long_options = (time_column, run_column, object_column, run,
+                    None if time_scale == 1.0 else time_scale, table_frame, reference_path)
+    columns = (None if all(v is None for v in long_options)
+               else LongColumns(time_column or "t", run_column, object_column, run,
+                                time_scale, table_frame or "given",
+                                None if reference_path is None else str(reference_path)))
     with writing(out, *inputs, overwrite=overwrite) as target:
-        drive = read_measurement(measurement, object_id, ego=ego, long=columns, gt=gt)
+        drive = read_measurement(measurement, object_id, ego=ego, long=columns, gt=gt,
+                                 frame=frame)
         try:
             result = run_pipeline(drive, config, _steps("reprocessing"))
         except SimcredError as exc:  # a step's message names the object, not the input
@@ -106,16 +156,31 @@ def reprocess(
         sys.stdout.write(summary)
     elif not State.quiet:
         _print_input(result.input_report)
+        _print_ad_function(result.ad_function)
         _print_reactions(result)
         say(f"wrote errors.json, reaction.json, descriptions, scenario.xosc and "
             f"figures to {out}")
 
 
+def _ad_options(measurement: Path, parameters: AdParameters | None,
+                set_speed: float | None) -> dict:
+    """``driver`` and ``from_recording`` of the ReprocessConfig for the AD-function options."""
+    from simcred.sim.driver import DriverConfig
+
+    if parameters is None:
+        parameters = AdParameters.default if measurement.is_dir() else AdParameters.recording
+    recorded = ("set_speed", "lanes") if parameters is AdParameters.recording else ()
+    if set_speed is None:
+        return {"from_recording": recorded}
+    check_finite(set_speed, "--set-speed", minimum=0, open_minimum=True)
+    return {"driver": DriverConfig(set_speed=set_speed),
+            "from_recording": tuple(p for p in recorded if p != "set_speed")}
+
+
 def _reprocess_all(path: Path, ego: str | None, config, out: Path, as_json: bool,
-                   overwrite: bool) -> None:
+                   overwrite: bool, frame: str) -> None:
     """``--object all``: every CommonRoad obstacle; exit 1 if any could not be reprocessed."""
     from simcred._json import dumps, envelope
-    from simcred.errors import OptionError
     from simcred.report.seed002 import write_reprocessed
     from simcred.reprocess.obstacles import reprocess_obstacles
 
@@ -124,7 +189,7 @@ def _reprocess_all(path: Path, ego: str | None, config, out: Path, as_json: bool
                           "(each obstacle gets its follower)")
     with writing(out, path, overwrite=overwrite) as target:
         batch = reprocess_obstacles(path, config, target.path, write_reprocessed,
-                                    _steps("reprocessing"))
+                                    _steps("reprocessing"), frame=frame)
         summary = dumps(envelope("reprocess_all", batch.to_dict()))
         (target.path / "reprocess_all.json").write_text(summary)
     if as_json:
@@ -167,7 +232,7 @@ def vary(
                                                      "descriptions/fit_GT.json of reprocess).")],
     out: Annotated[Path, typer.Option(help="Directory for variations, runs and figures.")],
     n: Annotated[int, typer.Option("-n", "--n", help="Variations to generate.")] = 300,
-    seed: Annotated[int, typer.Option(help="Seed: variation i uses SeedSequence(seed, "
+    seed: Annotated[int, typer.Option(min=0, help="Seed: variation i uses SeedSequence(seed, "
                                            "spawn_key=(i,)); paper 002 varies with its seed "
                                            "+ 1.")] = 0,
     vehicle: ResimVehicle = "ks",
@@ -230,8 +295,16 @@ def _print_campaign(summary: dict) -> None:
     out_console.print(plain_table("variation campaign", ("what", "value"), rows))
 
 
+def _print_ad_function(ad: dict) -> None:
+    """The resimulated EGO's AD function and where its parameters came from."""
+    lanes = ", ".join(f"{y:.2f}" for y in ad["lane_centres"])
+    say(f"AD function: set speed {ad['set_speed']:.2f} m/s ({ad['from']['set_speed']}), lanes "
+        f"at y = {lanes} m ({ad['from']['lanes']})")
+
+
 def _print_reactions(result) -> None:
-    rows = [(str(name), r.manoeuvre, "—" if r.time != r.time else f"{r.time:.2f}",
+    rows = [(str(name), r.manoeuvre, "—" if r.time != r.time else
+             f"{r.time:.2f}{'' if r.measurable else ' (at the start: not measurable)'}",
              f"{result.risk[name]['risk'].max():.3g}") for name, r in result.reactions.items()]
     out_console.print(plain_table("EGO reaction per representation",
                                   ("trace", "manoeuvre", "reaction time [s]", "max risk"), rows))

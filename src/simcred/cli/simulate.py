@@ -23,7 +23,7 @@ from simcred.limits import check_count, check_finite
 simulate_app = typer.Typer(help="Simulate seeded campaigns of runs into trace sets.")
 app.add_typer(simulate_app, name="simulate")
 Runs = Annotated[int, typer.Option(help="Number of runs.")]
-CampaignSeed = Annotated[int, typer.Option(help="Campaign seed: run i uses the stream "
+CampaignSeed = Annotated[int, typer.Option(min=0, help="Campaign seed: run i uses the stream "
                                                 "SeedSequence(seed, spawn_key=(i,)).")]
 TraceOut = Annotated[Path, typer.Option(help="Trace set to write: a directory (CSV, one file per "
                                              "run) or a .parquet file.")]
@@ -101,7 +101,7 @@ def simulate_tjunction(
 def simulate_cutin(
     out: Annotated[Path, typer.Option(help="Measurement directory to write (gt.parquet, "
                                            "sd.parquet, measurement.json).")],
-    seed: Annotated[int, typer.Option(help="Seed of the sensor and DGPS noise.")] = 0,
+    seed: Annotated[int, typer.Option(min=0, help="Seed of the sensor and DGPS noise.")] = 0,
     ego_model: Annotated[str, typer.Option(help="EGO vehicle model of 'reality': st or ks.")
                          ] = "st",
     overwrite: Overwrite = False,
@@ -137,8 +137,8 @@ def simulate_sumo_following(
     out: Annotated[Path, typer.Option(help="Directory for <model>.parquet per model and "
                                            "sumo-following.json (provenance).")],
     models: SumoModels = "Krauss,IDM,EIDM",
-    seed: Annotated[int, typer.Option(help="Campaign seed: episode r runs with SUMO --seed from "
-                                           "SeedSequence(seed, hash(r)).")] = 0,
+    seed: Annotated[int, typer.Option(min=0, help="Campaign seed: episode r runs with SUMO "
+                                                  "--seed from SeedSequence(seed, hash(r)).")] = 0,
     chunk_size: Annotated[int, typer.Option(help="Episodes per task.")] = 50,
     workers: Workers = None,
     scheduler: Scheduler = None,

@@ -107,7 +107,7 @@ def car_following(
                             ] = 199,
     bootstrap: Annotated[int, typer.Option(help="Cluster-bootstrap replicates of the "
                                                 "deviation's bounds.")] = 500,
-    seed: Annotated[int, typer.Option(help="Study seed: the SUMO replays' campaign seed; "
+    seed: Annotated[int, typer.Option(min=0, help="Study seed: the SUMO replays' campaign seed; "
                                            "splits and comparisons per (row, band) from it.")
                     ] = 0,
     max_episodes: Annotated[int | None, typer.Option(help="Use at most this many human and "

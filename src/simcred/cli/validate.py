@@ -88,8 +88,10 @@ def _print_plan(plan) -> None:
 
 def simulate_candidates(spec: ValidationSpec, base: Path, out: Path,
                         checkpoint: Checkpoint | None = None) -> dict[str, RunsSpec]:
-    """Run each candidate's simulator command (in-process, ``simcred simulate ...``) into
-    ``out/runs/<candidate>/``; the runs it wrote, per candidate.
+    """Run each candidate's simulator command (in-process, ``simcred simulate ...``) with
+    ``--out out/runs/<candidate>`` (the command itself carries no --out, --overwrite or
+    --resume: :func:`~simcred.validate.spec.without_placed_output`); the runs it wrote, per
+    candidate.
 
     Each finished simulation is marked in ``checkpoint``: a resumed validation does not run it
     again (its output was written atomically, so it is complete).
@@ -107,8 +109,8 @@ def simulate_candidates(spec: ValidationSpec, base: Path, out: Path,
         for left in (folder, partial_path(folder)):  # an interrupted simulation: start over
             shutil.rmtree(left, ignore_errors=True)
         folder.mkdir(parents=True)
-        args = [a.replace("{base}", str(base)).replace("{out}", str(folder))
-                for a in candidate.simulate.command]
+        args = [*(a.replace("{base}", str(base)) for a in candidate.simulate.command),
+                "--out", str(folder)]  # the only output: the file's own --out was refused
         from simcred.cli import run
 
         quiet, debug = State.quiet, State.debug

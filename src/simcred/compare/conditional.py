@@ -24,7 +24,7 @@ import scipy.sparse as sp
 from simcred.compare.design import Design, DesignKind
 from simcred.compare.discretize import StateSpace
 from simcred.compare.effect import (
-    MIN_TRANSITIONS,
+    ENTRY,
     EffectSummary,
     rate_unit,
     response_effects,
@@ -220,7 +220,7 @@ def _warnings(design: Design, options: ComparisonOptions, outcome: ResponseOutco
         out.append("no state is visited by both sets with a response that varies: the response "
                    "law could not be compared")
     if effect.states == 0:
-        out.append(f"no state has {MIN_TRANSITIONS} transitions on both sides: the deviation "
+        out.append(f"no state {ENTRY}: the deviation "
                    "cannot be estimated (this is not 'no deviation'); use fewer bins or more runs")
     return tuple(out)
 

@@ -3,28 +3,52 @@
 **Effect.** Per response feature ``j`` (in its unit per second, e.g. m/s² for a speed), the
 *response deviation*
 
-    E_j = √( Σ_s w_s [ (μ_A,s − μ_B,s)² + (σ_A,s − σ_B,s)² ] )
+    E_j = √θ_j,   θ_j = Σ_s w_s [ (μ_A,s − μ_B,s)² + (σ_A,s − σ_B,s)² ]
 
-over the states ``s`` both sides visit at least ``MIN_TRANSITIONS`` times, ``w_s`` the pooled
-share of their transitions, ``μ``/``σ`` the mean and standard deviation of the adjusted response
-(:mod:`simcred.compare.transitions`) in that state. Per state the bracket is the squared
-2-Wasserstein distance of the two normal laws with those moments: a bias, a delay (a shifted
-conditional mean), a gain or a variance change all enter, in the feature's own unit. It estimates
-a property of the two response laws, so it does not grow with the number of runs (the paper's
-distance, a count of rejected tests, does). ``shift_j = Σ_s w_s (μ_A,s − μ_B,s)`` is the signed
-average bias.
+over the states ``s`` that hold at least ``MIN_SHARE`` (0.5 %) of EACH side's transitions,
+``w_s`` the average of the two sides' shares of ``s`` (renormalised over those states),
+``μ``/``σ`` the mean and standard deviation in that state of the response after the global
+covariate fit (:attr:`~simcred.compare.transitions.Transitions.effect_residual`: a state's own
+fit would absorb part of the A–B difference, more as more states get one). Per state the
+bracket is the squared 2-Wasserstein distance of the two normal laws with those moments: a bias,
+a delay (a shifted conditional mean), a gain or a variance change all enter, in the feature's
+own unit. The state
+set and the weights are defined by shares of the two response laws, not by counts, so ``E`` is
+one property of the two laws whatever the number or length of the runs (the paper's distance, a
+count of rejected tests, grows with them). A state must also be visited by ``MIN_UNITS`` (2)
+units of each side: its variances are estimated between units. ``shift_j = Σ_s w_s (μ_A,s −
+μ_B,s)`` is the signed average bias.
+
+**Estimate.** The plug-in ``θ̂`` is biased up: a squared difference of two estimates carries
+their variance, ``E[(μ̂_A − μ̂_B)²] = (μ_A − μ_B)² + Var(μ̂_A − μ̂_B)``, and with a few
+transitions per state that variance is larger than the deviation itself. The estimate removes
+it per state and per moment [1]: ``θ̃ = Σ_s w_s [(Δμ̂² − V̂_μ) + (Δσ̂² − V̂_σ)]`` with cluster
+(between-unit) variances of the linearised mean and standard deviation [2] — pairs resampled
+together, so the members' covariance is subtracted — each with the leverage correction
+``1/(1 − Σ_c N_c²/N²)`` of a cluster-robust variance with few clusters [3]. ``estimate =
+√max(θ̃, 0)``; ``squared`` is ``θ̃`` itself (it can be negative); ``plugin = √θ̂``.
 
 **Interval.** Cluster bootstrap over the design's units (runs or groups within each side, whole
-pairs) [1], [2]; the basic (reverse-percentile) interval ``[2Ê − q_{1−a/2}, 2Ê − q_{a/2}]``
-corrects the plug-in's upward bias to first order [3] (clamped at 0).
+pairs) [4], [5], with the state set fixed, of the bias-corrected ``θ̃*``, around the plug-in
+``θ̂`` (the bootstrap world's true value); bounds as deviations (roots, clamped at 0). The upper
+bound is the basic bound of the squared deviation, ``θ̃ − (q_{a/2}(θ̃*) − θ̂)``: where the
+deviation is within the noise (where equivalence is decided) ``θ̃`` has the right-skewed law of a
+sum of noncentral χ² terms, and the basic bound carries that tail. The lower bound is the basic
+bound on the stabilised scale ``φ = √(θ + c)``, ``c = 2ν̂``, ``ν̂ = θ̂ − θ̃`` the estimated
+noise: ``φ̃ − (q_{1−a/2}(φ*) − φ̂)``, back to ``θ`` as ``φ² − c`` (a sum of noncentral χ²
+terms with variance ``≈ 4θν + 2ν²`` is stabilised by ``√(θ + ν/2)``; the larger offset ``2ν̂``
+was chosen among 0.5–4 on the known-truth designs, calibration.md). Well above the noise
+``φ`` is the deviation itself, whose law is near normal (the squared scale's skew would put the
+lower bound far too low, "beyond the margin" would lose its power); within the noise it is
+nearly the squared scale.
 
-**Equivalence** [4], [5], [6]. H0: ``E_j ≥ δ_j`` for some declared margin; H1: ``E_j < δ_j``
+**Equivalence** [6], [7], [8]. H0: ``E_j ≥ δ_j`` for some declared margin; H1: ``E_j < δ_j``
 for all. Rejected (equivalence shown) when every one-sided upper ``1 − α`` bound
-``2Ê − q_α`` lies below its margin: an intersection–union test, level α without adjustment.
-Little data gives wide bounds and "not shown equivalent", never "equivalent".
+``√(θ̃ − (q_α(θ̃*) − θ̂))`` lies below its margin: an intersection–union test, level α without
+adjustment. Little data gives wide bounds and "not shown equivalent", never "equivalent".
 
-**Is there any deviation?** ``pvalue``: the permutation p-value of ``Ê`` itself under the
-design's assignments (the states that enter fixed): exact when the two response laws are the
+**Is there any deviation?** ``pvalue``: the permutation p-value of the plug-in ``θ̂`` under
+the design's assignments (the states that enter fixed): exact when the two response laws are the
 same, whatever the sample size, and sensitive to changes of sign between states (an RMS, unlike a
 pooled mean). A caller that declares "beyond the margin" can require it besides the bootstrap
 lower bound, so that a candidate with the reference's own law is never declared beyond at more
@@ -36,13 +60,20 @@ standard error of ``shift_j`` (a normal approximation).
 
 References
 ----------
-[1] Field & Welsh, Bootstrapping clustered data, JRSS B 69, 2007.
-[2] Davison & Hinkley, Bootstrap Methods and their Application, CUP, 1997 (sec. 3.8).
-[3] Efron & Tibshirani, An Introduction to the Bootstrap, Chapman & Hall, 1993 (ch. 10, 13).
-[4] Schuirmann, A comparison of the two one-sided tests procedure..., J. Pharmacokin. Biopharm.
+[1] Cochran, Sampling Techniques, 3rd ed., Wiley, 1977 (sec. 6.9: variance of a ratio
+    estimate); the squared difference less its variance is the unbiased estimate of a squared
+    contrast (e.g. the numerator of a random-effects variance, Searle, Casella & McCulloch,
+    Variance Components, Wiley, 1992, ch. 3).
+[2] Cameron & Miller, A practitioner's guide to cluster-robust inference, J. Human Resources 50,
+    2015.
+[3] Bell & McCaffrey, Bias reduction in standard errors for linear regression with multi-stage
+    samples, Survey Methodology 28, 2002 (CR2).
+[4] Field & Welsh, Bootstrapping clustered data, JRSS B 69, 2007.
+[5] Davison & Hinkley, Bootstrap Methods and their Application, CUP, 1997 (sec. 3.8, 5.2).
+[6] Schuirmann, A comparison of the two one-sided tests procedure..., J. Pharmacokin. Biopharm.
     15, 1987.
-[5] Wellek, Testing Statistical Hypotheses of Equivalence and Noninferiority, 2nd ed., CRC, 2010.
-[6] Robinson & Froese, Model validation using equivalence tests, Ecol. Modelling 176, 2004.
+[7] Wellek, Testing Statistical Hypotheses of Equivalence and Noninferiority, 2nd ed., CRC, 2010.
+[8] Robinson & Froese, Model validation using equivalence tests, Ecol. Modelling 176, 2004.
 """
 
 from __future__ import annotations
@@ -54,26 +85,38 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.stats import norm
 
-from simcred.compare.design import Design
-from simcred.compare.response import unit_sums
+from simcred.compare.design import Design, DesignKind
 from simcred.compare.runs import exceedance_pvalues
 from simcred.compare.transitions import Transitions
 from simcred.errors import OptionError
 
-#: Transitions per side before a state enters the effect.
-MIN_TRANSITIONS = 10
+#: A state enters the effect when it holds at least this share of EACH side's transitions ...
+MIN_SHARE = 0.005
+#: ... and at least this many units of each side visit it (its variances are estimated between
+#: units, which needs two).
+MIN_UNITS = 2
+#: The entry rule in words (warnings, docs).
+ENTRY = (f"holds {100 * MIN_SHARE:g} % of each side's transitions and is visited by "
+         f"{MIN_UNITS} units of each side")
+#: Offset of the lower bound's stabilised scale, in units of the estimated noise θ̂ − θ̃ (module
+#: docs; chosen among 0.5–4 on the known-truth designs, calibration.md).
+STABILISER = 2.0
 POWER = 0.8
+_CHUNK = 64  # bootstrap replicates evaluated at once
 
 
 @dataclass(frozen=True, slots=True)
 class FeatureEffect:
     """The response deviation of one feature, its interval and what the data could detect.
 
-    ``estimate``: bias-corrected (``2Ê − mean(E*)``, at least 0); ``plugin``: ``Ê`` itself;
-    ``low``/``high``: basic bootstrap interval; ``upper``/``lower``: one-sided ``1 − α`` bounds
-    (``upper`` is the equivalence test's); ``shift``: signed mean bias with its interval;
-    ``mde``: detectable uniform shift. ``replicates``: the bootstrap estimates ``E*`` (not
-    written to JSON), from which :meth:`bounds` gives one-sided bounds at any other level.
+    ``estimate``: bias-corrected ``√max(θ̃, 0)``; ``plugin``: ``√θ̂``; ``squared``: ``θ̃`` (the
+    bias-corrected squared deviation, negative when the noise exceeds the signal);
+    ``low``/``high``: bootstrap interval (:meth:`bounds` at ``(1 − level)/2``);
+    ``upper``/``lower``: one-sided ``1 − α`` bounds (``upper`` is the equivalence test's);
+    ``shift``: signed mean bias with its interval; ``mde``: detectable uniform shift;
+    ``pvalue``: permutation p-value of any deviation. ``replicates``: the bootstrap replicates
+    ``θ̃*`` in the feature's unit, as signed roots ``sign(θ̃*)·√|θ̃*|`` (not written to JSON),
+    from which :meth:`bounds` gives one-sided bounds at any other level.
     """
 
     feature: str
@@ -91,17 +134,25 @@ class FeatureEffect:
     equivalent: bool | None = None
     lower: float = float("nan")
     pvalue: float = float("nan")
+    squared: float = float("nan")
     replicates: np.ndarray = field(default_factory=lambda: np.empty(0), repr=False,
                                    compare=False)
 
     def bounds(self, alpha: float) -> tuple[float, float]:
-        """One-sided ``1 − alpha`` lower and upper bounds (basic bootstrap, clamped at 0);
-        NaN when not estimable."""
-        if len(self.replicates) == 0 or not np.isfinite(self.plugin):
+        """One-sided ``1 − alpha`` lower and upper bounds, as deviations (clamped at 0); NaN
+        when not estimable. Module docs: the upper bound is the basic bootstrap bound of the
+        squared deviation, the lower bound the basic bound on the stabilised scale
+        ``√(θ + c)``, ``c = STABILISER · (θ̂ − θ̃)``."""
+        if len(self.replicates) == 0 or not np.isfinite(self.squared):
             return float("nan"), float("nan")
-        q_low, q_high = np.quantile(self.replicates, [alpha, 1 - alpha])
-        return (float(max(2 * self.plugin - q_high, 0.0)),
-                float(max(2 * self.plugin - q_low, 0.0)))
+        plugin, squared = self.plugin**2, self.squared
+        replicates = np.sign(self.replicates) * self.replicates**2
+        upper = squared - (np.quantile(replicates, alpha) - plugin)
+        c = STABILISER * max(plugin - squared, 0.0)
+        stable = np.sqrt(np.maximum(replicates + c, 0.0))
+        lower = max(np.sqrt(max(squared + c, 0.0))
+                    - (np.quantile(stable, 1 - alpha) - np.sqrt(plugin + c)), 0.0)**2 - c
+        return float(np.sqrt(max(lower, 0.0))), float(np.sqrt(max(upper, 0.0)))
 
 
 @dataclass(frozen=True, slots=True)
@@ -155,23 +206,24 @@ def response_effects(data: Transitions, design: Design, replicates: int, alpha: 
                      assignments: np.ndarray | None = None) -> EffectSummary:
     """Response deviations with cluster-bootstrap intervals, equivalence, detectable effect and,
     given the design's ``assignments`` (row 0 observed), the deviation's permutation p-value."""
-    moments = np.hstack([np.ones((len(data.residual), 1)), data.residual, data.residual**2])
-    sums = unit_sums(data, moments, design.n_units)
-    width = moments.shape[1]
-    in_a = design.observed.astype(np.float64)
-    observed = _side_sums(sums.matrix, np.ones((design.n_units, 1)), in_a, width)
-    keep = (observed[:, 0, 0] >= MIN_TRANSITIONS).all(axis=-1)
-    boot = _side_sums(sums.matrix, design.resamples(replicates, rng), in_a, width)
+    entries = _Entries.of(data, design)
+    keep = entries.entering()
+    weights = design.resamples(replicates, rng)
     if not keep.any():  # nothing to estimate from: say so, never "no deviation"
         return EffectSummary(level, replicates, 0, tuple(
             _not_estimable(name, units.get(name, ""), dict(margins).get(name))
             for name in data.response), False if margins else None)
-    estimate, shift = _effects(observed[keep])
-    boot_estimate, boot_shift = _effects(boot[keep])
-    features = _feature_effects(data.response, estimate[:, 0], shift[:, 0], boot_estimate,
-                                boot_shift, alpha, level, dict(margins), units)
+    sums = _Sums.of(entries, keep)
+    if entries.pairs:
+        weights = weights[:design.units_a]  # a pair's members are drawn together
+    observed = sums.deviation(np.ones((sums.totals.shape[0], 1)))
+    boot = [sums.deviation(weights[:, i:i + _CHUNK])
+            for i in range(0, weights.shape[1], _CHUNK)]
+    boot = {name: np.hstack([b[name] for b in boot]) for name in observed}
+    features = _feature_effects(data.response, observed, boot, alpha, level, dict(margins),
+                                units)
     if assignments is not None:
-        null = _effects(_assigned_sums(sums.matrix, assignments, width)[keep])[0]
+        null = _permuted_plugin(entries, keep, assignments)
         pvalues = exceedance_pvalues(null.T, null[:, 0])
         features = tuple(replace(f, pvalue=float(p)) for f, p in zip(features, pvalues,
                                                                      strict=True))
@@ -181,70 +233,259 @@ def response_effects(data: Transitions, design: Design, replicates: int, alpha: 
 
 
 def _not_estimable(name: str, unit: str, margin: float | None) -> FeatureEffect:
-    """No state has ``MIN_TRANSITIONS`` on both sides: every number is NaN (null in JSON) and a
-    margin is not shown to hold."""
+    """No state enters (:data:`ENTRY`): every number is NaN (null in JSON) and a margin is not
+    shown to hold."""
     nan = float("nan")
     return FeatureEffect(name, unit, nan, nan, nan, nan, nan, nan, nan, nan, nan, margin,
                          None if margin is None else False)
 
 
-def _side_sums(matrix, weights: np.ndarray, in_a: np.ndarray, width: int) -> np.ndarray:
-    """(blocks, width, k, 2) sums of the unit matrix over A's and B's units, each unit counted
-    ``weights[unit, r]`` times in replicate ``r``. ``in_a``: A's units first (the design's
-    order), so each side is one slice of the matrix's columns."""
-    units_a = int(in_a.sum())
-    if not in_a[:units_a].all():  # not the design's order: weight the whole matrix per side
-        sides = [np.asarray(matrix @ (weights * side[:, None])) for side in (in_a, 1 - in_a)]
-    else:
-        matrix = sp.csr_matrix(matrix)
-        sides = [np.asarray(matrix[:, cols] @ weights[cols])
-                 for cols in (slice(0, units_a), slice(units_a, None))]
-    return np.stack(sides, axis=-1).reshape(-1, width, weights.shape[1], 2)
-
-
-def _assigned_sums(matrix, assignments: np.ndarray, width: int) -> np.ndarray:
-    """(blocks, width, P + 1, 2) sums of the unit matrix over each assignment's A and B units."""
+def _permuted_plugin(entries: _Entries, keep: np.ndarray, assignments: np.ndarray
+                     ) -> np.ndarray:
+    """(features, P + 1) plug-in squared deviation of every assignment (states fixed)."""
+    take = keep[entries.state]
+    state = (np.cumsum(keep) - 1)[entries.state[take]]
+    unit = entries.unit[take]
+    n_states, n_units = int(keep.sum()), assignments.shape[1]
+    j = entries.first.shape[1]
+    values = np.hstack([entries.count[take, None], entries.first[take], entries.second[take]])
+    width = values.shape[1]
+    matrix = sp.csr_matrix((values.ravel(), ((state[:, None] * width + np.arange(width)).ravel(),
+                                             np.repeat(unit, width))),
+                           shape=(n_states * width, n_units))
+    totals = np.bincount(entries.unit, weights=entries.count, minlength=n_units)
+    pooled = np.asarray(matrix.sum(axis=1)).reshape(n_states, width, 1)
     side_a = assignments.T.astype(np.float64)  # (units, P + 1)
-    sides = [np.asarray(matrix @ side) for side in (side_a, 1.0 - side_a)]
-    return np.stack(sides, axis=-1).reshape(-1, width, assignments.shape[0], 2)
+    out = np.zeros((j, assignments.shape[0]))
+    for start in range(0, side_a.shape[1], 256):
+        cols = side_a[:, start:start + 256]
+        a = np.asarray(matrix @ cols).reshape(n_states, width, -1)
+        total_a = totals @ cols
+        out[:, start:start + 256] = _plugin([a, pooled - a], [total_a, totals.sum() - total_a], j)
+    return out
 
 
-def _effects(sums: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Deviation and shift per feature and replicate from (states, width, reps, 2) side sums."""
-    count = sums[:, 0]  # (states, reps, 2)
-    j = (sums.shape[1] - 1) // 2
+def _plugin(sides, total, j: int) -> np.ndarray:
+    """(features, assignments) plug-in squared deviation from per-side (states, 1 + 2J, k) sums
+    (a state with fewer than 2 transitions on a side drops out)."""
+    count = [s[:, 0] for s in sides]
+    usable = (count[0] >= 2) & (count[1] >= 2)
+    share = np.where(usable, 0.5 * (count[0] / total[0] + count[1] / total[1]), 0.0)
+    w = share / np.where(share.sum(axis=0) > 0, share.sum(axis=0), 1.0)
     with np.errstate(invalid="ignore", divide="ignore"):
-        mean = sums[:, 1:1 + j] / count[:, None]
-        sd = np.sqrt(np.maximum(sums[:, 1 + j:] / count[:, None] - mean**2, 0.0))
-    usable = (count >= 2).all(axis=-1)  # (states, reps)
-    share = np.where(usable, count.sum(axis=-1), 0.0)
-    share = share / np.maximum(share.sum(axis=0), 1.0)
-    delta_mean = np.nan_to_num(mean[..., 0] - mean[..., 1])
-    delta_sd = np.nan_to_num(sd[..., 0] - sd[..., 1])
-    squared = (share[:, None] * (delta_mean**2 + delta_sd**2)).sum(axis=0)
-    shift = (share[:, None] * delta_mean).sum(axis=0)
-    return np.sqrt(squared), shift  # (features, reps)
+        mean = [s[:, 1:1 + j] / c[:, None] for s, c in zip(sides, count, strict=True)]
+        sd = [np.sqrt(np.maximum(s[:, 1 + j:] / c[:, None] - m**2, 0.0))
+              for s, c, m in zip(sides, count, mean, strict=True)]
+    squared = np.nan_to_num((mean[0] - mean[1])**2 + (sd[0] - sd[1])**2)
+    return (w[:, None] * squared).sum(axis=0)
 
 
-def _feature_effects(names, estimate, shift, boot_estimate, boot_shift, alpha, level,
-                     margins, units) -> tuple[FeatureEffect, ...]:
+@dataclass(frozen=True, slots=True, eq=False)
+class _Entries:
+    """Sums per (state, unit) of the pooled transitions: ``state`` indexes the distinct states,
+    ``side`` 0 (A) / 1 (B), ``cluster`` the resampled unit (the pair for a paired design)."""
+
+    state: np.ndarray
+    unit: np.ndarray
+    side: np.ndarray
+    cluster: np.ndarray
+    count: np.ndarray  # (entries,)
+    first: np.ndarray  # (entries, J) sums of the residual
+    second: np.ndarray  # (entries, J) sums of its square
+    n_states: int
+    n_clusters: int
+    pairs: bool
+
+    @classmethod
+    def of(cls, data: Transitions, design: Design) -> _Entries:
+        state, unit, x = data.state, data.unit, data.effect_residual
+        new = np.r_[True, (state[1:] != state[:-1]) | (unit[1:] != unit[:-1])]
+        starts = np.flatnonzero(new)
+        codes, index = np.unique(state[starts], return_inverse=True)
+        units = unit[starts]
+        pairs = design.kind is DesignKind.PAIRS
+        side = (units >= design.units_a).astype(np.int64)
+        return cls(index, units, side, units % design.units_a if pairs else units,
+                   np.diff(np.r_[starts, len(state)]).astype(np.float64),
+                   np.add.reduceat(x, starts, axis=0), np.add.reduceat(x**2, starts, axis=0),
+                   len(codes), design.units_a if pairs else design.n_units, pairs)
+
+    def per_state(self, values: np.ndarray) -> np.ndarray:
+        """(states, 2) sums of ``values`` per state and side."""
+        out = np.zeros((self.n_states, 2))
+        np.add.at(out, (self.state, self.side), values)
+        return out
+
+    def entering(self) -> np.ndarray:
+        """The states that enter the effect (module docs: :data:`ENTRY`)."""
+        count = self.per_state(self.count)
+        share = count / np.maximum(count.sum(axis=0), 1.0)
+        visits = self.per_state(np.ones(len(self.count)))
+        return ((share >= MIN_SHARE) & (visits >= MIN_UNITS)).all(axis=1)
+
+    def totals(self) -> np.ndarray:
+        """(clusters, 2) transitions per cluster and side over all states."""
+        out = np.zeros((self.n_clusters, 2))
+        np.add.at(out, (self.cluster, self.side), self.count)
+        return out
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class _Sums:
+    """Per entering state and cluster: the sums and the products of sums the cluster variances
+    need, as a sparse (states · width) × clusters matrix, so that any resampling weights of the
+    clusters give every replicate's moments and variances with one product."""
+
+    matrix: sp.csr_matrix
+    visits: sp.csr_matrix  # (states · 2) × clusters: the cluster's side-k member visits
+    totals: np.ndarray  # (clusters, 2)
+    column: dict
+    n_states: int
+    features: int
+    pairs: bool
+
+    @classmethod
+    def of(cls, entries: _Entries, keep: np.ndarray) -> _Sums:
+        new_index = np.cumsum(keep) - 1
+        take = keep[entries.state]
+        state = new_index[entries.state[take]]
+        side, cluster = entries.side[take], entries.cluster[take]
+        n_states, n_clusters = int(keep.sum()), entries.n_clusters
+        j = entries.first.shape[1]
+        key, inverse = np.unique(state * n_clusters + cluster, return_inverse=True)
+        x = np.zeros((len(key), 2, 1 + 2 * j))  # per (state, cluster) and side: N, S1, S2
+        np.add.at(x, (inverse, side), np.hstack([entries.count[take, None],
+                                                  entries.first[take], entries.second[take]]))
+        columns = _product_columns(x, j, entries.pairs)
+        column = {name: i for i, name in enumerate(columns)}
+        width = len(columns)
+        values = np.stack(list(columns.values()), axis=1)
+        rows = (key // n_clusters)[:, None] * width + np.arange(width)
+        matrix = sp.csr_matrix((values.ravel(), (rows.ravel(), np.repeat(key % n_clusters,
+                                                                          width))),
+                               shape=(n_states * width, n_clusters))
+        visits = sp.csr_matrix(
+            (np.ones(int(take.sum())), (2 * state + side, cluster)),
+            shape=(2 * n_states, n_clusters))
+        return cls(matrix, visits, entries.totals(), column, n_states, j, entries.pairs)
+
+    def deviation(self, weights: np.ndarray) -> dict[str, np.ndarray]:
+        """(features, replicates) plug-in and bias-corrected squared deviations and shifts, each
+        cluster counted ``weights[cluster, r]`` times in replicate ``r``."""
+        r = weights.shape[1]
+        q = np.asarray(self.matrix @ weights).reshape(self.n_states, -1, r)
+        drawn = np.asarray(self.visits @ (weights > 0)).reshape(self.n_states, 2, r)
+        total = self.totals.T @ weights  # (2, r)
+        col = self.column
+
+        def get(*name):
+            return q[:, col[name]]
+
+        count = [get("N", k) for k in (0, 1)]
+        usable = (drawn >= MIN_UNITS).all(axis=1)
+        share = np.where(usable, 0.5 * (count[0] / total[0] + count[1] / total[1]), 0.0)
+        w = share / np.where(share.sum(axis=0) > 0, share.sum(axis=0), 1.0)
+        out = {name: np.zeros((self.features, r)) for name in ("plugin", "squared", "shift")}
+        with np.errstate(invalid="ignore", divide="ignore"):
+            inflate = [1.0 / (1.0 - np.minimum(get("NN", k) / count[k]**2, 1.0))
+                       for k in (0, 1)]  # leverage correction of the cluster variance
+            for j in range(self.features):
+                sides = [_side_moments(get, count[k], inflate[k], k, j) for k in (0, 1)]
+                a, b = sides
+                var_mean = a["var_mean"] + b["var_mean"]
+                var_sd = a["var_sd"] + b["var_sd"]
+                if self.pairs:  # the two members of a pair are resampled together
+                    cov_mean, cov_var = _pair_covariances(get, count, inflate, a, b, j)
+                    var_mean = var_mean - 2 * cov_mean
+                    rho = np.clip(cov_var / np.sqrt(a["var_v"] * b["var_v"]), -1.0, 1.0)
+                    var_sd = var_sd - 2 * np.nan_to_num(rho) * np.sqrt(a["var_sd"] * b["var_sd"])
+                d_mean = np.where(usable, a["mean"] - b["mean"], 0.0)
+                d_sd = np.where(usable, a["sd"] - b["sd"], 0.0)
+                plugin = d_mean**2 + d_sd**2
+                noise = np.where(usable, np.maximum(var_mean, 0.0) + np.maximum(var_sd, 0.0),
+                                 0.0)
+                out["plugin"][j] = (w * plugin).sum(axis=0)
+                out["squared"][j] = (w * (plugin - noise)).sum(axis=0)
+                out["shift"][j] = (w * d_mean).sum(axis=0)
+        return out
+
+
+def _product_columns(x: np.ndarray, j: int, pairs: bool) -> dict:
+    """Per (state, cluster) row: the sums of each side and their products (and, for pairs, the
+    products of the two members' sums)."""
+    out = {}
+    for k in (0, 1):
+        n = x[:, k, 0]
+        out["N", k], out["NN", k] = n, n * n
+        for f in range(j):
+            s1, s2 = x[:, k, 1 + f], x[:, k, 1 + j + f]
+            out["S1", k, f], out["S2", k, f] = s1, s2
+            out["NS1", k, f], out["NS2", k, f] = n * s1, n * s2
+            out["S1S1", k, f], out["S1S2", k, f], out["S2S2", k, f] = s1 * s1, s1 * s2, s2 * s2
+    if pairs:
+        out["NN", "AB"] = x[:, 0, 0] * x[:, 1, 0]
+        for f in range(j):
+            parts = {"N": 0, "S1": 1 + f, "S2": 1 + j + f}
+            for p, ip in parts.items():
+                for s, is_ in parts.items():
+                    if p != "N" or s != "N":
+                        out[p + s, "AB", f] = x[:, 0, ip] * x[:, 1, is_]
+    return out
+
+
+def _side_moments(get, n, inflate, k, j) -> dict[str, np.ndarray]:
+    """Mean, standard deviation and their cluster variances of one side in every state."""
+    mean = get("S1", k, j) / n
+    var = np.maximum(get("S2", k, j) / n - mean**2, 0.0)
+    nn, ns1, ns2 = get("NN", k), get("NS1", k, j), get("NS2", k, j)
+    s11, s12, s22 = get("S1S1", k, j), get("S1S2", k, j), get("S2S2", k, j)
+    # Σ_c w_c ψ_c² of the linearised mean (S1_c − μ N_c)/N and variance
+    # (S2_c − 2μ S1_c + (μ² − v) N_c)/N, expanded in the clusters' sums and products
+    a, b = -2 * mean, mean**2 - var
+    var_mean = np.maximum(s11 - 2 * mean * ns1 + mean**2 * nn, 0.0) / n**2 * inflate
+    var_v = np.maximum(s22 + a**2 * s11 + b**2 * nn + 2 * a * s12 + 2 * b * ns2
+                       + 2 * a * b * ns1, 0.0) / n**2 * inflate
+    var_sd = np.minimum(var_v / (4 * var), var)  # delta method, at most the variance itself
+    return {"mean": mean, "sd": np.sqrt(var), "var_mean": var_mean, "var_v": var_v,
+            "var_sd": np.nan_to_num(var_sd), "a": a, "b": b}
+
+
+def _pair_covariances(get, n, inflate, a, b, j):
+    """Σ_c w_c ψ_A,c ψ_B,c of the mean and the variance (the members of a pair together)."""
+    scale = n[0] * n[1] / np.sqrt(inflate[0] * inflate[1])
+    cov_mean = (get("S1S1", "AB", j) - b["mean"] * get("S1N", "AB", j)
+                - a["mean"] * get("NS1", "AB", j) + a["mean"] * b["mean"] * get("NN", "AB"))
+    cov_var = (get("S2S2", "AB", j) + b["a"] * get("S2S1", "AB", j)
+               + b["b"] * get("S2N", "AB", j) + a["a"] * get("S1S2", "AB", j)
+               + a["a"] * b["a"] * get("S1S1", "AB", j) + a["a"] * b["b"] * get("S1N", "AB", j)
+               + a["b"] * get("NS2", "AB", j) + a["b"] * b["a"] * get("NS1", "AB", j)
+               + a["b"] * b["b"] * get("NN", "AB"))
+    return cov_mean / scale, cov_var / scale
+
+
+def _signed_root(x: np.ndarray) -> np.ndarray:
+    return np.sign(x) * np.sqrt(np.abs(x))
+
+
+def _feature_effects(names, observed, boot, alpha, level, margins, units
+                     ) -> tuple[FeatureEffect, ...]:
     tail = (1 - level) / 2
     z = norm.ppf(1 - alpha / 2) + norm.ppf(POWER)
     out = []
     for j, name in enumerate(names):
-        q_lo, q_hi = np.quantile(boot_estimate[j], [tail, 1 - tail])
-        s_lo, s_hi = np.quantile(boot_shift[j], [tail, 1 - tail])
-        replicates = np.sort(boot_estimate[j])
+        plugin, squared = observed["plugin"][j, 0], observed["squared"][j, 0]
+        shift, boot_shift = observed["shift"][j, 0], boot["shift"][j]
+        s_lo, s_hi = np.quantile(boot_shift, [tail, 1 - tail])
         margin = margins.get(name)
-        corrected = max(2 * estimate[j] - boot_estimate[j].mean(), 0.0)
         effect = FeatureEffect(
-            name, units.get(name, ""), float(corrected), float(estimate[j]),
-            float(max(2 * estimate[j] - q_hi, 0.0)), float(max(2 * estimate[j] - q_lo, 0.0)),
-            float("nan"), float(shift[j]),
-            float(2 * shift[j] - s_hi), float(2 * shift[j] - s_lo),
-            float(z * boot_shift[j].std(ddof=1)) if boot_shift.shape[1] > 1 else float("nan"),
-            margin, None, replicates=replicates)
+            name, units.get(name, ""), float(np.sqrt(max(squared, 0.0))),
+            float(np.sqrt(plugin)), float("nan"), float("nan"), float("nan"), float(shift),
+            float(2 * shift - s_hi), float(2 * shift - s_lo),
+            float(z * boot_shift.std(ddof=1)) if len(boot_shift) > 1 else float("nan"),
+            margin, None, squared=float(squared),
+            replicates=np.sort(_signed_root(boot["squared"][j])))
+        low, high = effect.bounds(tail)
         lower, upper = effect.bounds(alpha)
-        out.append(replace(effect, upper=upper, lower=lower,
+        out.append(replace(effect, low=low, high=high, upper=upper, lower=lower,
                            equivalent=None if margin is None else bool(upper < margin)))
     return tuple(out)

@@ -25,6 +25,7 @@ import numpy as np
 
 from simcred.compare.discretize import StateSpace, feature_edges
 from simcred.errors import OptionError
+from simcred.limits import check_count
 
 WINDOW = "window"
 
@@ -90,7 +91,7 @@ def check_history(history: int) -> int:
     if isinstance(history, bool) or not isinstance(history, int | np.integer) or history < 1:
         raise OptionError(f"history must be an integer >= 1 (1 = the paper's first-order "
                           f"chain), got {history!r}")
-    return int(history)
+    return check_count(int(history), "steps", "history")  # K steps of one run per state
 
 
 def check_time_bins(time_bins: int | None) -> int | None:

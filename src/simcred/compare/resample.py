@@ -15,6 +15,7 @@ import numbers
 import numpy as np
 
 from simcred.errors import OptionError
+from simcred.limits import check_count
 from simcred.traces import TraceSet
 
 #: Relative difference of median sample periods above which two sets count as different.
@@ -48,12 +49,21 @@ def check_resample(dt: float | None) -> float | None:
 
 
 def resample(traces: TraceSet, dt: float) -> TraceSet:
-    """Every run linearly interpolated to ``t0, t0 + dt, …`` (up to its last time stamp)."""
+    """Every run linearly interpolated to ``t0, t0 + dt, …`` (up to its last time stamp).
+
+    The grid's size is checked against the step and row limits before anything is allocated.
+    """
+    spans = traces.time[traces.offsets[1:] - 1] - traces.time[traces.offsets[:-1]]
+    steps = np.floor(spans / dt + 1e-9) + 1
+    longest = int(np.argmax(steps))
+    check_count(int(steps[longest]), "steps",
+                f"resample period {dt:g} s: steps of run '{traces.run_ids[longest]}'")
+    check_count(int(steps.sum()), "rows", f"resample period {dt:g} s: rows of {traces.source}")
     times, values, lengths = [], [], []
     for i in range(traces.n_runs):
         lo, hi = traces.offsets[i], traces.offsets[i + 1]
         t = traces.time[lo:hi]
-        grid = t[0] + dt * np.arange(int(math.floor((t[-1] - t[0]) / dt + 1e-9)) + 1)
+        grid = t[0] + dt * np.arange(int(steps[i]))
         if len(grid) < 2:
             raise OptionError(f"{traces.source}: run '{traces.run_ids[i]}' lasts "
                               f"{t[-1] - t[0]:.6g} s, less than one resample period {dt:g} s")

@@ -15,6 +15,14 @@ sets together and no labels, so the permutation null is untouched). Two sets tha
 different places (other leaders, shorter runs, a start transient) then no longer differ for that
 reason alone, and a level or a change of level give the same residual. States with too few
 pooled transitions for a fit of their own are centred on their pooled mean.
+
+The chain test uses these residuals. The **effect** (:mod:`simcred.compare.effect`) uses the
+response after the global fit only (:attr:`Transitions.effect_residual`): a state's own fit, with
+5–15 coefficients on 25–150 of its transitions, absorbs part of the A–B difference by chance, and
+the more states get a fit the more it absorbs, so the effect's estimate fell with the sample size
+(14–17 % low at 160 pairs). The global fit has a few dozen coefficients against every transition
+of both sets; a per-state offset does not change a difference of means or of spreads. Fits
+cross-fitted over folds of the units were tried and dropped (docs/calibration.md).
 """
 
 from __future__ import annotations
@@ -36,7 +44,9 @@ class Transitions:
     """Pooled transitions of both sets, sorted by (state, unit).
 
     ``state``: state code at ``t``; ``unit``: the design unit of the transition's run;
-    ``residual``: (n, J) adjusted response in the response features' units per second.
+    ``residual``: (n, J) adjusted response in the response features' units per second (global
+    and per-state fits: the chain test's); ``level``: the response after the global fit only
+    (the effect's; None: not computed, ``residual`` serves).
     """
 
     state: np.ndarray
@@ -44,6 +54,12 @@ class Transitions:
     residual: np.ndarray
     response: tuple[str, ...]
     spread: np.ndarray | None = None  # pooled standard deviation of the raw response rates
+    level: np.ndarray | None = None
+
+    @property
+    def effect_residual(self) -> np.ndarray:
+        """The adjusted response the effect is estimated from (module docs)."""
+        return self.residual if self.level is None else self.level
 
 
 def response_features(features: Sequence[str], inputs: Sequence[str]) -> tuple[str, ...]:
@@ -82,8 +98,10 @@ def transitions(parts: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray, np.nda
     del run
     order = _order(state, unit)
     state, unit = np.take(state, order), np.take(unit, order)
-    residual = adjusted(state, np.take(covariates, order, axis=0), np.take(rate, order, axis=0))
-    return Transitions(state, unit, residual, response, rate.std(axis=0))
+    covariates = np.take(covariates, order, axis=0)
+    level = global_residual(covariates, np.take(rate, order, axis=0))
+    residual = per_state_residual(state, covariates, level)
+    return Transitions(state, unit, residual, response, rate.std(axis=0), level)
 
 
 def _order(state: np.ndarray, unit: np.ndarray) -> np.ndarray:
@@ -125,50 +143,76 @@ def _set_transitions(values, time, offsets, codes, history, out_j, in_j):
 def adjusted(state: np.ndarray, covariates: np.ndarray, rate: np.ndarray) -> np.ndarray:
     """Residuals of two pooled least-squares fits of ``rate`` (``state`` sorted): a global cubic
     polynomial in the covariates (sparse states have too few transitions for a fit of their own),
-    then per state a quadratic polynomial on what is left where the state has
-    ``PER_COEFFICIENT`` transitions per coefficient, else linear, else its pooled mean."""
+    then per state a quadratic polynomial on what is left (:func:`per_state_residual`)."""
+    return per_state_residual(state, covariates, global_residual(covariates, rate))
+
+
+def global_residual(covariates: np.ndarray, rate: np.ndarray) -> np.ndarray:
+    """``rate`` less its pooled global cubic fit."""
+    return rate - _fitted(covariates, rate, cubic=True)
+
+
+def per_state_residual(state: np.ndarray, covariates: np.ndarray, rate: np.ndarray
+                       ) -> np.ndarray:
+    """``rate`` less a pooled fit per state (``state`` sorted): quadratic where the state has
+    ``PER_COEFFICIENT`` transitions per coefficient, else linear, else its mean."""
     residual = np.empty_like(rate)
-    design = _polynomial(covariates, cubic=True)  # first a global fit: sparse states need it
-    if design is not None:
-        coef, *_ = np.linalg.lstsq(design, rate, rcond=None)
-        rate = rate - design @ coef
     bounds = np.r_[0, np.flatnonzero(np.diff(state)) + 1, len(state)]
     for lo, hi in zip(bounds[:-1], bounds[1:], strict=True):
-        y = rate[lo:hi]
-        design = _polynomial(covariates[lo:hi])
-        if design is None:
-            residual[lo:hi] = y - y.mean(axis=0)
-            continue
-        coef, *_ = np.linalg.lstsq(design, y, rcond=None)
-        residual[lo:hi] = y - design @ coef
+        residual[lo:hi] = rate[lo:hi] - _fitted(covariates[lo:hi], rate[lo:hi])
     return residual
 
 
-def _polynomial(x: np.ndarray, cubic: bool = False) -> np.ndarray | None:
-    """``[1, z, z_i z_j]`` of the standardised covariates ``z`` (quadratic terms only with enough
-    rows), or None when even a linear fit has too few rows."""
-    centred = x - x.mean(axis=0)
-    scale = centred.std(axis=0)
-    z = centred[:, scale > 0] / scale[scale > 0]
-    del centred
-    n, p = z.shape
-    if n < PER_COEFFICIENT * (p + 1):
-        return None
-    terms: list[tuple[int, ...]] = [(i,) for i in range(p)]
-    if n >= PER_COEFFICIENT * (1 + p + p * (p + 1) // 2):
-        terms += itertools.combinations_with_replacement(range(p), 2)  # np.triu_indices order
-    if cubic and n >= PER_COEFFICIENT * (1 + p + p * (p + 1) // 2 + p * (p + 1) * (p + 2) // 6):
-        terms += itertools.combinations_with_replacement(range(p), 3)
-    columns = [np.ascontiguousarray(z[:, i]) for i in range(p)]
-    # the layout np.hstack of these columns had (it decides the summation order of design @ b)
-    design = np.empty((n, 1 + len(terms)), order="F" if p > 1 else "C")
-    design[:, 0] = 1.0
-    for c, term in enumerate(terms, start=1):
-        out = design[:, c]
-        if len(term) == 1:
-            out[:] = columns[term[0]]
-            continue
-        np.multiply(columns[term[0]], columns[term[1]], out=out)
-        for k in term[2:]:  # left to right, as z_i * z_j * z_k
-            out *= columns[k]
-    return design
+def _fitted(x: np.ndarray, y: np.ndarray, cubic: bool = False) -> np.ndarray:
+    """Least-squares polynomial fit of ``y`` on ``x`` (:class:`_Basis`; the mean where too few
+    rows for a linear fit)."""
+    basis = _Basis.of(x, cubic)
+    if basis is None:
+        return np.broadcast_to(y.mean(axis=0), y.shape)
+    design = basis.design(x)
+    coef, *_ = np.linalg.lstsq(design, y, rcond=None)
+    return design @ coef
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class _Basis:
+    """``[1, z, z_i z_j (, z_i z_j z_k)]`` of covariates ``z`` standardised on the fit's rows
+    (quadratic and cubic terms only with ``PER_COEFFICIENT`` rows per coefficient)."""
+
+    centre: np.ndarray
+    scale: np.ndarray
+    varying: np.ndarray
+    terms: tuple[tuple[int, ...], ...]
+
+    @classmethod
+    def of(cls, x: np.ndarray, cubic: bool = False) -> _Basis | None:
+        """The basis for fit rows ``x``, or None when even a linear fit has too few rows."""
+        centre = x.mean(axis=0)
+        scale = (x - centre).std(axis=0)
+        varying = scale > 0
+        n, p = len(x), int(varying.sum())
+        if n < PER_COEFFICIENT * (p + 1):
+            return None
+        terms: list[tuple[int, ...]] = [(i,) for i in range(p)]
+        if n >= PER_COEFFICIENT * (1 + p + p * (p + 1) // 2):
+            terms += itertools.combinations_with_replacement(range(p), 2)
+        if cubic and n >= PER_COEFFICIENT * (1 + p + p * (p + 1) // 2
+                                             + p * (p + 1) * (p + 2) // 6):
+            terms += itertools.combinations_with_replacement(range(p), 3)
+        return cls(centre[varying], scale[varying], varying, tuple(terms))
+
+    def design(self, x: np.ndarray) -> np.ndarray:
+        """(rows, 1 + terms) design matrix of ``x``."""
+        z = (x[:, self.varying] - self.centre) / self.scale
+        columns = [np.ascontiguousarray(z[:, i]) for i in range(z.shape[1])]
+        out = np.empty((len(x), 1 + len(self.terms)), order="F" if len(columns) > 1 else "C")
+        out[:, 0] = 1.0
+        for c, term in enumerate(self.terms, start=1):
+            column = out[:, c]
+            if len(term) == 1:
+                column[:] = columns[term[0]]
+                continue
+            np.multiply(columns[term[0]], columns[term[1]], out=column)
+            for k in term[2:]:  # left to right, as z_i * z_j * z_k
+                column *= columns[k]
+        return out

@@ -138,11 +138,20 @@ def _join(a: str, op: str, b: str) -> str:
 
 
 def compose_all(contracts: Iterable[Contract]) -> Contract:
+    """C1 ⊗ … ⊗ Cn in flat form: (∧ Ai ∨ ¬∧ Gi', ∧ Gi'), linear in the contracts' size.
+
+    Equal to the pairwise nesting (composition is associative): nesting gives the guarantee
+    (A12 → G12) ∧ G3' with A12 = A1 ∧ A2 ∨ ¬G12, and A12 → G12 is G12; its assumption
+    (A1 ∧ A2 ∨ ¬G12) ∧ A3 ∨ ¬G differs from the flat one only by ¬G12 ∧ A3, which ¬G contains.
+    The nested closed forms repeat every guarantee in each assumption (the tree grew 2.6× per
+    model; 15.6 M nodes at 15 models)."""
     items = list(contracts)
-    out = items[0]
-    for c in items[1:]:
-        out = out.compose(c)
-    return out
+    if len(items) == 1:
+        return items[0]
+    g = conjoin(*(c.saturated_guarantee for c in items))
+    a = disjoin(conjoin(*(c.assumption for c in items)), negate(g))
+    names = [c.name for c in items]
+    return Contract(a, g, f"({' ⊗ '.join(names)})" if all(names) else "")
 
 
 # -- checks -------------------------------------------------------------------------------------

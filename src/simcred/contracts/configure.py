@@ -3,8 +3,11 @@
 A setup picks one model per component of the architecture; it is sufficiently valid for a test
 case when the composition of the models' contracts refines the test case's contract.
 
-Search (our design). In the interval fragment (boxes), exact interval propagation with
-branch-and-bound (:mod:`.search`). Otherwise counterexample-guided: the cheapest selection that
+Search (our design), first path that applies, named in the result's ``method``: in the interval
+fragment (boxes), exact interval propagation with branch-and-bound (:mod:`.search`); with box
+guarantees on an acyclic architecture and any assumptions (non-convex domains, sums over
+inputs), 0-1 optimisation (:mod:`.optimise`, a MILP over the model choices); otherwise
+counterexample-guided: the cheapest selection that
 passes every constraint learned so far is proposed (exact branch-and-bound over the selections,
 :mod:`.selection`) and checked exactly with z3; if it fails, the counterexample is an operating
 point p, and at p every model's assumption and guarantee evaluate to constants, so "the
@@ -12,12 +15,13 @@ composition refines the test case at p" becomes a propositional constraint on th
 which excludes every selection that fails at p — not only the one checked. Each learned
 constraint is necessary for validity, so the first selection that passes is the cheapest valid
 one (optimality: the proposal is the exact optimum over all selections passing the learned
-constraints). No enumeration of the product of candidates is needed.
+constraints). No enumeration of the product of candidates is needed. Every path's answer is
+re-proven by the z3 refinement check and the realisability check (:mod:`.realisable`).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from fractions import Fraction
 
 import numpy as np
@@ -31,8 +35,10 @@ from simcred.contracts.algebra import (
     valid,
 )
 from simcred.contracts.evaluate import evaluate
-from simcred.contracts.expr import conjoin, variables
+from simcred.contracts.expr import conjoin, conjuncts, to_text, variables
 from simcred.contracts.library import Library, LibraryError
+from simcred.contracts.optimise import optimise
+from simcred.contracts.realisable import Realisability, setup_realisability
 from simcred.contracts.search import branch_and_bound, interval_problem
 from simcred.contracts.selection import Constraints, cheapest
 
@@ -85,8 +91,8 @@ def configure(library: Library, test_case: str, *, fixed: dict[str, str] | None 
     counterexample-guided search over z3 ``Optimize``. ``search="cegis"`` forces the latter
     (for comparison).
     """
-    if search not in ("auto", "cegis"):
-        raise LibraryError(f"search must be 'auto' or 'cegis', got {search!r}")
+    if search not in ("auto", "cegis", "optimise"):
+        raise LibraryError(f"search must be 'auto', 'optimise' or 'cegis', got {search!r}")
     target = library.test_case(test_case)
     fixed = fixed or {}
     empty = [c for c in library.components() if not library.candidates(c) and c not in fixed]
@@ -96,12 +102,86 @@ def configure(library: Library, test_case: str, *, fixed: dict[str, str] | None 
                              "model (an empty library, e.g. learned contracts without a valid "
                              "candidate)", "none (no setup to search)")
     choices = _choices(library, library.components(), fixed)
-    problem = interval_problem(library, target, choices) if search == "auto" else None
+    consistency: dict[str, Realisability] = {}
+    excluded: list[str] = []  # why a model or a combination can give no certificate
+    forbidden: list[dict[str, str]] = []
+    while True:
+        found = _search(library, test_case, target, choices, forbidden, search, timeout_ms,
+                        max_iterations)
+        if found.status is not Status.HOLDS:
+            return _noting(found, excluded)
+        check = setup_realisability(library, found.setup, target, timeout_ms=timeout_ms,
+                                    cache=consistency)
+        if check.holds:
+            return replace(_noting(found, excluded), method=found.method + (
+                "; its guarantees can all hold for every environment the test case allows "
+                "(realisability checked with z3)"))
+        if check.verdict.status is Status.UNKNOWN:
+            return Configuration(test_case, Status.UNKNOWN, found.setup, None, check.verdict,
+                                 found.iterations, found.counterexamples,
+                                 f"the solver could not decide whether the guarantees of "
+                                 f"{', '.join(found.setup.values())} can all hold: "
+                                 f"{check.verdict.reason}", found.method)
+        excluded.append(f"{' with '.join(check.models)} — {check.text()}")
+        owner = {m: library.spec.models[m].implements for m in check.models}
+        if len(check.models) > 1:
+            forbidden.append({owner[m]: m for m in check.models})
+            continue
+        (model, component), = owner.items()
+        choices[component] = [m for m in choices[component] if m != model]
+        if not choices[component]:
+            return Configuration(test_case, Status.FAILS, None, None, check.verdict,
+                                 found.iterations, [], "no certificate: every model of "
+                                 f"component '{component}' has a guarantee that cannot hold "
+                                 f"({'; '.join(excluded)})", found.method)
+
+
+def _search(library, test_case, target, choices, forbidden, search, timeout_ms, max_iterations):
+    """The cheapest setup whose composition refines the test case, among ``choices`` and
+    without a ``forbidden`` combination (only the counterexample-guided path knows those)."""
+    problem = interval_problem(library, target, choices) \
+        if search == "auto" and not forbidden else None
     if problem is not None:
         result = _by_intervals(library, test_case, target, choices, problem, timeout_ms)
         if result is not None:
             return result
-    return _by_cegis(library, test_case, target, choices, timeout_ms, max_iterations)
+    if search in ("auto", "optimise"):
+        result = _by_optimisation(library, test_case, target, choices, forbidden, timeout_ms)
+        if result is not None:
+            return result
+    return _by_cegis(library, test_case, target, choices, timeout_ms, max_iterations, forbidden)
+
+
+def _by_optimisation(library, test_case, target, choices, forbidden, timeout_ms):
+    """0-1 optimisation in the box-guarantee fragment (:mod:`.optimise`); None outside it or
+    if z3 does not confirm the optimum (then CEGIS)."""
+    found = optimise(library, target, choices, forbidden)
+    if found is None:
+        return None
+    setups = int(np.prod([len(m) for m in choices.values()], dtype=object))
+    method = (f"0-1 optimisation over the model choices (MILP, HiGHS; box guarantees: "
+              f"{found.constraints} containment constraints, {found.checks} containments "
+              f"decided while encoding, {setups:,} setups)")
+    if found.setup is None:
+        return Configuration(test_case, Status.FAILS, None, None, None, 1, [],
+                             "no setup refines the test case (decided exactly over all "
+                             f"{setups:,} setups: no choice puts every model's input box "
+                             "inside its assumption and the outputs inside the test case's "
+                             "guarantee)", method)
+    proof = setup_refines(library, found.setup, target, timeout_ms=timeout_ms)
+    if proof.status is not Status.HOLDS:  # cannot happen (module docs of optimise); be safe
+        return None
+    return Configuration(test_case, Status.HOLDS, found.setup, found.cost, proof, 1, [], "",
+                         method + "; optimal by the solver, proven with z3")
+
+
+def _noting(result: Configuration, excluded: list[str]) -> Configuration:
+    """``result`` with the models (or combinations) left out because their guarantees
+    contradict, in its reason."""
+    if not excluded:
+        return result
+    note = "left out, their guarantees contradict (no certificate): " + "; ".join(excluded)
+    return replace(result, reason=f"{result.reason}; {note}" if result.reason else note)
 
 
 def _by_intervals(library, test_case, target, choices, problem, timeout_ms):
@@ -136,7 +216,7 @@ def _point_text(point) -> str:
                      for k, v in point.items())
 
 
-def _by_cegis(library, test_case, target, choices, timeout_ms, max_iterations):
+def _by_cegis(library, test_case, target, choices, timeout_ms, max_iterations, forbidden=()):
     """Counterexample-guided search (module docs) for contracts outside the interval fragment:
     propose the cheapest selection passing every learned point (:mod:`.selection`), check it
     with z3, learn its counterexample point."""
@@ -145,7 +225,7 @@ def _by_cegis(library, test_case, target, choices, timeout_ms, max_iterations):
     points: list[dict] = []
     method = "CEGIS: branch-and-bound proposals, z3 checks"
     for iteration in range(1, max_iterations + 1):
-        setup = cheapest(learned, costs)
+        setup = cheapest(learned, costs, forbidden)
         if setup is None:
             return Configuration(test_case, Status.FAILS, None, None, None, iteration, points,
                                  "no setup refines the test case: every candidate fails at one "
@@ -232,17 +312,38 @@ def missing_ports(library: Library, given: dict[str, str]) -> set[str]:
 
 def uncovered_assumptions(library: Library, test_case: str, given: dict[str, str],
                           *, timeout_ms: int = DEFAULT_TIMEOUT_MS) -> list[dict]:
-    """The given models whose assumption the test case does not guarantee, with the clause and
-    an operating point of the test case outside it: why a quotient's guarantee is ``false``
-    (no missing model can make up for a given model used outside its validity domain)."""
+    """The clauses of the given models' assumptions that the test case and the given models'
+    guarantees do not ensure, each with its ``kind``:
+
+    * ``"dead end"`` — the clause speaks only of variables no missing model drives, and no
+      given guarantee it rests on involves a missing model's output: at ``at`` (a point the
+      test case allows) it fails whatever the missing models do, so no missing model can help
+      (the quotient's guarantee is ``false`` there);
+    * ``"requirement"`` — the clause constrains an output of a missing component: a
+      requirement on the missing model(s), which the quotient already contains (not a dead
+      end);
+    * ``"depends"`` — the clause speaks of given models' outputs, and a given guarantee
+      involves a missing model's output: whether a missing model can ensure it depends on what
+      that model guarantees (the quotient says exactly what is needed).
+
+    With every component given, a clause is listed only if the setup does not ensure it."""
     target = library.test_case(test_case)
+    missing = set().union(*(library.controlled(c) for c in library.components()
+                            if c not in given))
+    guarantees = [library.model_contracts[m].saturated_guarantee for m in given.values()]
+    through_missing = any(variables(g) & missing for g in guarantees)
     out = []
     for model in given.values():
-        contract = library.model_contracts[model]
-        verdict = valid([target.assumption], contract.assumption, types=library.types,
-                        timeout_ms=timeout_ms)
-        if verdict.status is Status.FAILS:
-            names = variables(contract.assumption)
-            out.append({"model": model, "clause": verdict.clauses[0] if verdict.clauses else "",
-                        "at": {k: v for k, v in verdict.counterexample.items() if k in names}})
+        for clause in conjuncts(library.model_contracts[model].assumption):
+            verdict = valid([target.assumption, *guarantees], clause, types=library.types,
+                            timeout_ms=timeout_ms)
+            if verdict.status is not Status.FAILS:
+                continue
+            names = variables(clause)
+            direct = bool(names & missing)
+            dead = not direct and not (through_missing and names - library.environment())
+            kind = "requirement" if direct else "dead end" if dead else "depends"
+            out.append({"model": model, "clause": to_text(clause), "kind": kind,
+                        "at": {k: v for k, v in verdict.counterexample.items()
+                               if k in names} if dead else {}})
     return out

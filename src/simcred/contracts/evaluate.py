@@ -70,9 +70,10 @@ def _temporal(e: Temporal, args, timeline, *, boolean: bool):
     if e.op == "previous":
         return temporal.previous(args[0], timeline, first=top)
     past = e.op in ("historically", "once", "since")
-    start, stop = timeline.window(float(e.lo), float(e.hi), past=past)
     if e.op in ("until", "since"):
-        return temporal.until(args[0], args[1], start, stop, past=past, boolean=boolean)
+        return temporal.until(args[0], args[1], timeline, e.lo, e.hi, past=past,
+                              boolean=boolean)
+    start, stop = timeline.window(e.lo, e.hi, past=past)
     universal = e.op in ("always", "historically")
     return temporal.window_reduce(args[0], start, stop, maximum=not universal,
                                   empty=top if universal else bottom)

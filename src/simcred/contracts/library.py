@@ -88,6 +88,14 @@ class ModelSpec(_Strict):
     parameters: dict[str, ParameterSpec] = Field(default_factory=dict)
     description: str = ""
 
+    @field_validator("contract")
+    @classmethod
+    def _some_viewpoint(cls, value):
+        if isinstance(value, list) and not value:
+            raise ValueError("a list of viewpoints needs at least one contract (or write "
+                             "'trivial' for none)")
+        return value
+
     @property
     def viewpoints(self) -> list[ContractSpec]:
         """The model's contracts (several viewpoints are combined by conjunction)."""
@@ -143,7 +151,8 @@ class Library:
         except ValidationError as exc:
             error = exc.errors()[0]
             where = ".".join(str(p) for p in error["loc"] if not _is_type_tag(p))
-            raise LibraryError(f"{source}: {where}: {error['msg']}") from None
+            message = error["msg"].removeprefix("Value error, ")
+            raise LibraryError(f"{source}: {where}: {message}") from None
         library = cls(spec, source)
         library.validate()
         return library

@@ -14,12 +14,13 @@ handled at once as boolean numpy vectors; a partial selection is cut when the co
 far + the cheapest model of every remaining component) reaches the best found, or when some point
 can no longer be passed (all its chosen guarantees hold, it needs one to fail, and no remaining
 component has a model whose guarantee fails there); a state (level, which points still have all
-guarantees and all assumptions holding) reached before at no higher cost is not expanded again.
-Costs are exact rationals.
+guarantees and all assumptions holding, which forbidden combinations it still matches) reached
+before at no higher cost is not expanded again. Costs are exact rationals.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from fractions import Fraction
 
@@ -48,8 +49,11 @@ class Constraints:
         self.target_guarantee.append(g_tc)
 
 
-def cheapest(constraints: Constraints, costs: dict[str, Fraction]) -> dict[str, str] | None:
-    """The cheapest selection passing every point (ties: candidate order), or None."""
+def cheapest(constraints: Constraints, costs: dict[str, Fraction],
+             forbidden: Sequence[Mapping[str, str]] = ()) -> dict[str, str] | None:
+    """The cheapest selection passing every point (ties: candidate order) and containing no
+    ``forbidden`` combination (component → model: models whose guarantees contradict), or
+    None."""
     comps = constraints.components
     n = len(constraints.target_assumption)
     models = [constraints.models[c] for c in comps]
@@ -77,15 +81,22 @@ def cheapest(constraints: Constraints, costs: dict[str, Fraction]) -> dict[str, 
         stuck = all_g & (needs_break | (a_tc & ~all_a)) & ~can_break[k]
         return not stuck.any()
 
+    def alive(chosen) -> tuple[bool, ...]:
+        # which forbidden combinations the selection so far still contains all it decided of
+        return tuple(all(f[c] == m for c, m in zip(comps, chosen, strict=False) if c in f)
+                     for f in forbidden)
+
     def expand(k, total, all_g, all_a, chosen) -> None:
         if best["cost"] is not None and total + min_rest[k] >= best["cost"]:
             return
         if not feasible(k, all_g, all_a):
             return
+        matching = alive(chosen)
         if k == len(comps):
-            best["cost"], best["choice"] = total, list(chosen)
+            if not any(matching):
+                best["cost"], best["choice"] = total, list(chosen)
             return
-        key = (k, all_g.tobytes(), all_a.tobytes())
+        key = (k, all_g.tobytes(), all_a.tobytes(), matching)
         if key in seen and seen[key] <= total:
             return
         seen[key] = total

@@ -8,6 +8,9 @@ on :class:`~fractions.Fraction` here, so ``100 km/h`` becomes ``250/9`` m/s, not
 
 A bare number (``v <= 30``) takes the unit of what it meets (the usual engineering reading, and
 what every library written before units in assertions means); in a product it is a pure number.
+Among operands of *different* units (``v_kmh + v_ms <= 100``) a bare number is an error: its
+unit would be whichever operand came first, so operand order would change the meaning; give it
+a unit (``100 km/h``). A bare ``0`` is allowed everywhere (0 in every unit without an offset).
 Units with an offset (``degC``) cannot be converted inside a linear assertion and are refused
 where a conversion would be needed.
 """
@@ -15,8 +18,10 @@ where a conversion would be needed.
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import dataclass
 from fractions import Fraction
 from functools import cache
+from typing import Any
 
 from simcred.contracts.expr import (
     Arith,
@@ -32,8 +37,6 @@ from simcred.contracts.expr import (
     to_text,
 )
 from simcred.errors import SimcredError
-
-_ADDITIVE = ("+", "-", "min", "max")
 
 
 @cache
@@ -90,60 +93,121 @@ def _int(value) -> str:
 
 def resolve(e: Expr, units: Mapping[str, str], *, where: str = "") -> Expr:
     """``e`` with every unit literal and every differently-declared variable converted to the
-    unit of the operands it meets; one-line error on a sum or comparison of unlike dimensions.
+    unit of the operands it meets; one-line error on a sum or comparison of unlike dimensions,
+    and on a bare number among operands of different units (module docs).
 
     ``units`` maps each variable to its declared unit (missing: dimensionless).
     """
-    declared = {name: unit(text, where=f"{where}: variable {name}") for name, text in
-                units.items()}
-    resolved, _ = _resolve(e, declared, where)
-    return resolved
+    declared = {name: _unit(text, f"{where}: variable {name}") for name, text in units.items()}
+    return _resolve(e, declared, where).expr
 
 
-def _resolve(e: Expr, units, where: str):
-    """(expression, unit or None): None for a bare number that adopts the unit it meets."""
+@cache
+def _unit(text: str, where: str):
+    """:func:`unit`, cached: a library names the same few units thousands of times."""
+    return unit(text, where=where)
+
+
+@dataclass(frozen=True, slots=True)
+class _Resolved:
+    """A resolved term: its unit (None for a bare number, which adopts the unit it meets) and
+    whether that unit was picked among terms of different units (``v_kmh + v_ms``: km/h or
+    m/s, whichever comes first) — then a bare number next to it would mean different things in
+    different operand orders. ``constant``: no variable in it (a literal, converted exactly to
+    the unit of the variables it meets)."""
+
+    expr: Expr
+    unit: Any = None
+    mixed: bool = False
+    constant: bool = True
+
+
+def _resolve(e: Expr, units, where: str) -> _Resolved:
     if isinstance(e, Num | Bool):
-        return e, None
+        return _Resolved(e)
     if isinstance(e, Quantity):
-        return Num(e.value), unit(e.unit, where=f"{where}: literal '{to_text(e)}'")
+        return _Resolved(Num(e.value), unit(e.unit, where=f"{where}: literal '{to_text(e)}'"))
     if isinstance(e, Var):
-        return e, None if e.boolean else units.get(e.name, _registry().dimensionless)
+        return _Resolved(e, None if e.boolean else units.get(e.name, _registry().dimensionless),
+                         constant=False)
     if isinstance(e, Logic):
-        return Logic(e.op, tuple(_resolve(a, units, where)[0] for a in e.args)), None
+        return _Resolved(Logic(e.op, tuple(_resolve(a, units, where).expr for a in e.args)))
     if isinstance(e, Temporal):
-        return Temporal(e.op, e.lo, e.hi, tuple(_resolve(a, units, where)[0] for a in e.args)), \
-            None
-    if isinstance(e, Compare):
-        (left, right), _ = _alike([e.left, e.right], units, where, e.op)
-        return Compare(e.op, left, right), None
-    if e.op in _ADDITIVE:
-        args, common = _alike(list(e.args), units, where, e.op)
-        return Arith(e.op, tuple(args)), common
+        return _Resolved(Temporal(e.op, e.lo, e.hi,
+                                  tuple(_resolve(a, units, where).expr for a in e.args)))
+    if isinstance(e, Compare) or e.op in ("+", "-", "neg"):
+        return _sum(e, units, where)
     parts = [_resolve(a, units, where) for a in e.args]
-    args = tuple(p[0] for p in parts)
-    if e.op in ("neg", "abs"):
-        return Arith(e.op, args), parts[0][1]
-    first, second = (p[1] for p in parts)
+    constant = all(p.constant for p in parts)
+    if e.op in ("min", "max"):
+        args, common, mixed = _alike(e.args, parts, where, e.op)
+        return _Resolved(Arith(e.op, tuple(args)), common, mixed, constant)
+    args = tuple(p.expr for p in parts)
+    mixed = any(p.mixed for p in parts)
+    if e.op == "abs":
+        return _Resolved(Arith(e.op, args), parts[0].unit, mixed, constant)
+    first, second = (p.unit for p in parts)
     if e.op == "^":
-        return Arith(e.op, args), None if first is None else first ** int(e.args[1].value)
+        return _Resolved(Arith(e.op, args),
+                         None if first is None else first ** int(e.args[1].value), mixed,
+                         constant)
     if first is None and second is None:
-        return Arith(e.op, args), None
+        return _Resolved(Arith(e.op, args))
     one = _registry().dimensionless
     first, second = first or one, second or one
-    return Arith(e.op, args), first * second if e.op == "*" else first / second
+    return _Resolved(Arith(e.op, args), first * second if e.op == "*" else first / second,
+                     mixed, constant)
 
 
-def _alike(operands, units, where: str, op: str):
-    """Resolve ``operands`` of an additive operation or comparison to one unit."""
-    parts = [_resolve(a, units, where) for a in operands]
-    literal = [isinstance(a, Quantity) for a in operands]
-    # the target: the first operand that is not a unit literal (a variable's unit) if any
-    typed = [i for i, (_, u) in enumerate(parts) if u is not None]
+def _terms(e: Expr) -> list[Expr]:
+    """The terms of a chain of ``+``, ``-`` and unary ``-`` (a comparison: both sides): one sum
+    however the parser grouped it (``1 + v1 + v2`` is ``(1 + v1) + v2``)."""
+    if isinstance(e, Compare):
+        return _terms(e.left) + _terms(e.right)
+    if isinstance(e, Arith) and e.op in ("+", "-", "neg"):
+        return [t for a in e.args for t in _terms(a)]
+    return [e]
+
+
+def _rebuild(e: Expr, terms) -> Expr:
+    """``e`` with the terms of its chain replaced, in order, from the iterator ``terms``."""
+    if isinstance(e, Compare):
+        return Compare(e.op, _rebuild(e.left, terms), _rebuild(e.right, terms))
+    if isinstance(e, Arith) and e.op in ("+", "-", "neg"):
+        return Arith(e.op, tuple(_rebuild(a, terms) for a in e.args))
+    return next(terms)
+
+
+def _sum(e: Expr, units, where: str) -> _Resolved:
+    """A chain of + and - or a comparison: all its terms to one unit (:func:`_alike`)."""
+    terms = _terms(e)
+    parts = [_resolve(t, units, where) for t in terms]
+    op = e.op if isinstance(e, Compare) else "+" if e.op == "neg" else e.op
+    converted, common, mixed = _alike(terms, parts, where, op)
+    out = _rebuild(e, iter(converted))
+    if isinstance(e, Compare):
+        return _Resolved(out)
+    return _Resolved(out, common, mixed, all(p.constant for p in parts))
+
+
+def _alike(operands, parts: list[_Resolved], where: str, op: str):
+    """Resolve ``operands`` (resolved: ``parts``) of an additive operation or comparison to one
+    unit: (expressions, unit, mixed). A bare number (other than 0, which is 0 in every unit)
+    among operands of different units is refused: which unit it would take depended on the
+    operand order."""
+    # the target: the first operand with a variable, if any (constants are converted to it)
+    typed = [i for i, p in enumerate(parts) if p.unit is not None]
+    bare = [a for a, p in zip(operands, parts, strict=True)
+            if p.unit is None and p.expr != Num(Fraction(0))]
     if not typed:
-        return [p[0] for p in parts], None
-    target = next((parts[i][1] for i in typed if not literal[i]), parts[typed[0]][1])
+        return [p.expr for p in parts], None, False
+    deciding = [i for i in typed if not parts[i].constant] or typed
+    target = parts[deciding[0]].unit
+    kinds = {parts[i].unit for i in deciding}
+    mixed = len(kinds) > 1 or any(parts[i].mixed for i in deciding)
     out = []
-    for (expr, u), operand in zip(parts, operands, strict=True):
+    for p, operand in zip(parts, operands, strict=True):
+        expr, u = p.expr, p.unit
         if u is None or u == target:
             out.append(expr)
             continue
@@ -155,4 +219,14 @@ def _alike(operands, units, where: str, op: str):
         scale = factor(u, target, where=where)
         out.append(Num(expr.value * scale) if isinstance(expr, Num)
                    else Arith("*", (Num(scale), expr)))
-    return out, target
+    if bare and mixed:
+        inner = next(operands[i] for i in deciding if parts[i].mixed) if len(kinds) == 1 \
+            else None
+        meets = (f"operands in {' and '.join(sorted(_name(u) for u in kinds))}"
+                 if len(kinds) > 1 else f"'{to_text(inner)}', whose operands are in different "
+                 "units")
+        raise ExpressionError(
+            f"{where}: the bare number '{to_text(bare[0])}' meets {meets} in '{op}': its unit "
+            f"would depend on the operand order — give it one (e.g. '{to_text(bare[0])} "
+            f"{_name(target)}')")
+    return out, target, mixed

@@ -10,8 +10,10 @@
   its assumption only about what the architecture does not drive (the environment);
 * no silent vacuity: an assumption that no point satisfies (a model's or a test case's) would
   make every check pass, so it is an error;
-* division only by constants: ``v / (q - q)`` has no value where the divisor is zero, and z3 and
-  numpy would each give it a different one.
+* division only by non-zero constants: ``v / (q - q)`` or ``v / (2 - 2)`` has no value where the
+  divisor is zero, and z3 and numpy would each give it a different one;
+* no variable named ``t``: recorded runs carry their time stamps in the column ``t``, so a
+  monitor would silently read the time as the variable.
 
 Every violation is a one-line :class:`LibraryError` naming the file, the entry and the variable.
 """
@@ -33,6 +35,7 @@ from simcred.contracts.expr import (
 )
 from simcred.contracts.loader import LibraryError
 from simcred.contracts.units import same_unit, unit
+from simcred.traces import TIME
 
 SATISFIABILITY_TIMEOUT_MS = 2_000
 
@@ -52,6 +55,10 @@ def _check_names(library) -> None:
 
     spec, source = library.spec, library.source
     for name, variable in spec.variables.items():
+        if name == TIME:
+            raise LibraryError(f"{source}: variables.{name}: '{TIME}' is the time column of "
+                               "recorded runs (a monitor would read the time stamps as this "
+                               "variable); rename it")
         if not NAME.fullmatch(name):
             raise LibraryError(f"{source}: variables.{name}: not a valid variable name (letters, "
                                "digits, '_' and dots; not a keyword)")
@@ -168,6 +175,19 @@ def _check_divisions(library) -> None:
                         f"{library.source}: {where}.{part}: division by "
                         f"'{to_text(division.args[1])}', which has variables (it may be zero; "
                         "multiply out instead, e.g. 'd >= 2 s * v' for 'd / v >= 2 s')")
+                if _is_zero(division.args[1]):
+                    raise LibraryError(f"{library.source}: {where}.{part}: division by zero "
+                                       f"('{to_text(division.args[1])}' is 0)")
+
+
+def _is_zero(constant: Expr) -> bool:
+    """Is a constant term exactly zero? (z3 folds it in exact rationals.)"""
+    import z3
+
+    from simcred.contracts.smt import to_z3
+
+    value = z3.simplify(to_z3(constant, {}))
+    return z3.is_rational_value(value) and value.numerator_as_long() == 0
 
 
 def _check_not_vacuous(library) -> None:

@@ -12,7 +12,8 @@ from defusedxml import ElementTree as SafeET
 from simcred.errors import TraceSetError
 
 #: what a malformed or hostile XML file raises while being parsed
-XML_ERRORS = (SafeET.ParseError, DefusedXmlException, OSError, EOFError)
+XML_ERRORS = (SafeET.ParseError, DefusedXmlException, OSError, EOFError,
+              LookupError, UnicodeError)  # an unknown or wrong declared encoding
 
 
 def open_xml(path: Path) -> BinaryIO:

@@ -35,6 +35,7 @@ import numpy as np
 import pyproj
 
 from simcred.errors import TraceSetError
+from simcred.io._columns import check_width
 from simcred.kinematics import MOTION_SIGNALS, Track, read_only
 from simcred.traces import TIME, TraceSet
 
@@ -258,6 +259,7 @@ def read_a9(path: str | Path) -> A9Recording:
     table = _Table(str(path), header, rows)
     columns = {c: table.numbers(c, required=True) for c in EGO_COLUMNS}
     _check_time(table, columns["timestamp"])
+    _check_coordinates(str(path), columns["lat"], columns["long"])
     proj = _projection(columns["lat"][0], columns["long"][0])
     ego, offset, rms = _ego(columns, proj)
     objects = {k: _object(table, k, columns["timestamp"], ego)
@@ -286,7 +288,8 @@ def _read_rows(path: Path) -> tuple[list[str], list[tuple[int, list[str]]]]:
     if not header:
         raise TraceSetError(f"{path}: empty file (no header row)")
     header = [h.strip() for h in header]
-    duplicates = sorted({h for h in header if header.count(h) > 1})
+    check_width(len(header), str(path))
+    duplicates = sorted(h for h, n in Counter(header).items() if n > 1)  # linear, not quadratic
     if duplicates:
         raise TraceSetError(f"{path}: duplicate column names {duplicates}")
     if len(rows) < 2:
@@ -356,6 +359,15 @@ def _object_ids(where: str, header: Sequence[str]) -> list[int]:
 
 
 # -- geometry -------------------------------------------------------------------------------------
+
+
+def _check_coordinates(where: str, lat: np.ndarray, lon: np.ndarray) -> None:
+    """One line for a fix off the globe (latitude beyond ±90°, longitude beyond ±180°)."""
+    for name, values, bound in (("lat", lat, 90.0), ("long", lon, 180.0)):
+        bad = np.flatnonzero(np.abs(values) > bound)
+        if bad.size:
+            raise TraceSetError(f"{where}: column '{name}', row {int(bad[0]) + 1}: "
+                                f"{values[bad[0]]:g} is outside [-{bound:g}, {bound:g}] degrees")
 
 
 def _projection(lat0: float, lon0: float) -> pyproj.Proj:

@@ -122,6 +122,9 @@ def read(path: str | Path, *, layout: str = "obstacles", missing: str = "error")
     path = Path(path)
     scenario = _open(path)
     dt = float(scenario.dt)
+    if not (math.isfinite(dt) and dt > 0):  # a negative step would reverse every run's time
+        raise TraceSetError(f"{path}: timeStepSize must be a positive number of seconds, got "
+                            f"{scenario.dt}")
     moving = [o for o in scenario.dynamic_obstacles if len(obstacle_states(o)) >= 2]
     still = [o.obstacle_id for o in scenario.dynamic_obstacles if len(obstacle_states(o)) < 2]
     if not moving:
@@ -146,12 +149,35 @@ def read(path: str | Path, *, layout: str = "obstacles", missing: str = "error")
     )
     metadata = {"format": "commonroad", "scenario_id": str(scenario.scenario_id), "dt": dt,
                 "layout": layout}
+    metadata["obstacles"] = {str(o.obstacle_id): _obstacle_kind(o) for o in moving}
     if still:
         metadata["obstacles_without_trajectory"] = still
     if partial:
         metadata["partial_quantities"] = partial
     return to_traceset(records, objects_as="runs" if layout == "obstacles" else "signals",
                        missing=missing, metadata=metadata, source=str(path))
+
+
+def lanelets(path: str | Path) -> dict[int, dict]:
+    """The scenario's lanelet network: per lanelet id its ``centre`` line ((n, 2) array, in
+    driving direction) and its ``successors`` and ``predecessors`` (ids)."""
+    scenario = _open(Path(path))
+    return {int(lane.lanelet_id): {"centre": np.asarray(lane.center_vertices, dtype=np.float64),
+                                   "successors": [int(i) for i in lane.successor],
+                                   "predecessors": [int(i) for i in lane.predecessor]}
+            for lane in scenario.lanelet_network.lanelets}
+
+
+def _obstacle_kind(obstacle) -> dict:
+    """The obstacle's type (CommonRoad ``ObstacleType`` value) and, for a rectangle or a circle,
+    its footprint ``length`` × ``width`` (m; a circle: its diameter both)."""
+    kind = {"type": str(obstacle.obstacle_type.value)}
+    shape = obstacle.obstacle_shape
+    if hasattr(shape, "length") and hasattr(shape, "width"):
+        kind.update(length=float(shape.length), width=float(shape.width))
+    elif hasattr(shape, "radius"):
+        kind.update(length=2 * float(shape.radius), width=2 * float(shape.radius))
+    return kind
 
 
 # -- choosing the EGO for reprocessing one obstacle ------------------------------------------------

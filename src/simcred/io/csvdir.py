@@ -11,6 +11,7 @@ form, so write → read is exact.
 from __future__ import annotations
 
 import json
+import os
 import re
 import stat
 from pathlib import Path
@@ -21,11 +22,17 @@ import pyarrow.csv as pacsv
 
 from simcred._json import read_json
 from simcred.errors import TraceSetError
-from simcred.io._columns import float_column
+from simcred.io._columns import (
+    MAX_COLUMNS,
+    check_csv_header,
+    check_table,
+    check_width,
+    float_column,
+)
 from simcred.traces import TIME, TraceSet, _check_same_signals, handed_over
 
 METADATA_FILE = "traceset.json"
-MAX_COLUMNS = 10_000
+NAME_MAX = 255  # bytes of a file name on common file systems (ext4, XFS, APFS, NTFS in UTF-16)
 _READ = pacsv.ConvertOptions(null_values=[""], strings_can_be_null=True)
 
 
@@ -55,14 +62,12 @@ def _check_header(path: Path) -> None:
         header.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise TraceSetError(f"{path}: header is not UTF-8 (byte {exc.start})") from None
-    if header.count(b",") + 1 > MAX_COLUMNS:
-        raise TraceSetError(f"{path}: more than {MAX_COLUMNS} columns (the limit of "
-                            "simcred.io.csvdir.MAX_COLUMNS)")
+    check_width(header.count(b",") + 1, str(path))
 
 
 def _read_table(path: Path) -> pa.Table:
     _check_header(path)
-    table = _read_csv(path, _READ)
+    table = check_table(_read_csv(path, _READ), str(path))  # a quoted newline hides commas
     # Columns that look like integers are read again as floats: as int64, "-0" would lose its sign.
     ints = {f.name: pa.float64() for f in table.schema if pa.types.is_integer(f.type)}
     if ints:
@@ -88,8 +93,6 @@ def read(directory: Path) -> TraceSet:
     for path in files:
         table = _read_table(path)
         names = [n for n in table.column_names if n != TIME]
-        if len(set(table.column_names)) != len(table.column_names):
-            raise TraceSetError(f"{path}: duplicate column names {table.column_names}")
         if signals is None:
             signals = names
         else:
@@ -127,6 +130,10 @@ def write(traces: TraceSet, directory: Path) -> Path:
         if (not run_id or run_id.startswith(".") or any(c in run_id for c in "/\\\x00")
                 or not run_id.isprintable()):
             raise TraceSetError(f"{traces.source}: run id {run_id!r} cannot be a file name")
+        if len(os.fsencode(run_id)) + len(".csv") > NAME_MAX:
+            raise TraceSetError(f"{traces.source}: run id {run_id[:40]!r}... is longer than a "
+                                f"file name may be ({NAME_MAX} bytes with .csv): write Parquet")
+    check_csv_header(traces.signals, traces.source)
     directory.mkdir(parents=True, exist_ok=True)
     for old in directory.glob("*.csv"):
         old.unlink()

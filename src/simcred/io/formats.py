@@ -34,6 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from simcred.errors import OptionError, TraceSetError
+from simcred.io._paths import check_regular
 from simcred.io._xml import xml_root
 from simcred.io.levelx import is_levelx
 from simcred.io.mdf import SUFFIXES as MDF_SUFFIXES
@@ -170,6 +171,7 @@ def read(path: str | Path, *, format: str | None = None, **options: Any) -> Trac
     (('a',), ('obj7.x',), [1.5, 2.5])
     """
     path = Path(path)
+    check_regular(path)
     fmt = _named(format) if format else detect(path, options=options)
     if format and not path.exists():
         raise TraceSetError(f"{path}: no such file or directory")

@@ -44,7 +44,7 @@ import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 
 from simcred.errors import OptionError, TraceSetError
-from simcred.io._columns import float_column
+from simcred.io._columns import check_csv_header, check_table, check_width, float_column
 from simcred.io._paths import local
 from simcred.io.longformat_records import (
     MISSING,
@@ -84,12 +84,13 @@ METADATA_KEY = b"simcred"
 def _read_table(path: Path, keys: Sequence[str]) -> pa.Table:
     if path.suffix.lower() in PARQUET_SUFFIXES:
         try:
-            return pq.read_table(local(path))
+            check_width(len(pq.read_schema(local(path))), str(path))
+            return check_table(pq.read_table(local(path)), str(path))
         except (pa.ArrowException, OSError) as exc:
             raise TraceSetError(f"{path}: unreadable Parquet ({_first_line(exc)})") from None
     text = {k: pa.string() for k in keys}
     delimiter = csv_delimiter(path)
-    table = _read_csv(path, text, delimiter)
+    table = check_table(_read_csv(path, text, delimiter), str(path))
     # integer-looking value columns are read again as floats: as int64, "-0" would lose its sign
     floats = {f.name: pa.float64() for f in table.schema
               if pa.types.is_integer(f.type) and f.name not in text}
@@ -373,5 +374,6 @@ def write(traces: TraceSet, path: str | Path, *, run_column: str = "run",
         meta = json.dumps(dict(traces.metadata), sort_keys=True).encode()
         pq.write_table(table.replace_schema_metadata({METADATA_KEY: meta}), local(path))
     else:
+        check_csv_header(table.column_names, traces.source)
         pacsv.write_csv(table, path, write_options=pacsv.WriteOptions(quoting_header="none"))
     return path

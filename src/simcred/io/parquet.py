@@ -16,7 +16,7 @@ import pyarrow.parquet as pq
 
 from simcred._json import loads
 from simcred.errors import TraceSetError
-from simcred.io._columns import float_column
+from simcred.io._columns import check_table, check_width, float_column
 from simcred.io._paths import local
 from simcred.traces import TIME, TraceSet, handed_over
 
@@ -26,7 +26,8 @@ METADATA_KEY = b"simcred"
 
 def read(path: Path) -> TraceSet:
     try:
-        table = pq.read_table(local(path))
+        check_width(len(pq.read_schema(local(path))), str(path))  # before any value is read
+        table = check_table(pq.read_table(local(path)), str(path))
     except (pa.ArrowException, OSError) as exc:
         reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise TraceSetError(f"{path}: unreadable Parquet ({reason})") from None
@@ -63,20 +64,16 @@ def read(path: Path) -> TraceSet:
 def _run_codes(runs: pa.ChunkedArray, path: Path) -> tuple[tuple[str, ...], np.ndarray]:
     """Run labels (in order of first appearance) and each row's run index.
 
-    Dictionary-encoded in Arrow, so only the distinct labels ever become Python strings (not one
-    per row). Labels that are equal as text (e.g. ``1`` and ``"1"`` cannot occur in one typed
-    column) name one run.
+    A stored dictionary is decoded by value first (each chunk may carry its own dictionary, with
+    entries in any order or unused); re-encoded in Arrow, so only the distinct labels ever become
+    Python strings (not one per row). Labels that are equal as text (e.g. ``1`` and ``"1"``
+    cannot occur in one typed column) name one run.
     """
-    encoded = pc.dictionary_encode(runs.combine_chunks()) if not pa.types.is_dictionary(
-        runs.type) else runs.combine_chunks()
+    if pa.types.is_dictionary(runs.type):  # decoded by value: chunks may hold other, unordered
+        runs = runs.cast(runs.type.value_type)  # or partly unused dictionaries
+    encoded = pc.dictionary_encode(runs.combine_chunks())  # codes in order of first appearance
     labels = [str(v) for v in encoded.dictionary.to_pylist()]
     codes = encoded.indices.to_numpy(zero_copy_only=False).astype(np.int64)
-    if pa.types.is_dictionary(runs.type):  # a stored dictionary may be unordered or unused
-        used, first = np.unique(codes, return_index=True)
-        order = used[np.argsort(first, kind="stable")]
-        remap = np.empty(len(labels), dtype=np.int64)
-        remap[order] = np.arange(len(order))
-        codes, labels = remap[codes], [labels[i] for i in order]
     if len(set(labels)) != len(labels):
         raise TraceSetError(f"{path}: column '{RUN}' has labels that differ only in type")
     return tuple(labels), codes

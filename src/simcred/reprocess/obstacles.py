@@ -58,23 +58,25 @@ class ObstacleBatch(JsonResult):
 
 
 def reprocess_obstacles(path: str | Path, config: ReprocessConfig, out: str | Path,
-                        write: Writer, progress: Progress | None = None) -> ObstacleBatch:
-    """Reprocess every obstacle of ``path`` as the TO; write each into ``out/obj<id>/``."""
+                        write: Writer, progress: Progress | None = None, *,
+                        frame: str = "ego") -> ObstacleBatch:
+    """Reprocess every obstacle of ``path`` as the TO; write each into ``out/obj<id>/``
+    (``frame``: the road frame of :func:`~simcred.reprocess.inputs.commonroad_drive`)."""
     say = progress or (lambda _: None)
     traces, ids = commonroad_obstacles(path)
     outcomes = []
     for obstacle in ids:
         say(f"obstacle {obstacle}")
         outcomes.append(_one(path, traces, obstacle, config, Path(out) / f"obj{obstacle}",
-                             write))
+                             write, frame))
     return ObstacleBatch(str(path), tuple(outcomes))
 
 
 def _one(path, traces, obstacle: int, config: ReprocessConfig, out: Path,
-         write: Writer) -> ObstacleOutcome:
+         write: Writer, frame: str) -> ObstacleOutcome:
     stage = "input"
     try:
-        drive = commonroad_drive(path, obstacle, traces=traces)
+        drive = commonroad_drive(path, obstacle, traces=traces, frame=frame)
         stage = "pipeline"
         result = reprocess(drive, config)
         stage = "output"
@@ -98,4 +100,6 @@ def _summary(result: Reprocessed, out: Path) -> dict[str, Any]:
             "directory": out.name, "samples": result.input_report.get("samples"),
             "gaps": len(result.input_report.get("gaps", [])),
             "reactions": {k: r.manoeuvre for k, r in result.reactions.items()},
+            "reactions_not_measurable": [k for k, r in result.reactions.items()
+                                         if not r.measurable],
             "max_risk": {k: float(r["risk"].max()) for k, r in result.risk.items()}}

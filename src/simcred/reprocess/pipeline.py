@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from simcred._json import JsonResult
-from simcred.errors import SimcredError
+from simcred.errors import OptionError, SimcredError
 from simcred.io.measurement import Measurement
 from simcred.kinematics import MOTION_SIGNALS, Track
 from simcred.reprocess.errors import ErrorStats, decompose
@@ -37,6 +37,7 @@ from simcred.reprocess.reaction import Reaction, ReactionCriteria, reaction, rea
 from simcred.reprocess.representation import GT, SD, Rep, Source
 from simcred.reprocess.representation import Sensor as SensorKind
 from simcred.reprocess.timebase import MAX_GAP, Aligned, Drive, align
+from simcred.reprocess.units import check_units
 from simcred.risk import VehicleStates, risk, time_headway, time_to_collision
 from simcred.scenario.description import ScenarioDescription
 from simcred.scenario.fit import ScenarioFit, fit_scenario
@@ -49,6 +50,7 @@ from simcred.traces import TIME, TraceSet
 SENSORS = tuple(sensor.value for sensor in SensorKind)
 SB = "[sb]"  # the suffix of a scenario-based representation's name (Rep prints it)
 LOG_RISK_FLOOR = 1e-9  # risk below this counts as this on the log scale
+RECORDED_PARAMETERS = ("set_speed", "lanes")
 
 Progress = Callable[[str], None]
 
@@ -72,6 +74,15 @@ class ReprocessConfig:
     # a scenario-based sensor model estimated on other drives ([1] §IV: "a set of drives");
     # None: estimated from this measurement's own GT/SD pair
     sensor_model: OffsetDelaySensor | None = None
+    # AD-function parameters taken from the recorded EGO instead of ``driver``: "set_speed"
+    # (its highest described speed) and/or "lanes" (its lane centred on its first position)
+    from_recording: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        unknown = sorted(set(self.from_recording) - set(RECORDED_PARAMETERS))
+        if unknown:
+            raise OptionError(f"from_recording: unknown parameter(s) {', '.join(unknown)} "
+                              f"(known: {', '.join(RECORDED_PARAMETERS)})")
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -90,6 +101,7 @@ class Reprocessed(JsonResult):
     risk: dict[str, dict[str, np.ndarray]]
     sensor_model: OffsetDelaySensor | None
     inputs: dict[str, str] = field(default_factory=dict)  # GT / SD -> content hash
+    ad_function: dict[str, Any] = field(default_factory=dict)  # the resimulations' parameters
     input_report: dict[str, Any] = field(default_factory=dict)  # time base, gaps, provenance
 
     @property
@@ -109,8 +121,10 @@ class Reprocessed(JsonResult):
                         "scenario_based": c.scenario_based, "max_gap": c.max_gap,
                         "long_gaps": c.long_gaps},
             "input": self.input_report,
+            "ad_function": self.ad_function,
             "fits": {name: {obj: {"sections": f.sections, "rmse": f.rmse,
-                                  "stop_reason": str(f.stop_reason)}
+                                  "stop_reason": str(f.stop_reason),
+                                  "phantom_acceleration": f.phantom_acceleration}
                             for obj, f in fit.fits.items()} for name, fit in self.fits.items()},
             "sensor_model": None if self.sensor_model is None else self.sensor_model.to_dict(),
             "reactions": {k: r.to_dict() for k, r in self.reactions.items()},
@@ -126,29 +140,36 @@ def reprocess(measurement: Measurement | Drive, config: ReprocessConfig | None =
     say = progress or (lambda _: None)
     objects = (c.ego, *c.objects)
     drive = measurement if isinstance(measurement, Drive) else Drive.of_measurement(measurement)
+    check_units(drive, objects)
     aligned = align(drive, objects, max_gap=c.max_gap, long_gaps=c.long_gaps)
     times = aligned.times
     raw = {name: aligned.tracks[str(name)] for name in (SD, GT) if str(name) in aligned.tracks}
     states = {name: {o: t.interpolate(times) for o, t in tracks.items()}
               for name, tracks in raw.items()}
     fits, resims = {}, {}
+    dimensions = footprints(drive, objects)
+    recorded = {o: dict(k) for o, k in drive.metadata.get("objects", {}).items() if o in objects}
+    kinds = {"objects": recorded} if recorded else None  # types for the .xosc, stated
     for name, tracks in raw.items():
         say(f"fit {name}")
         fits[name.fit()] = fit_scenario({o: (t.t, t.x, t.y) for o, t in tracks.items()},
-                                        objects=list(objects), threshold=c.threshold)
+                                        objects=list(objects), threshold=c.threshold,
+                                        dimensions=dimensions, metadata=kinds)
     sensor_model = c.sensor_model if c.sensor_model is not None else (
         _sensor_model(times, states, c) if c.scenario_based and GT in raw else None)
+    driver, ad_report = _ad_function(fits[(GT if GT in raw else SD).fit()].description, c)
     for name in raw:
         for kind, sensor in _sensors(name, sensor_model):
             say(f"resimulate {name} ({sensor.name} sensor)")
             key = name.resimulation(kind)
             resims[key] = replace(resimulate(
                 fits[name.fit()].description, sensor=sensor, vehicle=c.vehicle,
-                driver=c.driver, dt=c.dt, seed=c.seed, ego=c.ego), run_ids=(key,), source=key)
+                driver=driver, dt=c.dt, seed=c.seed, ego=c.ego), run_ids=(key,), source=key)
             states[key] = _interpolated_tracks(resims[key], times, objects)
             say(f"refit {key}")
             fits[key.fit()] = fit_scenario(resims[key], objects=list(objects),
-                                           threshold=c.threshold)
+                                           threshold=c.threshold, dimensions=dimensions,
+                                           metadata=kinds)
     descriptions = {k: f.description for k, f in fits.items()}
     for key, description in descriptions.items():
         states[key] = _description_tracks(description, times, objects)
@@ -162,7 +183,35 @@ def reprocess(measurement: Measurement | Drive, config: ReprocessConfig | None =
     return Reprocessed(c, times, states, descriptions, fits, resims, errors, reactions,
                        _analysis(states, reactions, c), risk, sensor_model,
                        {name: r.digest for name, r in drive.recordings().items()},
-                       _input_report(drive, aligned))
+                       input_report=_input_report(drive, aligned), ad_function=ad_report)
+
+
+def _ad_function(description: ScenarioDescription, c: ReprocessConfig
+                 ) -> tuple[DriverConfig, dict[str, Any]]:
+    """The resimulations' AD function: ``c.driver`` with the parameters ``c.from_recording``
+    names taken from the recorded EGO's ``description`` (GT's if there is one, else SD's):
+    the set speed is its highest speed (sampled every ``c.dt``), the lanes keep their spacing
+    with the EGO's lane centred on its first position (the EGO starts in the first lane)."""
+    driver, ego = c.driver, description.objects[c.ego]
+    if "set_speed" in c.from_recording:
+        driver = replace(driver, set_speed=float(ego.speed(description.times(c.dt)).max()))
+    if "lanes" in c.from_recording:
+        y0 = float(ego.states(np.array([description.t0])).y[0])
+        first = driver.lane_centres[0]
+        driver = replace(driver, lane_centres=tuple(y0 + y - first for y in driver.lane_centres))
+    source = {p: ("recorded EGO" if p in c.from_recording else "configuration")
+              for p in RECORDED_PARAMETERS}
+    return driver, {"set_speed": driver.set_speed, "lane_centres": list(driver.lane_centres),
+                    "lane_width": driver.lane_width, "from": source}
+
+
+def footprints(drive: Drive, objects: tuple[str, ...]) -> dict[str, tuple[float, float]]:
+    """(length, width) of each object whose recording gives its footprint (the drive's
+    ``objects`` metadata, e.g. a CommonRoad obstacle's shape); the others are fitted, resimulated
+    and assessed as a 4.5 × 1.8 m car."""
+    given = drive.metadata.get("objects", {})
+    return {o: (float(given[o]["length"]), float(given[o]["width"])) for o in objects
+            if "length" in given.get(o, {}) and "width" in given.get(o, {})}
 
 
 def _input_report(drive: Drive, aligned: Aligned) -> dict[str, Any]:
@@ -225,9 +274,12 @@ def _reaction(description: ScenarioDescription, c: ReprocessConfig) -> Reaction:
 def _risk(description: ScenarioDescription, c: ReprocessConfig) -> dict[str, np.ndarray]:
     """Risk, TTC and THW per scene every ``risk_dt`` on the description ([1] §II-D)."""
     t = description.times(c.risk_dt)
-    ego = VehicleStates.of_tracks(description.objects[c.ego].states(t), name=c.ego)
-    others = VehicleStates.of_tracks([description.objects[o].states(t) for o in c.objects],
-                                     name="objects")
+    ego_track, tracks = description.objects[c.ego], [description.objects[o] for o in c.objects]
+    ego = VehicleStates.of_tracks(ego_track.states(t), name=c.ego, length=ego_track.length,
+                                  width=ego_track.width)
+    others = VehicleStates.of_tracks([track.states(t) for track in tracks], name="objects",
+                                     length=np.array([track.length for track in tracks]),
+                                     width=np.array([track.width for track in tracks]))
     result = risk(ego, others)
     return {"t": t, "risk": result.risk, "ttr_min": result.ttr_min,
             "ttc": time_to_collision(ego, others), "thw": time_headway(ego, others)}

@@ -11,6 +11,11 @@ to drop ([1] Fig. 7 reads the reaction off the speed profiles), comfort braking 
 included. (A speed drop, not an acceleration threshold: a fitted description's acceleration
 swings by ±1-2 m/s² at its ends, its speed by centimetres per second.)
 
+A reaction or onset within ``start_margin`` of the trace's first sample is **not measurable**
+(``measurable`` / ``onset_measurable`` False): a description's ends are boundary artefacts, and
+an EGO already reacting when the recording starts has no measurable reaction time. It is still
+reported, but eqs. (4)-(7) leave out every difference that involves it (None).
+
 References
 ----------
 [1] Wagner, Groh et al., Towards Cross-Verification and Use of Simulation in the Assessment of
@@ -36,6 +41,7 @@ class ReactionCriteria:
     lateral_speed: float = 0.3  # m/s
     lane_width: float = LANE_WIDTH  # m
     onset_drop: float = 0.3  # m/s, several times a description's speed error (≈ 0.05 m/s)
+    start_margin: float = 0.5  # s: a reaction this close to the first sample is not measurable
 
 
 @dataclass(frozen=True, slots=True)
@@ -48,6 +54,8 @@ class Reaction(JsonResult):
     min_acceleration: float
     max_lateral: float
     onset: float = math.nan
+    measurable: bool = True  # False: ``time`` lies within ``start_margin`` of the first sample
+    onset_measurable: bool = True  # the same for ``onset``
 
     def to_dict(self) -> dict[str, float | str | None]:
         return {k: (None if isinstance(v, float) and math.isnan(v) else v)
@@ -62,14 +70,15 @@ def reaction(t: np.ndarray, y: np.ndarray, v: np.ndarray, heading: np.ndarray,
     lateral = np.abs(y - y[0])
     slowing = v < np.maximum.accumulate(v) - c.onset_drop
     onset = float(t[int(np.argmax(slowing))]) if slowing.any() else math.nan
+    onset_ok = not onset - t[0] < c.start_margin  # NaN (no onset) counts as measurable
     reacting = (acceleration < -c.decel) | (np.abs(v * np.sin(heading)) > c.lateral_speed)
     if not reacting.any():
         return Reaction(math.nan, "none", math.nan, float(acceleration.min()),
-                        float(lateral.max()), onset)
+                        float(lateral.max()), onset, True, onset_ok)
     k = int(np.argmax(reacting))
     manoeuvre = "evade" if lateral.max() > c.lane_width / 2 else "brake"
     return Reaction(float(t[k]), manoeuvre, float(v[k]), float(acceleration.min()),
-                    float(lateral.max()), onset)
+                    float(lateral.max()), onset, bool(t[k] - t[0] >= c.start_margin), onset_ok)
 
 
 def reaction_analysis(reactions: dict[str, Reaction], sensor_offset: float, ego_speed: float
@@ -80,10 +89,14 @@ def reaction_analysis(reactions: dict[str, Reaction], sensor_offset: float, ego_
     speed before the reaction; the result holds Δt_react(GT, rGT) (eq. 4, positive: the
     resimulation reacts earlier), t_ΔS,d = ΔS,d / v_EGO (eq. 5), their ratio (eq. 6) and
     Δt_react(rGT, rSD) = t_rSD − t_rGT (eq. 7); and the same two differences for the onset of
-    the speed drop (``dt_onset_...``).
+    the speed drop (``dt_onset_...``). A difference involving a reaction that is not
+    measurable (see the module docstring) is None.
     """
     def time(name: str, what: str = "time") -> float:
-        return getattr(reactions[name], what) if name in reactions else math.nan
+        """The time, NaN where absent or not measurable (near the trace's first sample)."""
+        r = reactions.get(name)
+        ok = r is not None and (r.measurable if what == "time" else r.onset_measurable)
+        return getattr(r, what) if ok else math.nan
 
     gt_vs_rgt = time("GT") - time("rGT")
     offset_time = sensor_offset / ego_speed

@@ -16,6 +16,7 @@ from typing import Any
 
 from simcred._json import JsonResult
 from simcred.scenario.description import ObjectTrack, ScenarioDescription
+from simcred.scenario.fit_support import PHANTOM_MARGIN
 from simcred.scenario.plausibility import Reason
 
 
@@ -67,6 +68,9 @@ class TrackFit(JsonResult):
     violations : tuple of Reason
         Plausibility limits the track violates (checked every 0.01 s); empty unless the fit ran
         without limits.
+    unsupported_acceleration : float
+        By how much (m/s²) the track's v̇ leaves what the positions support
+        (:mod:`~simcred.scenario.fit_support`); :attr:`phantom_acceleration` flags it.
     """
 
     track: ObjectTrack
@@ -82,10 +86,17 @@ class TrackFit(JsonResult):
     glitches: tuple[int, ...] = ()
     reversals: tuple[float, ...] = ()
     violations: tuple[Reason, ...] = ()
+    unsupported_acceleration: float = 0.0
 
     def __repr__(self) -> str:
         return (f"TrackFit({self.sections} sections, rmse {self.rmse:.4g} m, "
                 f"{self.stop_reason})")
+
+    @property
+    def phantom_acceleration(self) -> bool:
+        """Whether the fit's acceleration exceeds what the positions support by more than
+        :data:`~simcred.scenario.fit_support.PHANTOM_MARGIN` (a "reached" fit included)."""
+        return self.unsupported_acceleration > PHANTOM_MARGIN
 
     @property
     def reached(self) -> bool:
@@ -99,7 +110,9 @@ class TrackFit(JsonResult):
                 "iterations": self.iterations, "history": [list(step) for step in self.history],
                 "threshold": self.threshold, "min_gain": self.min_gain, "noise": self.noise,
                 "glitches": list(self.glitches), "reversals": list(self.reversals),
-                "violations": [str(r) for r in self.violations]}
+                "violations": [str(r) for r in self.violations],
+                "unsupported_acceleration": self.unsupported_acceleration,
+                "phantom_acceleration": self.phantom_acceleration}
 
 
 @dataclass(frozen=True, slots=True, eq=False)

@@ -27,10 +27,13 @@ GLITCH_SIGMAS = 8.0
 """A sample is a glitch if it sticks out of its neighbourhood by more than this many noise σ..."""
 GLITCH_FLOOR = 0.1
 """... and by more than this (m): smaller jumps are left to the fit."""
-GLITCH_NEIGHBOURS = 3
-"""Samples on each side that define a sample's neighbourhood."""
+GLITCH_NEIGHBOURS = 4
+"""Samples on one side that predict a sample (two on each side for the centred prediction)."""
 MAX_GLITCH_FRACTION = 0.05
-"""At most this fraction of the samples is set aside as glitches (the largest first)."""
+"""At most this fraction of the samples is set aside as glitches (the largest first) ..."""
+MIN_GLITCH_SAMPLES = 5
+"""... and at least one on a track of this many samples or more (a short track has glitches
+too: before issue 24 a track under 20 samples could set none aside)."""
 MOVING_SPEED = 1.0
 """Speed (m/s) above which the direction of travel is taken from the smoothed positions."""
 REVERSAL_ANGLE = 2.0 * math.pi / 3.0
@@ -43,6 +46,8 @@ REVERSAL_DISTANCE = 0.5
 
 _MAD_TO_SIGMA = 1.4826
 _THIRD_DIFFERENCE_VARIANCE = 20.0  # Var(x[i+3] − 3x[i+2] + 3x[i+1] − x[i]) = 20 σ² for white noise
+_SUBSETS = (np.arange(-GLITCH_NEIGHBOURS, 0), np.arange(1, GLITCH_NEIGHBOURS + 1),
+            np.array([-2, -1, 1, 2]))  # neighbours before, after, and on both sides
 
 
 def position_noise(x: np.ndarray, y: np.ndarray) -> float:
@@ -62,38 +67,53 @@ def position_noise(x: np.ndarray, y: np.ndarray) -> float:
     return float(math.hypot(*sigmas))
 
 
-def glitches(residuals: np.ndarray, noise: float) -> np.ndarray:
-    """Samples whose residual sticks out of their neighbours' (boolean mask).
+def spikes(t: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """How far each sample lies from where its neighbours put it (m).
 
-    Parameters
-    ----------
-    residuals : ndarray, shape (n, 2)
-        Fitted minus measured position per sample.
-    noise : float
-        RMS position noise (m), :func:`position_noise`.
-
-    Notes
-    -----
-    The spike of sample i is |rᵢ − median(rⱼ : 0 < |i − j| ≤ 3)| (component-wise median). A
-    smooth misfit (too few sections) moves the residual smoothly and has small spikes; a glitch
-    has a spike of its own size. A sample is a glitch if its spike exceeds
-    max(8 σ, 0.1 m, 8 · median error) with σ = noise / √2 per axis (the last term: while the fit
-    is still coarse, nothing is called a glitch), at most 5 % of the samples (the largest).
+    For each of three neighbour sets of sample i — the 4 samples before it, the 4 after it,
+    and i−2, i−1, i+1, i+2 — that has at least 3 samples on the track, a quadratic in time is
+    fitted to x and to y by least squares and evaluated at tᵢ; the spike is the smallest
+    distance from the measured position to those predictions. A glitch is far from every
+    prediction; its innocent neighbour is close to the one made without the glitch, so the
+    right sample is set aside also at a track's ends (the fit, whose end bends towards a
+    displaced end sample, is not asked). ``inf`` where no set has 3 samples (n < 4).
     """
-    n = len(residuals)
-    offsets = np.r_[-GLITCH_NEIGHBOURS:0, 1:GLITCH_NEIGHBOURS + 1]
-    padded = np.full((n + 2 * GLITCH_NEIGHBOURS, 2), np.nan)
-    padded[GLITCH_NEIGHBOURS:GLITCH_NEIGHBOURS + n] = residuals
-    neighbours = padded[np.arange(n)[:, None] + GLITCH_NEIGHBOURS + offsets]  # (n, 6, 2)
-    spikes = np.hypot(*(residuals - np.nanmedian(neighbours, axis=1)).T)
-    errors = np.hypot(residuals[:, 0], residuals[:, 1])
-    cutoff = max(GLITCH_SIGMAS * noise / math.sqrt(2.0), GLITCH_FLOOR,
-                 GLITCH_SIGMAS * float(np.median(errors)))
-    candidates = np.flatnonzero(spikes > cutoff)
-    keep = int(MAX_GLITCH_FRACTION * n)
-    chosen = candidates[np.argsort(-spikes[candidates], kind="stable")[:keep]]
+    n = len(t)
+    best = np.full(n, np.inf)
+    for offsets in _SUBSETS:
+        j = np.arange(n)[:, None] + offsets  # (n, k)
+        valid = (j >= 0) & (j < n)
+        jj = np.clip(j, 0, n - 1)
+        dt = np.where(valid, t[jj] - t[:, None], 0.0)
+        scale = np.maximum(np.abs(dt).max(axis=1, keepdims=True), 1e-12)
+        s = dt / scale
+        w = valid.astype(float)
+        design = np.stack([w, w * s, w * s * s], axis=-1)  # (n, k, 3), rows of absent samples 0
+        usable = valid.sum(axis=1) >= 3
+        c0 = np.linalg.pinv(design[usable])[:, 0, :]  # the quadratic's value at tᵢ
+        px = np.einsum("nk,nk->n", c0, (w * x[jj])[usable])
+        py = np.einsum("nk,nk->n", c0, (w * y[jj])[usable])
+        distance = np.hypot(px - x[usable], py - y[usable])
+        best[usable] = np.minimum(best[usable], distance)
+    return best
+
+
+def glitches(t: np.ndarray, x: np.ndarray, y: np.ndarray, noise: float) -> np.ndarray:
+    """Samples that stick out of their neighbours (boolean mask).
+
+    A sample is a glitch if its :func:`spikes` value exceeds max(8 σ, 0.1 m), σ = noise / √2 per
+    axis; the largest first, at most 5 % of the samples but at least one on a track of
+    :data:`MIN_GLITCH_SAMPLES` or more (none on shorter tracks).
+    """
+    n = len(t)
     mask = np.zeros(n, dtype=bool)
-    mask[chosen] = True
+    if n < MIN_GLITCH_SAMPLES:
+        return mask
+    spike = spikes(t, x, y)
+    cutoff = max(GLITCH_SIGMAS * noise / math.sqrt(2.0), GLITCH_FLOOR)
+    candidates = np.flatnonzero(np.isfinite(spike) & (spike > cutoff))
+    keep = max(1, int(MAX_GLITCH_FRACTION * n))
+    mask[candidates[np.argsort(-spike[candidates], kind="stable")[:keep]]] = True
     return mask
 
 

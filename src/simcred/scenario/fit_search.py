@@ -4,10 +4,11 @@ error is small enough, and the rules that stop it.
 S grows until the RMSE reaches ``threshold`` (``threshold``), or reaches the noise floor,
 1.2 × the estimated position noise (``noise_floor``), or makes no progress for ``patience``
 steps (``stalled``), or hits ``max_sections``. For the last two the fewest sections within
-(1 + min_gain) of the best RMSE are kept. Within each step, samples whose residual jumps away
-from their neighbours' are set aside as glitches (:func:`~simcred.scenario.fit_robust.glitches`)
-and the step is solved again without them. With plausibility limits, only the returned fit is
-smoothed until it holds them. Each step's least squares: :mod:`simcred.scenario.fit_problem`.
+(1 + min_gain) of the best RMSE are kept. Samples that lie far from where their neighbours put
+them are set aside as glitches before the first step, from the data alone
+(:func:`~simcred.scenario.fit_robust.glitches`), and every step is solved without them. With
+plausibility limits, only the returned fit is smoothed until it holds them. Each step's least
+squares: :mod:`simcred.scenario.fit_problem`.
 
 References
 ----------
@@ -22,14 +23,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from simcred.scenario.fit_problem import SHORT_TRACK, PositionProblem, Solution
+from simcred.scenario.fit_problem import PositionProblem, Solution
 from simcred.scenario.fit_result import StopReason, TrackFit
 from simcred.scenario.fit_robust import glitches
+from simcred.scenario.fit_support import unsupported_acceleration
 from simcred.scenario.plausibility import PlausibilityLimits, check_plausibility
 
 NOISE_FACTOR = 1.2
 """The search stops at the noise floor: RMSE ≤ this factor × the estimated position noise."""
-_GLITCH_PASSES = 3
 
 
 @dataclass(frozen=True, slots=True)
@@ -78,7 +79,7 @@ def search_result(data: tuple, steps: list[Step], reason: StopReason, settings: 
     chosen = _best(steps, reason, settings)
     best = chosen if settings.limits is None else _plausible(data, chosen, settings)
     extra = best.iterations - chosen.iterations
-    return _result(steps, best, extra, reason, settings, turns, length, width)
+    return _result(data, steps, best, extra, reason, settings, turns, length, width)
 
 
 def _plausible(data: tuple, step: Step, settings: SearchSettings) -> Step:
@@ -97,28 +98,17 @@ def _plausible(data: tuple, step: Step, settings: SearchSettings) -> Step:
 
 def _solve_step(data: tuple, sections: int, settings: SearchSettings,
                 previous: Step | None) -> Step:
-    """One search step: solve, set glitches aside, solve again until the glitches settle."""
+    """One search step: the glitches (found once, from the data) set aside, solve."""
     t, x, y, speed = data
-    glitch = np.zeros(len(t), dtype=bool) if previous is None else previous.glitches
-    start_from = None if previous is None else previous.solution
-    iterations = 0
-    span = (float(t[0]), float(t[-1]))
-    for _ in range(_GLITCH_PASSES):
-        keep = ~glitch
-        problem = PositionProblem(t[keep], x[keep], y[keep], sections, span=span,
-                                  limits=settings.limits)
-        start = problem.initial_guess() if start_from is None \
-            else problem.warm_start(start_from)
-        solution = problem.solve(start, speed)
-        iterations += solution.iterations
-        if len(t) < SHORT_TRACK:
-            break
-        xh, yh = solution.track().positions(t)
-        found = glitches(np.column_stack([xh - x, yh - y]), settings.noise)
-        if np.array_equal(found, glitch):
-            break
-        glitch, start_from = found, solution
-    return Step(solution, glitch, iterations)
+    glitch = glitches(t, x, y, settings.noise) if previous is None else previous.glitches
+    keep = ~glitch
+    problem = PositionProblem(t[keep], x[keep], y[keep], sections, span=(float(t[0]),
+                                                                         float(t[-1])),
+                              limits=settings.limits)
+    start = problem.initial_guess() if previous is None \
+        else problem.warm_start(previous.solution)
+    solution = problem.solve(start, speed)
+    return Step(solution, glitch, solution.iterations)
 
 
 def _stop(steps: list[Step], settings: SearchSettings, at_limit: bool) -> StopReason | None:
@@ -144,7 +134,7 @@ def _best(steps: list[Step], reason: StopReason, settings: SearchSettings) -> St
     return next(step for step in steps if step.solution.rmse <= (1.0 + settings.min_gain) * lowest)
 
 
-def _result(steps: list[Step], best: Step, extra: int, reason: StopReason,
+def _result(data: tuple, steps: list[Step], best: Step, extra: int, reason: StopReason,
             settings: SearchSettings, turns: tuple[float, ...], length: float, width: float
             ) -> TrackFit:
     if reason is StopReason.THRESHOLD and best.solution.rmse > settings.threshold:
@@ -155,10 +145,15 @@ def _result(steps: list[Step], best: Step, extra: int, reason: StopReason,
     violations = () if settings.limits is None else tuple(
         check_plausibility(track, settings.limits))
     s = best.solution
+    t, x, y, _ = data
+    keep = ~best.glitches
+    unsupported = unsupported_acceleration(track, t[keep], x[keep], y[keep],
+                                           max(settings.noise, s.rmse))
     return TrackFit(track=track, rmse=s.rmse, max_error=s.max_error, sections=s.sections,
                     history=tuple((step.solution.sections, step.solution.rmse) for step in steps),
                     iterations=sum(step.iterations for step in steps) + extra,
                     stop_reason=reason,
                     threshold=settings.threshold, min_gain=settings.min_gain,
                     noise=settings.noise, glitches=tuple(int(i) for i in np.flatnonzero(
-                        best.glitches)), reversals=turns, violations=violations)
+                        best.glitches)), reversals=turns, violations=violations,
+                    unsupported_acceleration=unsupported)

@@ -35,6 +35,11 @@ from simcred.scenario.description import (
 )
 
 STEP = 0.1
+#: OpenSCENARIO vehicle category per recorded (CommonRoad) type; other types are cars.
+VEHICLE_CATEGORIES = {"truck": "truck", "bus": "bus", "bicycle": "bicycle",
+                      "motorcycle": "motorbike", "train": "train"}
+PEDESTRIAN_HEIGHT = 1.8  # m
+PEDESTRIAN_MASS = 80.0  # kg
 """Default time step (s) of the exported trajectory vertices."""
 HEIGHT = 1.5
 """Height (m) of the exported bounding boxes (the description has none)."""
@@ -118,7 +123,8 @@ def build_openscenario(
     act = xosc.Act("replay", _at_time(xosc, 0.0, "start"))
     followers = 0
     for obj, track in description.objects.items():
-        entities.add_scenario_object(obj, _vehicle(xosc, obj, track))
+        entities.add_scenario_object(obj, _entity(xosc, obj, track,
+                                                  object_type(description, obj)))
         first = track.states(np.array([track.t0]))
         init.add_init_action(obj, xosc.TeleportAction(_position(xosc, first, 0)))
         init.add_init_action(obj, xosc.AbsoluteSpeedAction(
@@ -155,12 +161,31 @@ def _to_openscenario_iv(description: ScenarioDescription, ego: str, step: float,
         raise OptionError(f"osc_minor_version must be 1, 2 or 3, got {minor!r}")
 
 
-def _vehicle(xosc: Any, name: str, track: ObjectTrack) -> Any:
+def object_type(description: ScenarioDescription, name: str) -> str:
+    """The recorded type of object ``name`` (``metadata["objects"][name]["type"]``, e.g. a
+    CommonRoad obstacle type), ``"car"`` where the description does not say."""
+    return str(description.metadata.get("objects", {}).get(name, {}).get("type", "car"))
+
+
+def _entity(xosc: Any, name: str, track: ObjectTrack, kind: str) -> Any:
+    """A pedestrian as an OpenSCENARIO ``Pedestrian``, anything else as a ``Vehicle`` of the
+    category its type names (:data:`VEHICLE_CATEGORIES`; others: car); the footprint is the
+    track's."""
+    if kind == "pedestrian":
+        box = xosc.BoundingBox(track.width, track.length, PEDESTRIAN_HEIGHT, 0.0, 0.0,
+                               PEDESTRIAN_HEIGHT / 2)
+        return xosc.Pedestrian(name, PEDESTRIAN_MASS, xosc.PedestrianCategory.pedestrian, box,
+                               model="pedestrian")
+    return _vehicle(xosc, name, track, getattr(xosc.VehicleCategory,
+                                               VEHICLE_CATEGORIES.get(kind, "car")))
+
+
+def _vehicle(xosc: Any, name: str, track: ObjectTrack, category: Any) -> Any:
     box = xosc.BoundingBox(track.width, track.length, HEIGHT, 0.0, 0.0, HEIGHT / 2)
     axle = round(0.3 * track.length, 6)
     front = xosc.Axle(0.5, 0.6, round(0.85 * track.width, 6), axle, 0.3)
     rear = xosc.Axle(0.0, 0.6, round(0.85 * track.width, 6), -axle, 0.3)
-    return xosc.Vehicle(name, xosc.VehicleCategory.car, box, front, rear, 70.0, 10.0, 10.0)
+    return xosc.Vehicle(name, category, box, front, rear, 70.0, 10.0, 10.0)
 
 
 def _position(xosc: Any, states: Track, i: int) -> Any:

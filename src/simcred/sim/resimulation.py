@@ -20,6 +20,7 @@ import numpy as np
 
 from simcred.errors import SimcredError
 from simcred.kinematics import MOTION_SIGNALS, TIME_TOLERANCE
+from simcred.limits import check_count
 from simcred.scenario.description import ScenarioDescription
 from simcred.seeds import stream
 from simcred.sim.campaign import run_id
@@ -33,8 +34,11 @@ MODE_SIGNAL = "ad.mode"
 
 
 def time_grid(description: ScenarioDescription, dt: float) -> np.ndarray:
-    """``t0 + k dt`` for every k that stays inside the description's span."""
+    """``t0 + k dt`` for every k that stays inside the description's span (at most the
+    ``steps`` limit of :mod:`simcred.limits`: a one-line error before any work)."""
     steps = int(np.floor((description.t1 - description.t0) / dt + TIME_TOLERANCE)) + 1
+    check_count(steps, "steps", f"a resimulation of {description.t1 - description.t0:g} s at "
+                f"dt {dt:g} s: steps")
     return description.t0 + np.arange(steps) * dt
 
 

@@ -97,11 +97,19 @@ class TestCaseSpec(_Strict):
         return out
 
 
+OUT_PLACEHOLDER = "{out}"
+#: Options a simulator command may not carry: ``validate`` places its output and never replaces
+#: or resumes one (a validation file is a document people exchange; running it must not be able
+#: to write outside ``DIR/runs/NAME/``).
+WRITER_OPTIONS = ("--out", "-o", "--overwrite", "--resume")
+
+
 class SimulateSpec(_Strict):
     """A simcred simulator command that writes the candidate's runs: ``command`` is the argument
     list of ``simcred`` (no shell; it must start with ``simulate``), in which ``{base}`` stands
-    for the validation file's folder and ``{out}`` for a fresh folder under ``--out``;
-    ``output`` is the trace set the command writes there, ``options`` go to its reader."""
+    for the validation file's folder; ``validate`` runs it with ``--out DIR/runs/NAME`` (the
+    command may say ``--out {out}`` for that, nothing else). ``output`` is the trace set the
+    command writes there (a relative path inside it), ``options`` go to its reader."""
 
     command: list[str] = Field(min_length=2, max_length=64)
     output: str = Field(min_length=1)
@@ -113,7 +121,38 @@ class SimulateSpec(_Strict):
         if command[0] != "simulate":
             raise ValueError("a simulator command starts with 'simulate' (a simcred simulate "
                              f"subcommand), got {command[0]!r}")
-        return command
+        return without_placed_output(command)
+
+    @field_validator("output")
+    @classmethod
+    def _inside(cls, output: str) -> str:
+        parts = Path(output).parts
+        if Path(output).is_absolute() or ".." in parts or OUT_PLACEHOLDER in output:
+            raise ValueError(f"{output!r} must be a relative path inside the candidate's run "
+                             "folder (no '..', not absolute)")
+        return output
+
+
+def without_placed_output(command: list[str]) -> list[str]:
+    """``command`` without ``--out {out}`` (``validate`` adds the output it places); one line
+    for an option that would write elsewhere, replace or resume, or a misplaced ``{out}``."""
+    kept, args = [], iter(enumerate(command))
+    for index, arg in args:
+        option = arg.split("=", 1)[0]
+        if option in ("--out", "-o") and arg == option:
+            value = next(args, (None, None))[1]
+            if value == OUT_PLACEHOLDER:
+                continue
+            raise ValueError(f"argument {index + 1}: '{arg} {value}': validate places the "
+                             "output itself (DIR/runs/NAME); leave out --out")
+        if option in WRITER_OPTIONS or (arg.startswith("-o") and not arg.startswith("--")):
+            raise ValueError(f"argument {index + 1}: {arg!r} is not allowed: validate places, "
+                             "never replaces or resumes, a simulator's output")
+        if OUT_PLACEHOLDER in arg:
+            raise ValueError(f"argument {index + 1}: {arg!r}: {OUT_PLACEHOLDER} stands only "
+                             "for the output folder after --out")
+        kept.append(arg)
+    return kept
 
 
 class CandidateSpec(_Strict):

@@ -5,7 +5,9 @@ reference's own units are to each other, times ``f``?". The spread is measured o
 alone: its segments in the test case's cells are pooled, split ``SPLITS`` times at random into two
 halves of whole units (the declared ``groups`` — drivers, recordings, vehicles — else the runs
 the segments were cut from), the halves compared by the response comparison (grouped by that
-unit), and the median of the ``SPLITS`` deviation estimates is the spread. The tolerance is
+unit), and the median of the ``SPLITS`` observed (plug-in) deviations is the spread. The plug-in,
+not the bias-corrected estimate: the two halves follow one law, so the estimate removes exactly
+the between-unit variation this spread is meant to measure. The tolerance is
 ``f`` times it: one number per feature for the whole test case, written in verdict.json with the
 splits it came from, then used exactly like an absolute tolerance.
 
@@ -29,7 +31,7 @@ from simcred.validate.domain import unpaired_comparison
 from simcred.validate.spec import ValidationFileError, ValidationSpec
 
 SPLITS = 5
-BOOTSTRAP = 100  # the halves' comparisons need the estimate, not its interval
+BOOTSTRAP = 100  # the halves' comparisons need the observed deviation, not its interval
 
 
 @dataclass(frozen=True, slots=True)
@@ -71,7 +73,7 @@ def resolve(spec: ValidationSpec, reference: Segments, relevant: tuple[int, ...]
                                      BOOTSTRAP)
         for effect in result.response.effect.features:
             if effect.feature in relative:
-                estimates[effect.feature].append(effect.estimate)
+                estimates[effect.feature].append(effect.plugin)
     out, numbers = [], dict(spec.test_case.tolerance)
     for name, factor in relative.items():
         spread = float(np.median(estimates[name]))

@@ -1,0 +1,74 @@
+"""Whether a fitted track's acceleration is supported by the positions it was fitted to.
+
+A fit can reach its position threshold while its speed spline swings: on a short noisy track
+a cubic speed section bends its ends to follow the noise (a vehicle at constant 12 m/s with
+3 cm noise, 10 samples: |v̇| up to 9 m/s² "reaching" 2 cm). The positions then do not carry
+that acceleration. :func:`unsupported_acceleration` measures by how much the track's
+acceleration leaves what the positions support:
+
+* around each sample, the samples within :data:`WINDOW` / 2 (at least
+  :data:`MIN_WINDOW_SAMPLES`, else the whole track) are fitted by a quadratic in time per axis
+  (least squares); its tangential acceleration at the sample, (v · a) / |v|, is the
+  **local acceleration** and 2 √(Var c₂) its standard error, with the position noise σ per
+  axis (Var c₂ = σ² [(XᵀX)⁻¹]₂₂);
+* the excess at the sample is |v̇_fit − a_local| − 3 SE; the result is the largest excess
+  (m/s², ≤ 0 when everything is supported).
+
+σ is the larger of the estimated noise and the fit's RMSE, each per axis (/√2): on a short
+track the noise estimate is 0, and the RMSE bounds what the positions can resolve. A fit whose
+excess exceeds :data:`PHANTOM_MARGIN` carries a **phantom acceleration** (flagged in
+:class:`~simcred.scenario.fit_result.TrackFit`, ``phantom_acceleration``). The local quadratic
+averages over :data:`WINDOW`; a real jerk of j m/s³ departs from that average by up to about
+j · WINDOW / 2, so a hard braking onset with j > 4 m/s³ can be flagged too (it is a flag, read
+with the fit, not a refusal).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from simcred.scenario.description import ObjectTrack
+
+WINDOW = 1.0  # s
+MIN_WINDOW_SAMPLES = 5
+PHANTOM_MARGIN = 2.0  # m/s² of unsupported acceleration that flag a fit
+_SIGMAS = 3.0
+
+
+def local_acceleration(t: np.ndarray, x: np.ndarray, y: np.ndarray, noise: float
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """Tangential acceleration of a local quadratic around each sample and its standard error
+    (module docstring), NaN where fewer than 3 samples exist."""
+    n = len(t)
+    accel, error = np.full(n, np.nan), np.full(n, np.nan)
+    if n < 3:
+        return accel, error
+    sigma = noise / math.sqrt(2.0)
+    for i in range(n):
+        near = np.flatnonzero(np.abs(t - t[i]) <= WINDOW / 2 + 1e-9)
+        if len(near) < MIN_WINDOW_SAMPLES:
+            near = np.arange(n)
+        tau = t[near] - t[i]
+        design = np.column_stack([np.ones_like(tau), tau, tau * tau])
+        inverse = np.linalg.pinv(design.T @ design)
+        cx = inverse @ design.T @ x[near]
+        cy = inverse @ design.T @ y[near]
+        speed = math.hypot(cx[1], cy[1])
+        if speed < 1e-6:
+            continue
+        accel[i] = 2 * (cx[1] * cx[2] + cy[1] * cy[2]) / speed
+        error[i] = 2 * sigma * math.sqrt(max(inverse[2, 2], 0.0))
+    return accel, error
+
+
+def unsupported_acceleration(track: ObjectTrack, t: np.ndarray, x: np.ndarray, y: np.ndarray,
+                             noise: float) -> float:
+    """The largest excess of the track's v̇ over the positions' local acceleration (m/s²)."""
+    accel, error = local_acceleration(t, x, y, noise)
+    ok = np.isfinite(accel)
+    if not ok.any():
+        return 0.0
+    fitted = track.speed.derivative(t[ok])
+    return float(np.max(np.abs(fitted - accel[ok]) - _SIGMAS * error[ok]))

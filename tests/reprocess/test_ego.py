@@ -1,0 +1,111 @@
+"""The recording's EGO (issue 24 item 3): the resimulated AD function takes its set speed and
+lanes from the recorded EGO (stated), and reactions at the first samples are not measurable."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from simcred.kinematics import Track
+from simcred.reprocess.pipeline import ReprocessConfig, reprocess
+from simcred.reprocess.reaction import ReactionCriteria, reaction, reaction_analysis
+from simcred.reprocess.timebase import Drive, Recording
+
+STEP = 0.1
+T = np.round(np.arange(0.0, 8.0 + STEP / 2, STEP), 10)
+Y_EGO = 117.0  # the EGO's lane, far from y = 0 (world coordinates along +x)
+
+
+@pytest.fixture(scope="module")
+def drive() -> Drive:
+    """EGO at 12 m/s (a city street, not the 100 km/h highway) in the lane at y = 117 m; the TO
+    40 m ahead in the left lane at 13 m/s: nothing for the EGO to react to."""
+    ego = Track(T, 12.0 * T, np.full_like(T, Y_EGO), np.full_like(T, 12.0), np.zeros_like(T))
+    to = Track(T, 40 + 13.0 * T, np.full_like(T, Y_EGO + 3.5), np.full_like(T, 13.0),
+               np.zeros_like(T))
+    return Drive(Recording("street", {"ego": ego, "to": to}, "sha256:test"))
+
+
+@pytest.fixture(scope="module")
+def results(drive):
+    config = ReprocessConfig(scenario_based=False)
+    return {"recording": reprocess(drive, ReprocessConfig(
+                scenario_based=False, from_recording=("set_speed", "lanes"))),
+            "default": reprocess(drive, config)}
+
+
+def test_the_ad_function_takes_set_speed_and_lanes_from_the_recorded_ego(results):
+    result = results["recording"]
+    description = result.descriptions["fit(SD)"].objects["ego"]
+    times = result.descriptions["fit(SD)"].times(result.config.dt)
+    y0 = float(description.states(np.array([description.t0])).y[0])
+    ad = result.ad_function
+    assert ad["set_speed"] == pytest.approx(float(description.speed(times).max()), rel=1e-12)
+    assert ad["set_speed"] == pytest.approx(12.0, abs=0.05)
+    assert ad["lane_centres"] == pytest.approx([y0, y0 + 3.5], rel=1e-12)
+    assert ad["from"] == {"set_speed": "recorded EGO", "lanes": "recorded EGO"}
+    assert result.to_dict()["ad_function"] == ad
+
+
+def test_the_resimulated_ego_stays_with_the_recorded_one_that_did_not_react(results):
+    recorded = results["recording"].states["SD"]["ego"]
+    resimulated = results["recording"].states["rSD"]["ego"]
+    distance = np.hypot(resimulated.x - recorded.x, resimulated.y - recorded.y)
+    assert distance.max() < 0.5
+    # the 100 km/h highway ACC heading for a lane at y = 0 does not (why the default is not used)
+    default = results["default"].states["rSD"]["ego"]
+    assert np.hypot(default.x - recorded.x, default.y - recorded.y).max() > 20.0
+    assert results["default"].ad_function["from"]["set_speed"] == "configuration"
+
+
+def test_unknown_recorded_parameters_are_refused():
+    with pytest.raises(ValueError, match="unknown parameter.*speed_limit"):
+        ReprocessConfig(from_recording=("speed_limit",))
+
+
+DT = 0.01
+TT = np.arange(0, 8.0 + DT / 2, DT)
+
+
+@pytest.mark.parametrize("start, measurable", [(0.0, False), (0.49, False), (0.5, True),
+                                               (3.0, True)])
+def test_a_reaction_near_the_first_sample_is_not_measurable(start, measurable):
+    accel = np.where(start <= TT, -5.0, 0.0)
+    speed = 25.0 + np.cumsum(accel) * DT
+    r = reaction(TT, np.zeros_like(TT), speed, np.zeros_like(TT), accel, ReactionCriteria())
+    assert r.time == pytest.approx(TT[np.argmax(start <= TT)])
+    assert r.measurable is measurable
+    assert r.onset_measurable is bool(r.onset - TT[0] >= 0.5)
+
+
+def test_eqs_4_to_7_leave_out_a_reaction_that_is_not_measurable():
+    ok = reaction(TT, np.zeros_like(TT), np.full_like(TT, 20.0), np.zeros_like(TT),
+                  np.where(TT >= 3.0, -5.0, 0.0))
+    early = reaction(TT, np.zeros_like(TT), np.full_like(TT, 20.0), np.zeros_like(TT),
+                     np.where(TT >= 0.2, -5.0, 0.0))
+    both = reaction_analysis({"GT": ok, "rGT": ok, "rSD": ok}, 1.0, 20.0)
+    assert both["dt_react_GT_rGT"] == 0.0 and both["dt_react_rGT_rSD"] == 0.0
+    out = reaction_analysis({"GT": ok, "rGT": early, "rSD": ok}, 1.0, 20.0)
+    assert out["dt_react_GT_rGT"] is None and out["dt_react_rGT_rSD"] is None
+    assert out["ratio_eq6"] is None and out["t_offset"] == pytest.approx(0.05)
+    assert math.isnan(early.time) is False and early.measurable is False
+
+
+def test_the_cli_states_the_ad_function(tmp_path, capsys):
+    from simcred.cli import run
+
+    lines = ["t,object,x,y,v,heading"]
+    for t in map(float, T):
+        lines += [f"{t!r},ego,{12 * t!r},0.0,12.0,0.0",
+                  f"{t!r},to,{40 + 13 * t!r},3.5,13.0,0.0"]
+    path = Path(tmp_path / "street.csv")
+    path.write_text("\n".join(lines) + "\n")
+    out = tmp_path / "out"
+    assert run(["reprocess", str(path), "--object-column", "object", "--out", str(out),
+                "--no-scenario-based", "--set-speed", "14"]) == 0
+    printed = capsys.readouterr().out
+    assert "AD function: set speed 14.00 m/s (configuration), lanes at y = " in printed
+    assert "(recorded EGO)" in printed
