@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import sys
+from enum import StrEnum
 from pathlib import Path
 from typing import Annotated
 
@@ -30,6 +31,13 @@ from simcred.compare.runs import ChainStatistic, Multiplicity, OneSided
 from simcred.errors import OptionError
 from simcred.limits import check_count, check_finite
 from simcred.seeds import resolve_seed
+
+
+class Side(StrEnum):
+    """The recorded side of an observed comparison."""
+
+    A = "a"
+    B = "b"
 
 
 def _split(text: str | None) -> list[str] | None:
@@ -184,6 +192,16 @@ def compare(
         "--read", help="A reader option KEY=VALUE for both inputs, repeatable (the format's own, "
                        "as in `simcred convert`: e.g. runs=namespace for ROS 2 bags, "
                        "topics=/a/odom,/b/odom).")] = None,
+    observed: Annotated[Side | None, typer.Option(
+        help="The side that is a sensor's recording; the other side's ground truth is pushed "
+             "through --sensor before the comparison (docs/observed.md).")] = None,
+    sensor: Annotated[Path | None, typer.Option(
+        help="Sensor model JSON for --observed (declared, or written by estimate-sensor).")
+    ] = None,
+    calibration: Annotated[str | None, typer.Option(
+        help="Path b for --observed: GT,SD — ground truth and sensor recording of the same "
+             "calibration runs; the observed side's hidden chain is estimated by an HMM "
+             "(features and bins as given; docs/observed.md).")] = None,
     out: Annotated[Path | None, typer.Option(help="Directory for comparison.json and "
                                                   "state_map.png.")] = None,
     overwrite: Overwrite = False,
@@ -193,6 +211,14 @@ def compare(
     (Neurohr et al.)."""
     check_count(baseline, "permutations", "--baseline", minimum=0)  # before any work: each
     check_count(bootstrap, "permutations", "--bootstrap", minimum=0)  # repeats the whole test
+    if (observed is None) != (sensor is None and calibration is None) \
+            or (sensor is not None and calibration is not None):
+        raise OptionError("--observed goes with one of --sensor (observation model) or "
+                          "--calibration (path b, HMM): name the recorded side and how it is seen")
+    if calibration is not None:
+        _compare_hidden(a, b, observed.value, calibration, features, bins, alpha, permutations,
+                        seed, as_json)
+        return
     extra = dict(baseline=baseline, bootstrap=bootstrap, relevance=relevance) \
         if test is Test.RUNS else {}
     if test is Test.RESPONSE:
@@ -203,6 +229,13 @@ def compare(
     options = _options(features, bins, kernel, estimator, test, alpha, permutations, seed,
                        continue_on_start_difference, stop_early, multiplicity, chain, one_sided,
                        history, time_bins, resample)
+    if observed is not None:
+        if read:
+            raise OptionError("--read does not combine with --observed yet: convert the inputs "
+                              "first (simcred convert)")
+        _compare_observed(a, b, observed.value, sensor, out, overwrite, as_json,
+                          **extra, **options)
+        return
     sets = _read_sets(a, b, _reader_options(read))
     if out is None:
         result = compare_sets(*sets, progress=progress("testing states"), **extra, **options)
@@ -227,6 +260,99 @@ def _read_sets(a: Path, b: Path, reader: dict) -> tuple:
     from simcred.io import read as read_set
 
     return read_set(a, **reader), read_set(b, **reader)
+
+
+def _compare_observed(a, b, observed, sensor, out, overwrite, as_json, **options) -> None:
+    """``compare --observed``: the observation-model route (issue 23)."""
+    from simcred.compare.observed import compare_observed
+
+    def run():
+        return compare_observed(a, b, observed=observed, sensor=sensor, sensor_effect=True,
+                                progress=progress("testing states"), **options)
+
+    if out is None:
+        result = run()
+    else:
+        with writing(out, a, b, overwrite=overwrite) as target:
+            result = run()
+            (target.path / "comparison.json").write_text(json.dumps(result.to_dict(), indent=2))
+    if as_json:
+        sys.stdout.write(json.dumps(result.to_dict(), indent=2))
+    elif not State.quiet:
+        _print_comparison(result.comparison, out)
+        effect = result.sensor_effect
+        truth = "A" if observed == "b" else "B"
+        out_console.print(
+            f"side {observed.upper()} observed: side {truth} pushed through the sensor model, "
+            f"both cropped by {result.cropped} samples; "
+            f"{len(result.sensor.draws)} parameter draws carry its estimation uncertainty")
+        if effect is not None and effect.chain is not None:
+            out_console.print(f"the sensor alone: {truth}'s ground truth against its own "
+                              f"observation, chain p = {effect.chain.pvalue:.3g}, distance "
+                              f"{100 * (effect.distance or 0):.2f} %")
+
+
+def _compare_hidden(a, b, observed, calibration, features, bins, alpha, resamples, seed,
+                    as_json) -> None:
+    """``compare --observed --calibration``: path b (issue 23)."""
+    from simcred.compare.hidden import compare_hidden
+    from simcred.traces import TraceSet
+
+    paths = _split(calibration) or []
+    if len(paths) != 2:
+        raise OptionError(f"--calibration must be GT,SD (two paths), got {calibration!r}")
+    names = _split(features)
+    if names is None:
+        raise OptionError("--calibration needs --features (the hidden state's signals)")
+    number = _bins(bins)
+    if not isinstance(number, int):
+        raise OptionError("--calibration takes one --bins for every feature")
+    check_finite(alpha, "--alpha", minimum=MIN_ALPHA, maximum=1, open_maximum=True)
+    check_count(resamples, "permutations", "--permutations")
+    result = compare_hidden(a, b, observed=observed, features=names, bins=number, alpha=alpha,
+                            calibration=(TraceSet.read(paths[0]), TraceSet.read(paths[1])),
+                            n_resamples=resamples, seed=seed)
+    if as_json:
+        sys.stdout.write(json.dumps(result.to_dict(), indent=2))
+    elif not State.quiet:
+        verdict = "DIFFERENT hidden chains" if result.rejected else "no difference detected"
+        out_console.print(
+            f"path b (HMM, side {observed.upper()} observed): {verdict}, p = {result.pvalue:.3g}"
+            f" ({result.n_resamples} parametric-bootstrap replicates), statistic "
+            f"{result.statistic:.4g}, {result.n_states} hidden states, delays {result.lags} "
+            f"samples, {100 * result.dropout:.1f} % dropouts")
+        out_console.print(
+            f"assumption checks: first-order Markov p = {result.markov_pvalue:.3g}, "
+            f"time-invariant emissions p = {result.emission_pvalue:.3g} (small: the level is "
+            "not guaranteed)")
+
+
+@app.command("estimate-sensor")
+@one_line_errors
+def estimate_sensor(
+    truth: Annotated[Path, typer.Argument(help="Ground truth of the calibration runs.")],
+    recorded: Annotated[Path, typer.Argument(help="The sensor's recording of the same runs "
+                                                  "(paired by run id, same times).")],
+    out: Annotated[Path, typer.Option(help="Sensor model JSON to write.")],
+    features: Features = None,
+    max_delay: Annotated[float, typer.Option(help="Largest delay considered (s).")] = 2.0,
+    bootstrap: Annotated[int, typer.Option(help="Bootstrap draws of the parameters (runs "
+                                                "resampled): the estimation uncertainty.")] = 200,
+    seed: Seed = None,
+) -> None:
+    """Estimate a per-signal sensor model (offset, delay, noise, dropouts) from GT/SD pairs."""
+    from simcred.compare.observed import estimate_sensor as estimate
+    from simcred.traces import TraceSet
+
+    check_finite(max_delay, "--max-delay", minimum=0)
+    model = estimate(TraceSet.read(truth), TraceSet.read(recorded), signals=_split(features),
+                     max_delay=max_delay, bootstrap=bootstrap, seed=seed)
+    model.write(out)
+    if not State.quiet:
+        for name, s in model.signals.items():
+            out_console.print(f"{name}: offset {s.offset:.4g}, delay {s.delay:.3g} s, noise "
+                              f"{s.noise_sd:.4g}, dropouts {100 * s.dropout:.1f} %")
+        out_console.print(f"wrote {out}")
 
 
 def _print_comparison(result, out: Path | None) -> None:

@@ -5,6 +5,15 @@ multiplicity-controlled per-state verdicts); the paper's bound and per-transitio
 tests remain available (``test="bound"`` / ``"permutation"``).
 """
 
+from simcred.compare.hidden import HiddenComparison, compare_hidden
+from simcred.compare.observed import (
+    ObservedComparison,
+    SensorModel,
+    SignalSensor,
+    compare_observed,
+    estimate_sensor,
+    observe,
+)
 from simcred.compare.pairwise import DistanceMatrix, matrix
 from simcred.compare.process import compare
 from simcred.compare.result import (
@@ -16,4 +25,6 @@ from simcred.compare.result import (
 )
 
 __all__ = ["compare", "matrix", "Comparison", "DistanceMatrix", "ChainVerdict", "Baseline",
-           "DistanceInterval", "FeatureRelevance"]
+           "DistanceInterval", "FeatureRelevance", "compare_observed", "estimate_sensor",
+           "observe", "ObservedComparison", "SensorModel", "SignalSensor", "compare_hidden",
+           "HiddenComparison"]
