@@ -91,6 +91,23 @@ def _simulate(out: Path, *extra: str) -> list[str]:
             "6", "--seed", "4", "--out", str(out), *extra]
 
 
+def _interrupted_run(monkeypatch, out: Path, chunk: int) -> None:
+    """``simulate simplecar`` into ``out`` stopped by Ctrl-C when chunk ``chunk`` starts
+    (exit 130, the chunks before it checkpointed); the real simulation restored afterwards."""
+    from simcred.sim.experiments import simplecar_sweep
+
+    real = simplecar_sweep.simulate
+
+    def interrupted(indices, seed, **params):
+        if indices[0] == chunk:
+            raise KeyboardInterrupt
+        return real(indices, seed, **params)
+
+    monkeypatch.setattr(simplecar_sweep, "simulate", interrupted)
+    assert run(_simulate(out)) == 130
+    monkeypatch.setattr(simplecar_sweep, "simulate", real)
+
+
 def test_ctrl_c_keeps_finished_chunks_and_resume_gives_the_same_bytes(tmp_path, monkeypatch,
                                                                       capsys):
     from simcred.sim.experiments import simplecar_sweep
@@ -122,19 +139,8 @@ def test_ctrl_c_keeps_finished_chunks_and_resume_gives_the_same_bytes(tmp_path, 
 
 
 def test_resume_refuses_other_options(tmp_path, monkeypatch, capsys):
-    from simcred.sim.experiments import simplecar_sweep
-
-    real = simplecar_sweep.simulate
-
-    def interrupted(indices, seed, **params):
-        if indices[0] == 2:
-            raise KeyboardInterrupt
-        return real(indices, seed, **params)
-
-    monkeypatch.setattr(simplecar_sweep, "simulate", interrupted)
     out = tmp_path / "out"
-    assert run(_simulate(out)) == 130
-    monkeypatch.setattr(simplecar_sweep, "simulate", real)
+    _interrupted_run(monkeypatch, out, 2)
     capsys.readouterr()
     assert run([*_simulate(out, "--resume"), "--lambda", "0.9"]) == 2
     err = capsys.readouterr().err
@@ -329,21 +335,10 @@ def test_validate_resumes_after_ctrl_c_with_the_same_bytes(tmp_path, monkeypatch
 def test_a_refused_resume_keeps_every_checkpoint(tmp_path, monkeypatch, capsys):
     """Other options: refused with one line saying how to go on, every finished chunk kept;
     the same --out typed relative instead of absolute resumes."""
-    from simcred.sim.experiments import simplecar_sweep
-
     assert run(_simulate(tmp_path / "whole")) == 0
     expected = tree(tmp_path / "whole")
-    real = simplecar_sweep.simulate
-
-    def interrupted(indices, seed, **params):
-        if indices[0] == 4:
-            raise KeyboardInterrupt
-        return real(indices, seed, **params)
-
-    monkeypatch.setattr(simplecar_sweep, "simulate", interrupted)
     out = tmp_path / "out"
-    assert run(_simulate(out)) == 130
-    monkeypatch.setattr(simplecar_sweep, "simulate", real)
+    _interrupted_run(monkeypatch, out, 4)
     checkpoints = partial_path(out) / "checkpoints"
     kept = tree(checkpoints)
     assert len([k for k in kept if k.startswith("map")]) == 4
