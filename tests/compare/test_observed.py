@@ -102,6 +102,15 @@ def test_bad_models_and_sides_are_one_line_errors():
         compare_observed(ramp(), ramp(), observed="c", sensor=SensorModel({"x": SignalSensor()}))
 
 
+def test_a_recording_that_never_changes_is_named_not_a_full_dropout_model():
+    runs = [{"t": np.arange(6) * 0.1, "x": np.arange(6.0), "v": np.full(6, 3.0)}
+            for _ in range(3)]
+    truth, recorded = TraceSet.from_runs(runs), TraceSet.from_runs(runs)
+    with pytest.raises(OptionError, match="signal 'v': its recording never changes"):
+        estimate_sensor(truth, recorded, bootstrap=0)
+    assert estimate_sensor(truth, recorded, signals=["x"], bootstrap=0).signals["x"].dropout == 0
+
+
 def test_direct_comparison_sees_the_sensor_the_observed_one_keeps_the_level():
     """Seeded small version of scripts/observed_study.py (H0): the recording is the simulated
     process seen through the sensor. Oracle: the direct test rejects nearly always, the observed

@@ -18,6 +18,7 @@ from simcred.cli._app import (
     State,
     Workers,
     app,
+    check_output,
     one_line_errors,
     out_console,
     progress,
@@ -339,15 +340,18 @@ def estimate_sensor(
     bootstrap: Annotated[int, typer.Option(help="Bootstrap draws of the parameters (runs "
                                                 "resampled): the estimation uncertainty.")] = 200,
     seed: Seed = None,
+    overwrite: Overwrite = False,
 ) -> None:
     """Estimate a per-signal sensor model (offset, delay, noise, dropouts) from GT/SD pairs."""
     from simcred.compare.observed import estimate_sensor as estimate
+    from simcred.outputs import write_atomic
     from simcred.traces import TraceSet
 
     check_finite(max_delay, "--max-delay", minimum=0)
+    check_output(out, truth, recorded, kind="file", overwrite=overwrite)
     model = estimate(TraceSet.read(truth), TraceSet.read(recorded), signals=_split(features),
                      max_delay=max_delay, bootstrap=bootstrap, seed=seed)
-    model.write(out)
+    write_atomic(out, json.dumps(model.to_dict(), indent=2) + "\n")
     if not State.quiet:
         for name, s in model.signals.items():
             out_console.print(f"{name}: offset {s.offset:.4g}, delay {s.delay:.3g} s, noise "

@@ -292,11 +292,15 @@ def _pairs(truth: TraceSet, recorded: TraceSet, names: Sequence[str]) -> list[tu
     return pairs
 
 
-def _fit_signal(x: list[np.ndarray], y: list[np.ndarray], dt: float, max_lag: int
+def _fit_signal(name: str, x: list[np.ndarray], y: list[np.ndarray], dt: float, max_lag: int
                 ) -> SignalSensor:
     """One signal's sensor from paired runs (lists of 1-D arrays)."""
     repeats = np.concatenate([r[1:] == r[:-1] for r in y])
     dropout = float(repeats.mean())
+    if dropout >= 1.0:
+        raise OptionError(f"signal '{name}': its recording never changes from one sample to the "
+                          "next, so dropouts cannot be told from the signal (module docs); "
+                          "leave it out (--features)")
     best = None
     for lag in range(max_lag + 1):
         parts = []
@@ -348,7 +352,7 @@ def estimate_sensor(truth: TraceSet, recorded: TraceSet, *, signals: Sequence[st
         return ts.values[ts.offsets[i]:ts.offsets[i + 1], ts.signals.index(name)]
 
     def fit(chosen: np.ndarray) -> dict[str, SignalSensor]:
-        return {name: _fit_signal([column(truth, pairs[c][0], name) for c in chosen],
+        return {name: _fit_signal(name, [column(truth, pairs[c][0], name) for c in chosen],
                                   [column(recorded, pairs[c][1], name) for c in chosen],
                                   dt, max_lag) for name in names}
 
