@@ -336,7 +336,7 @@ class _Sums:
     need, as a sparse (states · width) × clusters matrix, so that any resampling weights of the
     clusters give every replicate's moments and variances with one product."""
 
-    matrix: sp.csr_matrix
+    matrix: sp.csc_matrix
     visits: sp.csr_matrix  # (states · 2) × clusters: the cluster's side-k member visits
     totals: np.ndarray  # (clusters, 2)
     column: dict
@@ -352,7 +352,9 @@ class _Sums:
         side, cluster = entries.side[take], entries.cluster[take]
         n_states, n_clusters = int(keep.sum()), entries.n_clusters
         j = entries.first.shape[1]
-        key, inverse = np.unique(state * n_clusters + cluster, return_inverse=True)
+        # keys ordered by cluster, then state: each cluster's row of the transposed matrix is
+        # its keys' values in order, so the sparse matrix is assembled without a sort
+        key, inverse = np.unique(cluster * n_states + state, return_inverse=True)
         x = np.zeros((len(key), 2, 1 + 2 * j))  # per (state, cluster) and side: N, S1, S2
         np.add.at(x, (inverse, side), np.hstack([entries.count[take, None],
                                                   entries.first[take], entries.second[take]]))
@@ -360,10 +362,11 @@ class _Sums:
         column = {name: i for i, name in enumerate(columns)}
         width = len(columns)
         values = np.stack(list(columns.values()), axis=1)
-        rows = (key // n_clusters)[:, None] * width + np.arange(width)
-        matrix = sp.csr_matrix((values.ravel(), (rows.ravel(), np.repeat(key % n_clusters,
-                                                                          width))),
-                               shape=(n_states * width, n_clusters))
+        del x, columns
+        indptr = np.r_[0, np.cumsum(np.bincount(key // n_states, minlength=n_clusters) * width)]
+        indices = ((key % n_states)[:, None] * width + np.arange(width)).ravel()
+        matrix = sp.csr_matrix((values.ravel(), indices, indptr),
+                               shape=(n_clusters, n_states * width)).T  # CSC, no copy
         visits = sp.csr_matrix(
             (np.ones(int(take.sum())), (2 * state + side, cluster)),
             shape=(2 * n_states, n_clusters))
