@@ -13,7 +13,7 @@ splits it came from, then used exactly like an absolute tolerance.
 
 Read it for what it is: the deviation between two halves of a finite set of units. With few
 drivers it is the spread *between drivers* (it does not shrink as each drives longer); with many
-units it shrinks towards the estimator's floor — then a relative tolerance becomes strict. Which
+units it shrinks towards 0 — then a relative tolerance becomes strict. Which
 to choose is the test case's call (docs/validate.md, "Which tolerance?").
 """
 
