@@ -47,3 +47,19 @@ def leaf_commands(group, prefix=()):
         else:
             found.append(((*prefix, name), command))
     return found
+
+
+def cli_compare_known_answer(capsys, a, b, feature, same, *options):
+    """``simcred compare A B --json`` on one feature (4 bins, 99 permutations, seed 2): a set
+    against its own copy is the same (distance 0, chain kept), against a changed one different.
+    Returns the JSON document for further checks."""
+    import json
+
+    from simcred.cli import run
+
+    assert run(["compare", str(a), str(b), "-f", feature, "--bins", "4", "--permutations", "99",
+                "--seed", "2", *options, "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["chain"]["rejected"] is (not same)
+    assert (doc["distance"] == 0.0) is same
+    return doc

@@ -4,7 +4,6 @@ run channel or from files, units, `simcred compare` on two files, and 20 malform
 from __future__ import annotations
 
 import gc
-import json
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +11,7 @@ import pytest
 from asammdf import MDF, Signal
 
 from fuzz.test_cli_fuzz import run_isolated
+from helpers import cli_compare_known_answer
 from simcred.cli import run
 from simcred.errors import OptionError, TraceSetError
 from simcred.io import detect, read
@@ -124,11 +124,7 @@ def drives(path: Path, seed: int, phi: float) -> Path:
 def test_cli_compare_on_two_mdf4_files(tmp_path, capsys, phi_b, same):
     a = drives(tmp_path / "a.mf4", seed=1, phi=0.8)
     b = drives(tmp_path / "b.mf4", seed=1, phi=phi_b)  # same seed: b is a's copy when same
-    assert run(["compare", str(a), str(b), "-f", "v", "--bins", "4", "--permutations", "99",
-                "--seed", "2", "--json"]) == 0
-    doc = json.loads(capsys.readouterr().out)
-    assert doc["chain"]["rejected"] is (not same)
-    assert (doc["distance"] == 0.0) is same
+    doc = cli_compare_known_answer(capsys, a, b, "v", same)
     assert doc["units"] == ["m/s"]
 
 

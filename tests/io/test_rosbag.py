@@ -3,7 +3,6 @@ runs per bag or namespace, generic fields, `simcred compare` on two bags, 20 mal
 
 from __future__ import annotations
 
-import json
 import math
 import shutil
 from pathlib import Path
@@ -14,6 +13,7 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
 from fuzz.test_cli_fuzz import run_isolated
+from helpers import cli_compare_known_answer
 from simcred.cli import run
 from simcred.errors import OptionError, TraceSetError
 from simcred.io import detect, read
@@ -158,11 +158,7 @@ def fleet(folder: Path, seed: int, phi: float) -> Path:
 def test_cli_compare_on_two_bag_sets(tmp_path, capsys, phi_b, same):
     a = fleet(tmp_path / "a", seed=1, phi=0.8)
     b = fleet(tmp_path / "b", seed=1, phi=phi_b)
-    assert run(["compare", str(a), str(b), "-f", "vx", "--bins", "4", "--permutations", "99",
-                "--seed", "2", "--json"]) == 0
-    doc = json.loads(capsys.readouterr().out)
-    assert doc["chain"]["rejected"] is (not same)
-    assert (doc["distance"] == 0.0) is same
+    doc = cli_compare_known_answer(capsys, a, b, "vx", same)
     assert doc["units"] == ["m/s"]
 
 
@@ -183,11 +179,7 @@ def one_bag(path: Path, seed: int, phi: float) -> Path:
 def test_cli_compare_on_two_single_bags_with_a_reader_option(tmp_path, capsys, phi_b, same):
     a = one_bag(tmp_path / "a", seed=1, phi=0.8)
     b = one_bag(tmp_path / "b", seed=1, phi=phi_b)
-    assert run(["compare", str(a), str(b), "-f", "vx", "--bins", "4", "--permutations", "99",
-                "--seed", "2", "--read", "runs=namespace", "--json"]) == 0
-    doc = json.loads(capsys.readouterr().out)
-    assert doc["chain"]["rejected"] is (not same)
-    assert (doc["distance"] == 0.0) is same
+    cli_compare_known_answer(capsys, a, b, "vx", same, "--read", "runs=namespace")
 
 
 def test_cli_compare_reader_option_errors_are_one_line(tmp_path, capsys):
