@@ -60,6 +60,25 @@ class Engine:
                 on_result(index, results[-1])
         return results
 
+    def keep(self, task: Callable[[T], R], items: Sequence[T]) -> list[Any]:
+        """``task(item)`` for every item, each result left where it was computed.
+
+        Returns handles: placed in the items of a later :meth:`map` (alone or inside a tuple), a
+        handle stands for its result. In-process a handle is the result itself; on Dask it is a
+        future, so a result is computed once, on one worker, and travels only to the workers
+        whose tasks hold its handle (not to every worker, as ``shared_values`` do).
+        """
+        return [_run_task(item, task, {}) for item in items]
+
+    def put(self, values: Sequence[Any]) -> list[Any]:
+        """Handles of ``values``, as :meth:`keep` returns (on Dask: each value sent to one
+        worker, round robin)."""
+        return list(values)
+
+    def fetch(self, handles: Sequence[Any]) -> list[Any]:
+        """The results that :meth:`keep` handles stand for, here."""
+        return list(handles)
+
     def close(self) -> None:
         pass
 
@@ -95,17 +114,28 @@ class DaskEngine(Engine):
         futures = self.client.map(_run_task, items, task=task, values=values, pure=False)
         position = {future.key: index for index, future in enumerate(futures)}
         done = as_completed(futures)
-        try:
+        with _worker_deaths():
             for future in (progress(done, len(futures)) if progress else done):
                 if on_result is not None:
                     on_result(position[future.key], future.result())
             return self.client.gather(futures)
-        except Exception as exc:
-            if type(exc).__name__ != "KilledWorker":
-                raise
-            raise EngineError(f"Dask workers died {ALLOWED_FAILURES + 1} times running one task "
-                              f"({exc}); the task may need more memory than a worker has"
-                              ) from None
+
+    def keep(self, task, items):
+        from dask.distributed import wait
+
+        futures = self.client.map(_run_task, items, task=task, values={}, pure=False)
+        wait(futures)
+        with _worker_deaths():
+            for future in futures:
+                if future.status == "error":
+                    future.result()  # raises the task's own error here
+        return futures
+
+    def put(self, values):
+        return self.client.scatter(list(values), hash=False)
+
+    def fetch(self, handles):
+        return self.client.gather(list(handles))
 
     def close(self) -> None:
         self.client.close()
@@ -139,19 +169,40 @@ class Checkpointed(Engine):
         missing = [i for i in range(len(items)) if i not in results]
         self.total, self.done = len(items), len(results)
 
-        def keep(j: int, result: Any) -> None:
+        def save(j: int, result: Any) -> None:
             self.store.save(keys[missing[j]], pickle.dumps(result, protocol=5))
             self.done += 1
             if on_result is not None:
                 on_result(missing[j], result)
 
         computed = self.runner.map(task, [items[i] for i in missing], shared_values=shared_values,
-                                   progress=progress, on_result=keep)
+                                   progress=progress, on_result=save)
         results.update(zip(missing, computed, strict=True))
         return [results[i] for i in range(len(items))]
 
+    def keep(self, task, items):
+        return self.runner.keep(task, items)  # handles are not kept across runs
+
+    def put(self, values):
+        return self.runner.put(values)
+
+    def fetch(self, handles):
+        return self.runner.fetch(handles)
+
     def close(self) -> None:
         self.runner.close()
+
+
+@contextmanager
+def _worker_deaths() -> Iterator[None]:
+    """Dask's ``KilledWorker`` (a task's workers kept dying) as one :class:`EngineError` line."""
+    try:
+        yield
+    except Exception as exc:
+        if type(exc).__name__ != "KilledWorker":
+            raise
+        raise EngineError(f"Dask workers died {ALLOWED_FAILURES + 1} times running one task "
+                          f"({exc}); the task may need more memory than a worker has") from None
 
 
 class EngineError(SimcredError):

@@ -171,6 +171,13 @@ class TraceSet:
         object.__setattr__(self, "run_sources", tuple(self.run_sources))
         self._validate()
 
+    def __sizeof__(self) -> int:
+        """Bytes held, arrays included: what Dask (``sys.getsizeof``) counts when it moves or
+        spills a set, and places tasks near it."""
+        strings = sum(len(r) for r in self.run_ids) + sum(len(r) for r in self.run_sources)
+        return object.__sizeof__(self) + self.time.nbytes + self.values.nbytes \
+            + self.offsets.nbytes + strings
+
     # -- construction -------------------------------------------------------------------------
 
     @classmethod

@@ -36,6 +36,31 @@ def test_matrix_is_identical_on_worker_processes(three_sets):
     assert serial.to_json() == parallel.to_json()
 
 
+def test_matrix_of_files_is_identical_for_every_worker_count(three_sets, tmp_path,
+                                                              monkeypatch):
+    """The run-level matrix of files is byte-identical in-process and on 1 or 2 workers, and on
+    workers the client never reads a file (the workers read their own sets)."""
+    from simcred.engine import DaskEngine
+
+    paths = []
+    for k, traces in enumerate(three_sets):
+        paths.append(tmp_path / f"s{k}.parquet")
+        traces.write(paths[-1])
+    options = dict(features=["x", "y"], bins=4, permutations=49, seed=3)
+    serial = matrix(paths, **options).to_json()
+
+    def no_reading_here(*_args, **_kwargs):
+        raise AssertionError("the client read a trace set")
+
+    monkeypatch.setattr(TraceSet, "read", classmethod(no_reading_here))
+    for workers in (1, 2):
+        runner = DaskEngine(workers=workers)
+        try:
+            assert matrix(paths, runner=runner, **options).to_json() == serial
+        finally:
+            runner.close()
+
+
 def test_stopped_pairs_are_null_and_empty(tmp_path):
     rng = np.random.default_rng(2)
     a, b = (ar_set(rng, runs=200, phi=0.5) for _ in range(2))

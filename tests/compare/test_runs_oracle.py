@@ -336,3 +336,22 @@ def test_exact_enumeration_every_split_as_observed_rejects_at_most_alpha(options
     assert np.all(np.mean(per_state, axis=0) <= 0.05)
     if options.get("multiplicity", "fwer") == "fwer":
         assert np.mean(any_state) <= 0.05
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(1, 40), st.lists(st.integers(1, 25), min_size=1, max_size=30),
+       st.integers(0, 2**32 - 1))
+def test_run_counts_by_table_equal_the_sorted_counts(n_states, lengths, seed):
+    """The lookup-table count (small key spaces) gives the sort path's matrix, entry for entry."""
+    rng = np.random.default_rng(seed)
+    offsets = np.r_[0, np.cumsum(lengths)]
+    codes = np.minimum(rng.geometric(0.3, offsets[-1]) - 1, n_states - 1)
+    table = runs.RunCounts.from_codes(codes, offsets, n_states)
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(runs, "DIRECT_KEYS", 0)
+        sorted_ = runs.RunCounts.from_codes(codes, offsets, n_states)
+    for name in ("indptr", "indices", "data"):
+        got, want = getattr(table.matrix, name), getattr(sorted_.matrix, name)
+        assert got.dtype == want.dtype and np.array_equal(got, want)
+    for name in ("blocks", "bounds", "successors"):
+        assert np.array_equal(getattr(table, name), getattr(sorted_, name))

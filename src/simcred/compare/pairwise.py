@@ -14,10 +14,11 @@ import numpy as np
 
 import simcred._display as _display
 from simcred._json import dumps, envelope
+from simcred.compare.facts import SetFacts
 from simcred.compare.process import Prepared, compare_prepared, comparison_options, load
-from simcred.compare.result import Comparison
+from simcred.compare.result import Comparison, ComparisonOptions
 from simcred.compare.tables import matrix_frame
-from simcred.engine import Engine, Progress, engine, shared
+from simcred.engine import Engine, Progress, engine
 from simcred.errors import OptionError
 from simcred.traces import TraceSet
 
@@ -101,40 +102,48 @@ def matrix(
     so every pair uses the same entropy (each pair's tests then draw from per-state streams, see
     :func:`compare`); the result is the same wherever the pairs run.
 
+    Data go to the work once: every set is read (a path: by the worker itself) and prepared once,
+    on one worker, and stays there; only its facts (signals, runs, sample period) come back for
+    the option checks. A pair's task then receives just its two prepared sets, so what travels
+    per pair does not grow with the number of sets (docs/benchmarks.md, scaling).
+
     >>> from simcred.examples import lane_change_sets
     >>> a, b = lane_change_sets(runs=40, steps=30, seed=2)
     >>> m = matrix([a, b, a], names=["a", "b", "a2"], features=["y"], bins=4)
     >>> m.distances.shape, float(m.distances[0, 2])
     ((3, 3), 0.0)
     """
-    loaded = [load(s) for s in sets]
-    if len(loaded) < 2:
-        raise OptionError(f"a distance matrix needs at least 2 trace sets, got {len(loaded)}")
-    labels = tuple(names) if names is not None else tuple(_default_names(loaded))
-    if len(labels) != len(loaded) or len(set(labels)) != len(labels):
-        raise OptionError(f"names must be {len(loaded)} unique labels, got {list(labels)}")
-    settings = comparison_options(loaded, **options)
-    prepared = [Prepared.of(s, settings.features, settings.resample) for s in loaded]
-    pairs = list(combinations(range(len(loaded)), 2))
-    shared_values = {"sets": prepared, "options": settings}
-    if runner is not None:
-        comparisons = runner.map(_compare_pair, pairs, shared_values=shared_values,
-                                 progress=progress)
-    else:
+    if len(sets) < 2:
+        raise OptionError(f"a distance matrix needs at least 2 trace sets, got {len(sets)}")
+    if runner is None:
         with engine(workers, scheduler) as started:
-            comparisons = started.map(_compare_pair, pairs, shared_values=shared_values,
-                                      progress=progress)
-    distances = np.zeros((len(loaded), len(loaded)))
+            return matrix(sets, names=names, runner=started, progress=progress, **options)
+    loaded = runner.keep(load, runner.put(sets))  # a path is read where it is used
+    facts = runner.fetch(runner.keep(SetFacts.of, loaded))
+    labels = tuple(names) if names is not None else tuple(_default_names(facts))
+    if len(labels) != len(facts) or len(set(labels)) != len(labels):
+        raise OptionError(f"names must be {len(facts)} unique labels, got {list(labels)}")
+    settings = comparison_options(facts, **options)
+    prepared = runner.keep(_prepare, [(traces, settings) for traces in loaded])
+    del loaded  # on Dask: the workers drop the raw sets
+    pairs = list(combinations(range(len(facts)), 2))
+    comparisons = runner.map(_compare_pair, [(prepared[i], prepared[j], settings)
+                                             for i, j in pairs], progress=progress)
+    distances = np.zeros((len(facts), len(facts)))
     for (i, j), c in zip(pairs, comparisons, strict=True):
         distances[i, j] = distances[j, i] = np.nan if c.distance is None else c.distance
     return DistanceMatrix(labels, distances, tuple(comparisons))
 
 
-def _compare_pair(pair: tuple[int, int]) -> Comparison:
-    sets = shared("sets")
-    return compare_prepared(sets[pair[0]], sets[pair[1]], shared("options"))
+def _prepare(item: tuple[TraceSet, ComparisonOptions]) -> Prepared:
+    traces, settings = item
+    return Prepared.of(traces, settings.features, settings.resample)
 
 
-def _default_names(sets: Sequence[TraceSet]) -> list[str]:
+def _compare_pair(item: tuple[Prepared, Prepared, ComparisonOptions]) -> Comparison:
+    return compare_prepared(*item)
+
+
+def _default_names(sets: Sequence[SetFacts]) -> list[str]:
     stems = [Path(s.source).stem or s.source for s in sets]
     return stems if len(set(stems)) == len(stems) else [f"{i}:{s}" for i, s in enumerate(stems)]

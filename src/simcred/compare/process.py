@@ -28,6 +28,7 @@ from simcred.compare.encoding import (
     encode,
     state_space,
 )
+from simcred.compare.facts import SetFacts
 from simcred.compare.kernels import Kernel
 from simcred.compare.mmd import Estimator, Test, mmd_test
 from simcred.compare.resample import check_periods, check_resample
@@ -240,6 +241,11 @@ class Prepared:
             traces = resample_runs(traces, resample)
         return cls(traces.features(features), traces.time, traces.offsets, info)
 
+    def __sizeof__(self) -> int:
+        """Bytes held (:meth:`TraceSet.__sizeof__` says why)."""
+        return object.__sizeof__(self) + self.values.nbytes + self.time.nbytes \
+            + self.offsets.nbytes
+
     def encoded(self, space: StateSpace, options: ComparisonOptions) -> EncodedRuns:
         return encode(space, self.values, self.time, self.offsets, options.history,
                       options.time_bins is not None, self.info.source)
@@ -297,7 +303,7 @@ def compare_prepared(
                       tuple(untestable))
 
 
-def resolve_features(sets: Sequence[TraceSet], features: Sequence[str] | str | None
+def resolve_features(sets: Sequence[SetFacts], features: Sequence[str] | str | None
                      ) -> tuple[str, ...]:
     """Explicit features (each must exist in every set), or all signals when the sets agree."""
     if features is None:
@@ -308,15 +314,15 @@ def resolve_features(sets: Sequence[TraceSet], features: Sequence[str] | str | N
                     f"{sorted(sets[0].signals)}; {other.source}: {sorted(other.signals)}); "
                     "choose the features to compare"
                 )
-        return sets[0].signals
+        return tuple(sets[0].signals)
     names = tuple(f.strip() for f in features.split(",")) if isinstance(features, str) \
         else tuple(features)
     if not names or any(not n for n in names):
         raise OptionError(f"features must be non-empty signal names, got {features!r}")
     if len(set(names)) != len(names):
         raise OptionError(f"features repeat a name: {list(names)}")
-    for traces in sets:
-        traces.features(names)  # raises, naming the set and the unknown signal
+    for facts in sets:
+        facts.check_signals(names)  # raises, naming the set and the unknown signal
     return names
 
 
@@ -339,13 +345,15 @@ def _choice(enum: type, value: str, name: str):
 
 
 def comparison_options(
-    sets: Sequence[TraceSet], *, features=None, bins=10, kernel="gaussian", estimator="biased",
-    test="runs", alpha=0.01, permutations=999, seed=None, multiplicity=None, chain="sum",
-    one_sided="evidence", history=1, time_bins=None, resample=None, baseline=0, bootstrap=0,
-    continue_on_start_difference=False, stop_early=True, inputs=(), pair_by=None, group_by=None,
-    margin=None,
+    sets: Sequence[TraceSet | SetFacts], *, features=None, bins=10, kernel="gaussian",
+    estimator="biased", test="runs", alpha=0.01, permutations=999, seed=None, multiplicity=None,
+    chain="sum", one_sided="evidence", history=1, time_bins=None, resample=None, baseline=0,
+    bootstrap=0, continue_on_start_difference=False, stop_early=True, inputs=(), pair_by=None,
+    group_by=None, margin=None,
 ) -> ComparisonOptions:
-    """Validate every option of :func:`compare` against the trace sets they will be used on."""
+    """Validate every option of :func:`compare` against the trace sets they will be used on
+    (or against their :class:`SetFacts`, all these checks need)."""
+    sets = [s if isinstance(s, SetFacts) else SetFacts.of(s) for s in sets]
     names = resolve_features(sets, features)
     estimator = _choice(Estimator, estimator, "estimator")
     test = _choice(Test, test, "test")
@@ -378,7 +386,7 @@ def comparison_options(
                           f"runs ({sets[0].source}: {sets[0].n_runs}); use --baseline 0")
     resample = check_resample(resample)
     if resample is None:
-        check_periods(list(sets))
+        check_periods([s.source for s in sets], [s.period for s in sets])
     return ComparisonOptions(
         features=names,
         bins=resolve_bins(bins, len(names)),

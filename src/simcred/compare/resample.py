@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import numbers
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -24,18 +25,18 @@ PERIOD_RTOL = 1e-3
 
 def sample_period(traces: TraceSet) -> float:
     """Median time step within runs."""
-    steps = np.diff(traces.time)
-    steps[traces.offsets[1:-1] - 1] = np.nan  # not a step: the boundary between two runs
-    return float(np.nanmedian(steps))
+    within = np.ones(max(traces.n_rows - 1, 0), dtype=bool)
+    within[traces.offsets[1:-1] - 1] = False  # not a step: the boundary between two runs
+    steps = np.diff(traces.time)[within]
+    return float(np.median(steps)) if steps.size else math.nan  # nan: runs of one sample
 
 
-def check_periods(sets: list[TraceSet]) -> None:
+def check_periods(sources: Sequence[str], periods: Sequence[float]) -> None:
     """One-line error if the sets' median sample periods differ by more than PERIOD_RTOL."""
-    periods = [sample_period(s) for s in sets]
-    for traces, period in zip(sets[1:], periods[1:], strict=True):
+    for source, period in zip(sources[1:], periods[1:], strict=True):
         if abs(period - periods[0]) > PERIOD_RTOL * max(period, periods[0]):
             raise OptionError(
-                f"sample periods differ: {sets[0].source} {periods[0]:.6g} s, {traces.source} "
+                f"sample periods differ: {sources[0]} {periods[0]:.6g} s, {source} "
                 f"{period:.6g} s; resample both to one period with --resample DT")
 
 

@@ -92,6 +92,10 @@ class OneSided(StrEnum):
     NEUTRAL = "neutral"  # its permutation mean: no evidence either way
 
 
+#: Largest key space ``(|S| + 1)·|S|`` counted through a lookup table rather than a sort.
+DIRECT_KEYS = 2**22
+
+
 @dataclass(frozen=True, slots=True, eq=False)
 class RunCounts:
     """Per run, the counts of (state, successor) pairs: a sparse (columns × runs) matrix.
@@ -119,11 +123,14 @@ class RunCounts:
         lengths = np.diff(offsets) - 1
         runs = np.concatenate([np.arange(n_runs, dtype=np.int64),
                                np.repeat(np.arange(n_runs, dtype=np.int64), lengths)])
-        columns, column_of, run_of, count = _pair_counts(keys, runs, n_runs)
+        if (size + 1) * size <= DIRECT_KEYS:
+            columns, matrix = _counted_directly(keys, runs, n_runs, int((size + 1) * size))
+        else:
+            columns, column_of, run_of, count = _pair_counts(keys, runs, n_runs)
+            indptr = np.r_[0, np.cumsum(np.bincount(column_of, minlength=len(columns)))]
+            matrix = sp.csr_matrix((count.astype(np.float64), run_of, indptr),
+                                   shape=(len(columns), n_runs))  # sorted by (column, run)
         del keys, runs
-        indptr = np.r_[0, np.cumsum(np.bincount(column_of, minlength=len(columns)))]
-        matrix = sp.csr_matrix((count.astype(np.float64), run_of, indptr),
-                               shape=(len(columns), n_runs))  # entries sorted by (column, run)
         origin = columns // size - 1
         bounds = np.r_[0, np.flatnonzero(np.diff(origin)) + 1, len(columns)]
         return cls(matrix, origin[bounds[:-1]], bounds, columns % size)
@@ -141,6 +148,23 @@ class RunCounts:
         bounds = np.r_[0, np.flatnonzero(np.diff(block)) + 1, len(used)]
         return RunCounts(matrix[used], self.blocks[block[bounds[:-1]]], bounds,
                          self.successors[used])
+
+
+def _counted_directly(keys: np.ndarray, runs: np.ndarray, n_runs: int, key_space: int
+                      ) -> tuple[np.ndarray, sp.csr_matrix]:
+    """Distinct keys and the (key × run) count matrix without sorting: keys index a table.
+
+    ``runs`` must not decrease within any one key (both the start block and the transitions
+    are listed run by run), so the COO → CSR conversion leaves each row's runs sorted and
+    adding up duplicates is one linear pass: O(rows + key space) instead of a sort.
+    """
+    present = np.bincount(keys, minlength=key_space) > 0
+    columns = np.flatnonzero(present)
+    column_of = (np.cumsum(present) - 1)[keys]
+    matrix = sp.csr_matrix((np.ones(len(keys)), (column_of, runs)),
+                           shape=(len(columns), n_runs))
+    matrix.sum_duplicates()
+    return columns, matrix
 
 
 def _pair_counts(keys: np.ndarray, runs: np.ndarray, n_runs: int):

@@ -42,10 +42,10 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from simcred.engine import Engine, Progress, engine, shared
+from simcred.engine import Engine, Progress, engine
 from simcred.errors import MissingDependencyError, OptionError, TraceSetError
 from simcred.limits import check_count
-from simcred.traces import RUN_INFO, TIME, TraceSet, concat
+from simcred.traces import RUN_INFO, TIME, TraceSet, concat, take
 
 REQUIRED = ("gap", "v", "v_leader")
 SIGNALS = ("gap", "dv", "v", "a", "v_leader")
@@ -273,14 +273,14 @@ def _signals(ep: _Episode, raw: np.ndarray) -> dict[str, np.ndarray]:
             "a": acceleration(raw[:, 3], ep.step), "v_leader": raw[:, 1]}
 
 
-def _simulate_chunk(task: tuple[SumoModel, int, Sequence[int]]) -> TraceSet:
-    model, seed, indices = task
-    traces: TraceSet = shared("traces")
+def _simulate_chunk(task: tuple[SumoModel, int, Sequence[int], TraceSet]) -> TraceSet:
+    """Replays of the episodes ``indices`` of the input, given as ``chunk`` (those runs only)."""
+    model, seed, indices, traces = task
     sumo = _libsumo()
     runs, ids, info = [], [], {}
     try:
-        for n, i in enumerate(indices):
-            ep = _episode(traces, i)
+        for n in range(len(indices)):
+            ep = _episode(traces, n)
             sumo_seed = episode_seed(seed, ep.run_id)
             runs.append(_signals(ep, _replay(sumo, model, ep, sumo_seed, started=n > 0)))
             ids.append(ep.run_id)
@@ -389,9 +389,11 @@ def replay(traces: TraceSet, models: Sequence[SumoModel | str], *, seed: int = 0
         with engine(workers, scheduler) as started:
             return replay(traces, specs, seed=seed, runner=started, chunk_size=chunk_size,
                           progress=progress)
-    tasks = [t for plan in plans for t in plan.tasks()]
-    parts = runner.map(_simulate_chunk, tasks, shared_values={"traces": traces},
-                       progress=progress)
+    # each chunk's episodes travel once, to one worker, not the whole input to every worker
+    chunks = runner.put([take(traces, indices) for _, _, indices in plans[0].tasks()])
+    tasks = [(*task, chunk) for plan in plans for task, chunk in zip(plan.tasks(), chunks,
+                                                                      strict=True)]
+    parts = runner.map(_simulate_chunk, tasks, progress=progress)
     out, k = {}, 0
     for plan in plans:
         mine = parts[k:k + len(plan.tasks())]

@@ -1,0 +1,142 @@
+"""Scaling of the distance matrix over Dask workers (issue 25): prints a table, writes JSON.
+
+The case of the issue: ``--sets`` trace sets × ``--runs`` runs × ``--steps`` steps of two float
+features (lane changes, each set with its own lane-change duration), written as Parquet files,
+then ``matrix`` over all pairs with the run-level test. Each configuration runs in its own process
+(so every peak is its own): in-process (the reference), then a local Dask cluster of each worker
+count in ``--workers``. Per configuration: wall seconds of the ``matrix`` call (cluster start
+reported apart), speed-up against in-process, bytes moved between workers (in all and per pair),
+peak RSS of the client and of the largest worker, and the SHA-256 of ``matrix.to_json()``, which
+must be the same for every worker count.
+
+Usage: python benchmarks/scale.py [--sets 16 --runs 6000 --steps 200 --workers 1,2]
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+from rich.console import Console
+from rich.table import Table
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+from _timing import machine, save_results  # noqa: E402
+
+from simcred.compare import matrix  # noqa: E402
+from simcred.engine import DaskEngine, Engine  # noqa: E402
+from simcred.examples import lane_change_runs  # noqa: E402
+
+FEATURES = ["x", "y"]
+
+
+def write_sets(folder: Path, sets: int, runs: int, steps: int) -> list[str]:
+    """``sets`` Parquet files of lane changes, set k with duration scale 1 - 0.01 k."""
+    paths = []
+    for k in range(sets):
+        traces = lane_change_runs(runs, steps, 0.1, 1.0 - 0.01 * k, np.random.default_rng(k),
+                                  f"set{k:02d}")
+        path = folder / f"set{k:02d}.parquet"
+        traces.write(path)
+        paths.append(str(path))
+    return paths
+
+
+def peak_rss_bytes() -> int:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024  # Linux: KiB
+
+
+def _outgoing(dask_worker) -> int:
+    return dask_worker.transfer_outgoing_bytes_total
+
+
+def run_one(paths: list[str], workers: int, permutations: int) -> dict:
+    """One configuration in this process: 0 workers = in-process."""
+    start = time.perf_counter()
+    runner = Engine() if workers == 0 else DaskEngine(workers=workers)
+    startup = time.perf_counter() - start
+    try:
+        moved_before = sum(runner.client.run(_outgoing).values()) if workers else 0
+        start = time.perf_counter()
+        result = matrix(paths, features=FEATURES, bins=10, permutations=permutations, seed=0,
+                        runner=runner)
+        seconds = time.perf_counter() - start
+        moved = sum(runner.client.run(_outgoing).values()) - moved_before if workers else 0
+        worker_peak = max(runner.client.run(peak_rss_bytes).values()) if workers else 0
+    finally:
+        runner.close()
+    return {"workers": workers, "seconds": seconds, "startup_seconds": startup,
+            "bytes_between_workers": moved, "pairs": len(result.comparisons),
+            "peak_rss_client": peak_rss_bytes(), "peak_rss_worker": worker_peak,
+            "sha256": hashlib.sha256(result.to_json().encode()).hexdigest()}
+
+
+def measure(paths: list[str], workers: int, permutations: int) -> dict:
+    """:func:`run_one` in a fresh process, so that its peaks are its own."""
+    out = subprocess.run([sys.executable, __file__, "--one", str(workers), "--permutations",
+                          str(permutations), *paths], check=True, capture_output=True, text=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def table(rows: list[dict], title: str) -> Table:
+    view = Table(title=title)
+    for name in ("workers", "matrix s", "start s", "speed-up", "efficiency", "MB moved",
+                 "MB/pair", "client peak MB", "worker peak MB", "identical"):
+        view.add_column(name, justify="right")
+    for r in rows:
+        view.add_row(str(r["workers"] or "in-process"), f"{r['seconds']:.1f}",
+                     f"{r['startup_seconds']:.1f}", f"{r['speedup']:.2f}",
+                     f"{r['efficiency']:.0%}", f"{r['bytes_between_workers'] / 1e6:.0f}",
+                     f"{r['bytes_between_workers'] / 1e6 / r['pairs']:.1f}",
+                     f"{r['peak_rss_client'] / 1e6:.0f}", f"{r['peak_rss_worker'] / 1e6:.0f}",
+                     "yes" if r["identical"] else "NO")
+    return view
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sets", type=int, default=16)
+    parser.add_argument("--runs", type=int, default=6000)
+    parser.add_argument("--steps", type=int, default=200)
+    parser.add_argument("--permutations", type=int, default=199)
+    parser.add_argument("--workers", default="1,2", help="comma-separated worker counts")
+    parser.add_argument("--out", type=Path, help="JSON file (default: "
+                        "benchmarks/results/scale_<cpus>cpu.json)")
+    parser.add_argument("--one", type=int, help=argparse.SUPPRESS)
+    parser.add_argument("paths", nargs="*", help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.one is not None:
+        print(json.dumps(run_one(args.paths, args.one, args.permutations)))
+        return
+    counts = [int(w) for w in args.workers.split(",")]
+    with tempfile.TemporaryDirectory(prefix="simcred-scale-") as folder:
+        start = time.perf_counter()
+        paths = write_sets(Path(folder), args.sets, args.runs, args.steps)
+        written = time.perf_counter() - start
+        rows = [measure(paths, w, args.permutations) for w in [0, *counts]]
+    reference = rows[0]
+    for r in rows:
+        r["speedup"] = reference["seconds"] / r["seconds"]
+        r["efficiency"] = r["speedup"] / max(r["workers"], 1)
+        r["identical"] = r["sha256"] == reference["sha256"]
+    case = (f"matrix of {args.sets} sets × {args.runs:,} runs × {args.steps} steps, 2 features, "
+            f"10 bins, runs test, {args.permutations} permutations")
+    Console(width=150).print(table(rows, case))
+    out = args.out or ROOT / "benchmarks" / "results" / f"scale_{os.cpu_count()}cpu.json"
+    save_results(out, {"machine": machine(), "case": case, "write_seconds": written,
+                       "rows": rows})
+
+
+if __name__ == "__main__":
+    main()
