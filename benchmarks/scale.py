@@ -23,9 +23,12 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections import defaultdict
+from contextlib import nullcontext
 from pathlib import Path
 
 import numpy as np
+from dask.utils import key_split
 from rich.console import Console
 from rich.table import Table
 
@@ -61,24 +64,61 @@ def _outgoing(dask_worker) -> int:
     return dask_worker.transfer_outgoing_bytes_total
 
 
+class TimedEngine(Engine):
+    """In-process, adding up the seconds of every task by the task's function name."""
+
+    def __init__(self) -> None:
+        self.task_seconds: dict[str, float] = defaultdict(float)
+
+    def _timed(self, task):
+        def timed(item):
+            start = time.perf_counter()
+            try:
+                return task(item)
+            finally:
+                self.task_seconds[key_split(task.__qualname__)] += time.perf_counter() - start
+        return timed
+
+    def map(self, task, items, **options):
+        return super().map(self._timed(task), items, **options)
+
+    def keep(self, task, items):
+        return super().keep(self._timed(task), items)
+
+
+def stream_seconds(records: list[dict]) -> dict[str, float]:
+    """Compute seconds per task function, and transfer seconds, of a Dask task stream."""
+    out: dict[str, float] = defaultdict(float)
+    for record in records:
+        for part in record["startstops"]:
+            name = key_split(record["key"]) if part["action"] == "compute" else "transfer"
+            out[name] += part["stop"] - part["start"]
+    return dict(out)
+
+
 def run_one(paths: list[str], workers: int, permutations: int) -> dict:
     """One configuration in this process: 0 workers = in-process."""
+    from distributed import get_task_stream
+
     start = time.perf_counter()
-    runner = Engine() if workers == 0 else DaskEngine(workers=workers)
+    runner = TimedEngine() if workers == 0 else DaskEngine(workers=workers)
     startup = time.perf_counter() - start
     try:
         moved_before = sum(runner.client.run(_outgoing).values()) if workers else 0
         start = time.perf_counter()
-        result = matrix(paths, features=FEATURES, bins=10, permutations=permutations, seed=0,
-                        runner=runner)
+        with get_task_stream(runner.client) if workers else nullcontext() as stream:
+            result = matrix(paths, features=FEATURES, bins=10, permutations=permutations,
+                            seed=0, runner=runner)
         seconds = time.perf_counter() - start
         moved = sum(runner.client.run(_outgoing).values()) - moved_before if workers else 0
         worker_peak = max(runner.client.run(peak_rss_bytes).values()) if workers else 0
+        tasks = stream_seconds(stream.data) if workers else dict(runner.task_seconds)
     finally:
         runner.close()
     return {"workers": workers, "seconds": seconds, "startup_seconds": startup,
             "bytes_between_workers": moved, "pairs": len(result.comparisons),
             "peak_rss_client": peak_rss_bytes(), "peak_rss_worker": worker_peak,
+            "task_seconds": tasks,
             "sha256": hashlib.sha256(result.to_json().encode()).hexdigest()}
 
 
@@ -101,6 +141,19 @@ def table(rows: list[dict], title: str) -> Table:
                      f"{r['bytes_between_workers'] / 1e6 / r['pairs']:.1f}",
                      f"{r['peak_rss_client'] / 1e6:.0f}", f"{r['peak_rss_worker'] / 1e6:.0f}",
                      "yes" if r["identical"] else "NO")
+    return view
+
+
+def phases(rows: list[dict]) -> Table:
+    """Seconds spent in each kind of task, added over all workers (in-process: the reference)."""
+    names = sorted({name for r in rows for name in r["task_seconds"]})
+    view = Table(title="task seconds, added over workers (more than in-process: contention)")
+    view.add_column("workers", justify="right")
+    for name in names:
+        view.add_column(name, justify="right")
+    for r in rows:
+        view.add_row(str(r["workers"] or "in-process"),
+                     *(f"{r['task_seconds'].get(name, 0.0):.1f}" for name in names))
     return view
 
 
@@ -132,7 +185,9 @@ def main() -> None:
         r["identical"] = r["sha256"] == reference["sha256"]
     case = (f"matrix of {args.sets} sets × {args.runs:,} runs × {args.steps} steps, 2 features, "
             f"10 bins, runs test, {args.permutations} permutations")
-    Console(width=150).print(table(rows, case))
+    console = Console(width=150)
+    console.print(table(rows, case))
+    console.print(phases(rows))
     out = args.out or ROOT / "benchmarks" / "results" / f"scale_{os.cpu_count()}cpu.json"
     save_results(out, {"machine": machine(), "case": case, "write_seconds": written,
                        "rows": rows})

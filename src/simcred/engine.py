@@ -111,7 +111,8 @@ class DaskEngine(Engine):
         from dask.distributed import as_completed
 
         [values] = self.client.scatter([shared_values or {}], broadcast=True, hash=False)
-        futures = self.client.map(_run_task, items, task=task, values=values, pure=False)
+        futures = self.client.map(_run_task, items, task=task, values=values,
+                                  key=_keys(task, len(items)))
         position = {future.key: index for index, future in enumerate(futures)}
         done = as_completed(futures)
         with _worker_deaths():
@@ -123,7 +124,8 @@ class DaskEngine(Engine):
     def keep(self, task, items):
         from dask.distributed import wait
 
-        futures = self.client.map(_run_task, items, task=task, values={}, pure=False)
+        futures = self.client.map(_run_task, items, task=task, values={},
+                                  key=_keys(task, len(items)))
         wait(futures)
         with _worker_deaths():
             for future in futures:
@@ -191,6 +193,15 @@ class Checkpointed(Engine):
 
     def close(self) -> None:
         self.runner.close()
+
+
+def _keys(task: Callable, n: int) -> list[str]:
+    """Unique task keys named after the task's function (``_compare_pair-<token>-<i>``), so
+    Dask's dashboard and task stream say what runs."""
+    import uuid
+
+    token = uuid.uuid4().hex
+    return [f"{getattr(task, '__qualname__', 'task')}-{token}-{i}" for i in range(n)]
 
 
 @contextmanager

@@ -42,11 +42,19 @@ class StateSpace:
         >>> s.edges[0].tolist(), s.shape
         ([4.5], (2,))
         """
+        return cls.pooled((pooled,), bins, features)
+
+    @classmethod
+    def pooled(
+        cls, parts: Sequence[np.ndarray], bins: Sequence[int], features: Sequence[str]
+    ) -> StateSpace:
+        """:meth:`equal_frequency` of ``numpy.vstack(parts)``, one pooled column at a time (the
+        column is the quantile's scratch copy, so no stacked copy of all features is made)."""
         edges, bounds = [], []
         for j, n_bins in enumerate(bins):
-            column = pooled[:, j]
-            edges.append(feature_edges(column, n_bins))
+            column = np.concatenate([part[:, j] for part in parts])
             bounds.append((float(column.min()), float(column.max())))
+            edges.append(feature_edges(column, n_bins, scratch=True))
         space = cls(tuple(features), tuple(edges), tuple(bounds))
         _check_size(space)
         return space
@@ -105,7 +113,7 @@ def _check_size(space: StateSpace) -> None:
                           f"(at most {MAX_STATES}); use fewer features, bins or history")
 
 
-def feature_edges(column: np.ndarray, n_bins: int) -> np.ndarray:
+def feature_edges(column: np.ndarray, n_bins: int, scratch: bool = False) -> np.ndarray:
     """Bin edges of one feature: equal-frequency, with every bin holding pooled data.
 
     ``numpy.quantile(column, k / B)``, ``k = 1 .. B-1``, duplicates removed ([1] sec. V-A). Two
@@ -122,11 +130,14 @@ def feature_edges(column: np.ndarray, n_bins: int) -> np.ndarray:
     [0.5, 1.5]
     >>> feature_edges(np.arange(10.0), 2).tolist()
     [4.5]
+
+    ``scratch``: ``column`` may be reordered (it is a copy made for this call).
     """
     if len(np.unique(column[:DISTINCT_PROBE])) <= n_bins:  # cheap exit for continuous data
         distinct = np.unique(column)
         if len(distinct) <= n_bins:
             return (distinct[:-1] + distinct[1:]) / 2
-    edges = np.unique(np.quantile(column, np.arange(1, n_bins) / n_bins))
+    edges = np.unique(np.quantile(column, np.arange(1, n_bins) / n_bins,
+                                  overwrite_input=scratch))
     held = np.bincount(np.searchsorted(edges, column, side="right"), minlength=len(edges) + 1)
     return edges[held[:-1] > 0]

@@ -50,7 +50,7 @@ def state_space(values: Sequence[np.ndarray], times: Sequence[np.ndarray],
 
     Edges come from the pooled values of all sets; with history, every lag uses the same edges.
     """
-    space = StateSpace.equal_frequency(np.vstack(values), bins, features).lagged(history)
+    space = StateSpace.pooled(values, bins, features).lagged(history)
     if time_bins is None:
         return space
     pooled = np.concatenate([elapsed(t, o) for t, o in zip(times, offsets, strict=True)])

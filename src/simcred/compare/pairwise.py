@@ -137,7 +137,7 @@ def matrix(
 
 def _prepare(item: tuple[TraceSet, ComparisonOptions]) -> Prepared:
     traces, settings = item
-    return Prepared.of(traces, settings.features, settings.resample)
+    return Prepared.for_options(traces, settings)
 
 
 def _compare_pair(item: tuple[Prepared, Prepared, ComparisonOptions]) -> Comparison:
