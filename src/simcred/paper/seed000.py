@@ -15,11 +15,12 @@ import numpy as np
 from scipy.stats import spearmanr
 
 from simcred.compare import compare
-from simcred.engine import Engine, Progress, shared
+from simcred.engine import Engine, Progress
 from simcred.paper.claims import Claim, at_least, below
 from simcred.seeds import derive_seed
 from simcred.sim.campaign import Campaign
 from simcred.sim.experiments import simplecar_sweep
+from simcred.traces import TraceSet
 
 KERNELS = ("gaussian", "laplace", "linear")
 TESTS = ("bound", "permutation")
@@ -75,12 +76,11 @@ def _run_campaign(job: Campaign):
     return job.run()
 
 
-def _compare_task(task: tuple[int, str, str, str]) -> float:
-    index, features, test, kernel = task
-    config: SweepConfig = shared("config")
-    result = compare(shared("baseline"), shared("sets")[index],
-                     features=FEATURE_SETS[features], bins=config.bins, kernel=kernel, test=test,
-                     alpha=config.alpha, permutations=config.permutations, seed=config.seed)
+def _compare_task(task: tuple[TraceSet, TraceSet, str, str, str, SweepConfig]) -> float:
+    baseline, traces, features, test, kernel, config = task
+    result = compare(baseline, traces, features=FEATURE_SETS[features], bins=config.bins,
+                     kernel=kernel, test=test, alpha=config.alpha,
+                     permutations=config.permutations, seed=config.seed)
     return np.nan if result.distance is None else result.distance
 
 
@@ -88,12 +88,12 @@ def run_sweep(config: SweepConfig, runner: Engine, progress: Progress | None = N
               simulation_progress: Progress | None = None) -> SweepResult:
     """Figs. 6 and 7: baseline vs every λ, three kernels, (x, y) and (x, y, ψ), both tests."""
     baseline, sets = simulate_sweep(config, runner, simulation_progress)
-    tasks = [(i, f, t, k) for f, t, k in product(FEATURE_SETS, TESTS, KERNELS)
-             for i in range(len(sets))]
-    values = runner.map(_compare_task, tasks, progress=progress,
-                        shared_values={"baseline": baseline, "sets": sets, "config": config})
+    baseline, *sets = runner.put([baseline, *sets])  # each set to one worker, not to all
+    tasks = [(baseline, traces, f, t, k, config)
+             for f, t, k in product(FEATURE_SETS, TESTS, KERNELS) for traces in sets]
+    values = runner.map(_compare_task, tasks, progress=progress)
     distances: dict = {}
-    for (_, f, t, k), d in zip(tasks, values, strict=True):
+    for (_, _, f, t, k, _), d in zip(tasks, values, strict=True):
         distances.setdefault(f, {}).setdefault(t, {}).setdefault(k, []).append(float(d))
     return SweepResult(config, distances)
 
