@@ -23,7 +23,9 @@ PERIOD_RTOL = 1e-3
 
 
 def sample_period(traces: TraceSet) -> float:
-    """Median time step within runs."""
+    """Median time step within runs (a set read out of core brings its own: ``period``)."""
+    if not isinstance(traces, TraceSet):
+        return traces.period
     steps = np.diff(traces.time)
     steps[traces.offsets[1:-1] - 1] = np.nan  # not a step: the boundary between two runs
     return float(np.nanmedian(steps))

@@ -31,6 +31,12 @@ def read(path: Path) -> TraceSet:
     except (pa.ArrowException, OSError) as exc:
         reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise TraceSetError(f"{path}: unreadable Parquet ({reason})") from None
+    return from_table(table, path)
+
+
+def from_table(table: pa.Table, path: Path | str) -> TraceSet:
+    """The trace set of a table in this layout (``path`` names it in errors and is its source;
+    a partition of a data set, :mod:`simcred.io.dataset`, is read through here too)."""
     if table.num_rows == 0:
         raise TraceSetError(f"{path}: the trace set is empty (no rows)")
     if RUN not in table.column_names:
