@@ -44,7 +44,7 @@ import scipy.sparse as sp
 
 from simcred.compare.calibrate import counts_comparison
 from simcred.compare.discretize import StateSpace, _check_size
-from simcred.compare.quantiles import EdgePlan, Sketch, Tally, bin_counts
+from simcred.compare.quantiles import EdgePlan, Sketch, Tally
 from simcred.compare.result import Comparison, InputInfo
 from simcred.compare.runs import RunCounts
 from simcred.engine import Progress
@@ -95,7 +95,7 @@ def compare_datasets(
     steps = work.run()
     for _ in progress(steps, work.total) if progress else steps:
         pass
-    facts = [s.facts(work) for s in sources]
+    facts = [s.facts() for s in sources]
     validated = comparison_options(facts, **options)
     space, counts = work.result()
     inputs = tuple(InputInfo(f.source, f.digest, f.n_runs, f.n_rows) for f in facts)
@@ -184,7 +184,7 @@ class _Source:
     def n_runs(self) -> int:
         return sum(len(x) for x in self.lengths)
 
-    def facts(self, work: _Passes) -> SetFacts:
+    def facts(self) -> SetFacts:
         rows = int(sum(int(x.sum()) for x in self.lengths))
         return SetFacts(self.source, self.signals, self.n_runs, rows, self.period,
                         "sha256:" + self.hash.hexdigest(), dict(self.metadata or {}))
