@@ -19,7 +19,9 @@ partitions of both sets:
 The pooled count matrix then goes through the same run-level test as in memory
 (:func:`~simcred.compare.calibrate.counts_comparison`). Memory: one partition, the sketches and
 tallies (about ``2 N / SKETCH_SIZE`` values per edge), the run ids and lengths, and the count
-matrix (12 bytes per non-zero entry, twice while it is transposed) with the test's own arrays.
+matrix: 12 bytes per non-zero (run, state, successor) entry, plus 2 to 8 bytes per entry while
+the partitions' entries are sorted into it; then the run-level test's own arrays (among them
+one byte per run and permutation).
 
 Supported: ``test="runs"`` with ``history=1``, no ``time_bins``, no ``resample``, no
 ``relevance``; other options are refused with one line (:data:`SUPPORTED`).
@@ -314,7 +316,7 @@ def _middle(n: int) -> np.ndarray:
 def _partition_pairs(codes: np.ndarray, offsets: np.ndarray, n_states: int):
     """One partition's per-run pair counts, as ``RunCounts.from_codes`` keys them: (distinct
     keys, per entry its key's index, per entry its count, per run its number of entries);
-    entries sorted by (run, key)."""
+    entries sorted by (run, key), in the smallest integer types that hold them."""
     size = np.int64(n_states)
     n_runs = len(offsets) - 1
     last = offsets[1:] - 1
@@ -324,34 +326,48 @@ def _partition_pairs(codes: np.ndarray, offsets: np.ndarray, n_states: int):
     runs = np.concatenate([np.arange(n_runs, dtype=np.int64),
                            np.repeat(np.arange(n_runs, dtype=np.int64), np.diff(offsets) - 1)])
     distinct, inverse = np.unique(keys, return_inverse=True)
+    del keys
     entry, count = np.unique(runs * len(distinct) + inverse.ravel(), return_counts=True)
     run_of, key_of = np.divmod(entry, len(distinct))
     per_run = np.bincount(run_of, minlength=n_runs)
-    return distinct, key_of.astype(np.int32), count.astype(np.int32), per_run.astype(np.int64)
+    return (distinct, key_of.astype(np.min_scalar_type(len(distinct))),
+            count.astype(np.min_scalar_type(int(count.max()))), per_run.astype(np.int64))
 
 
 def _pooled_matrix(blocks: list) -> tuple[np.ndarray, sp.csr_matrix]:
     """Sorted distinct keys and the (keys × runs) CSR matrix of all partitions' entries, as
-    ``RunCounts.from_codes`` builds it (entries sorted by (key, run), float64 counts)."""
+    ``RunCounts.from_codes`` builds it (entries sorted by (key, run), float64 counts).
+
+    A counting sort by key, partition by partition: the output arrays (12 bytes per entry) are
+    filled while the partitions' compact entries are released.
+    """
     keys = np.unique(np.concatenate([b[0] for b in blocks]))
-    nnz = sum(len(b[1]) for b in blocks)
-    column = np.empty(nnz, dtype=np.int32)
-    data = np.empty(nnz, dtype=np.float64)
-    per_run = np.concatenate([b[3] for b in blocks])
-    at = 0
-    for i, (distinct, key_of, count, _) in enumerate(blocks):
-        where = np.searchsorted(keys, distinct).astype(np.int32)
-        column[at:at + len(key_of)] = where[key_of]
-        data[at:at + len(key_of)] = count
-        at += len(key_of)
-        blocks[i] = (distinct, key_of[:0], count[:0], per_run[:0])  # free as we go
-    by_run = sp.csr_matrix((data, column, np.r_[0, np.cumsum(per_run)]),
-                           shape=(len(per_run), len(keys)))
-    del data, column
-    by_key = by_run.tocsc()  # counting sort: within a key, runs stay in increasing order
-    del by_run
-    return keys, sp.csr_matrix((by_key.data, by_key.indices, by_key.indptr),
-                               shape=(len(keys), len(per_run)))
+    where = [np.searchsorted(keys, b[0]) for b in blocks]
+    totals = np.zeros(len(keys), dtype=np.int64)
+    for w, (_, key_of, _, _) in zip(where, blocks, strict=True):
+        totals += np.bincount(w[key_of], minlength=len(keys))
+    indptr = np.r_[0, np.cumsum(totals)]
+    n_runs = int(sum(len(b[3]) for b in blocks))
+    run_index = np.int32 if n_runs < 2**31 else np.int64
+    indices = np.empty(int(indptr[-1]), dtype=run_index)
+    data = np.empty(int(indptr[-1]), dtype=np.float64)
+    cursor = indptr[:-1].copy()
+    first_run = 0
+    for i, w in enumerate(where):
+        _, key_of, count, per_run = blocks[i]
+        blocks[i] = None  # released as it is placed
+        column = w[key_of]
+        order = np.argsort(column, kind="stable")  # within a key: runs stay in order
+        column = column[order]
+        rank = np.arange(len(column)) - np.searchsorted(column, column, side="left")
+        at = cursor[column] + rank
+        runs = np.repeat(np.arange(first_run, first_run + len(per_run), dtype=run_index),
+                         per_run)
+        indices[at] = runs[order]
+        data[at] = count[order]
+        cursor += np.bincount(column, minlength=len(keys))
+        first_run += len(per_run)
+    return keys, sp.csr_matrix((data, indices, indptr), shape=(len(keys), n_runs))
 
 
 def _relabel(keys: np.ndarray, shape: tuple[int, ...], kept: list[np.ndarray],
