@@ -186,3 +186,15 @@ def test_cli_compares_a_folder_and_exits_2_on_bad_input(tmp_path, capsys):
     assert len(err.splitlines()) == 1 and "no Parquet partitions" in err
     assert run(["compare", str(a), str(b), "--history", "2", *args]) == 2
     assert "support the runs test" in capsys.readouterr().err
+
+
+def test_options_are_checked_before_any_partition_is_read(tmp_path):
+    a = write_partitions(ar_set(np.random.default_rng(1), 10, 0.1), tmp_path / "a", [5])
+    table = pa.table({"run": ["n1"] * 3, "t": [0.0, 0.1, 0.2], "x": [1.0, 2.0, 3.0],
+                      "y": [1.0, np.nan, 0.0]})
+    pq.write_table(table, a / "p002.parquet")  # refused in the first pass
+    for options, message in ((dict(alpha=2.0), "alpha must be"), (dict(bins=1), "bins must"),
+                             (dict(features=["x", "w"]), "unknown signal 'w'")):
+        with pytest.raises(OptionError if "signal" not in message else TraceSetError,
+                           match=message):
+            compare_datasets(a, a, **options)

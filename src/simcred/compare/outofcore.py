@@ -91,6 +91,7 @@ def compare_datasets(
 
     _refuse(options, relevance)
     sources = [_Source.open(x) for x in (a, b)]
+    comparison_options([s.provisional() for s in sources], **options)  # before any pass
     names = resolve_features(sources, options.get("features"))
     bins = resolve_bins(options.get("bins", 10), len(names))
     work = _Passes(sources, names, bins)
@@ -185,6 +186,12 @@ class _Source:
     @property
     def n_runs(self) -> int:
         return sum(len(x) for x in self.lengths)
+
+    def provisional(self) -> SetFacts:
+        """Facts before any pass, for checking the options early: as many runs as there can
+        be (two rows each), the sample period unknown (NaN passes the period check)."""
+        rows = self.traces.n_rows if self.dataset is None else self.dataset.n_rows
+        return SetFacts(self.source, self.signals, rows // 2, rows, float("nan"), "", {})
 
     def facts(self) -> SetFacts:
         rows = int(sum(int(x.sum()) for x in self.lengths))
