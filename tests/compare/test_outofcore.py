@@ -95,9 +95,11 @@ def test_count_matrix_is_from_codes(tmp_path, monkeypatch):
         return original(counts, n_a, space, options, inputs)
 
     monkeypatch.setattr(ooc_module, "counts_comparison", spy)
-    compare_datasets(a, b_set, bins=6, permutations=9, seed=0)
+    b_file = b_set.write(tmp_path / "b.parquet")  # not a data set: read in memory, one partition
+    compare_datasets(a, b_file, bins=6, permutations=9, seed=0)
     options = comparison_options([a_set, b_set], bins=6, permutations=9, seed=0)
-    prepared = [Prepared.of(s, options.features) for s in (read_dataset(a), b_set)]
+    prepared = [Prepared.of(s, options.features)
+                for s in (read_dataset(a), TraceSet.read(b_file))]
     space = common_space(*prepared, options)
     expected = pooled_counts(*(p.encoded(space, options) for p in prepared), space)
     got = seen["counts"]

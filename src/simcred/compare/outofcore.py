@@ -51,7 +51,7 @@ from simcred.compare.result import Comparison, InputInfo
 from simcred.compare.runs import RunCounts
 from simcred.engine import Progress
 from simcred.errors import OptionError
-from simcred.io.dataset import ParquetDataset
+from simcred.io.dataset import ParquetDataset, is_dataset
 from simcred.traces import TraceSet
 
 SUPPORTED = ("trace sets read out of core (Parquet data sets) support the runs test "
@@ -73,8 +73,8 @@ def compare_datasets(
     Parameters
     ----------
     a, b : TraceSet or path
-        A Parquet data set (folder, glob or URI; :mod:`simcred.io.dataset`) or a trace set in
-        memory (one partition).
+        A Parquet data set (folder, glob or URI; :mod:`simcred.io.dataset`), or a trace set in
+        memory or any other path (read with :meth:`TraceSet.read`: one partition).
     progress : callable, optional
         Wraps the partitions (three passes over both sets), e.g. a progress bar.
     relevance : bool
@@ -87,7 +87,12 @@ def compare_datasets(
     Comparison
         The same as ``compare`` on the runs in memory.
     """
-    from simcred.compare.process import comparison_options, resolve_bins, resolve_features
+    from simcred.compare.process import (
+        comparison_options,
+        resolve_bins,
+        resolve_features,
+        with_units,
+    )
 
     _refuse(options, relevance)
     sources = [_Source.open(x) for x in (a, b)]
@@ -102,8 +107,6 @@ def compare_datasets(
     validated = comparison_options(facts, **options)
     space, counts = work.result()
     inputs = tuple(InputInfo(f.source, f.digest, f.n_runs, f.n_rows) for f in facts)
-    from simcred.compare.process import with_units
-
     return with_units(counts_comparison(counts, facts[0].n_runs, space, validated, inputs),
                       *facts)
 
@@ -164,6 +167,9 @@ class _Source:
 
     @classmethod
     def open(cls, given: TraceSet | str | os.PathLike) -> _Source:
+        """A data set, or any other trace set (read in memory: one partition)."""
+        if not isinstance(given, TraceSet) and not is_dataset(given):
+            given = TraceSet.read(given)
         if isinstance(given, TraceSet):
             return cls(given.source, given.signals, None, given)
         dataset = ParquetDataset.open(given)
