@@ -149,10 +149,11 @@ def _options(features, bins, kernel, estimator, test, alpha, permutations, seed,
 @app.command()
 @one_line_errors
 def compare(
-    a: Annotated[Path, typer.Argument(metavar="A", help="Trace set A: a CSV directory or a "
-                                                        "Parquet file.")],
-    b: Annotated[Path, typer.Argument(metavar="B", help="Trace set B: a CSV directory or a "
-                                                        "Parquet file.")],
+    a: Annotated[str, typer.Argument(metavar="A", help="Trace set A: a CSV directory, a "
+                                                        "Parquet file, or a Parquet data set "
+                                                        "(folder, glob or URI; read out of "
+                                                        "core).")],
+    b: Annotated[str, typer.Argument(metavar="B", help="Trace set B, as A.")],
     features: Features = None,
     bins: Bins = "10",
     kernel: KernelOpt = Kernel.GAUSSIAN,
@@ -210,6 +211,8 @@ def compare(
 ) -> None:
     """Compare two trace sets: a chain verdict and the fraction of distinguishable transitions
     (Neurohr et al.)."""
+    given = tuple(p if "://" in p else Path(p) for p in (a, b))  # a URI is no local Path
+    a, b = Path(a), Path(b)
     check_count(baseline, "permutations", "--baseline", minimum=0)  # before any work: each
     check_count(bootstrap, "permutations", "--bootstrap", minimum=0)  # repeats the whole test
     if (observed is None) != (sensor is None and calibration is None) \
@@ -237,15 +240,17 @@ def compare(
         _compare_observed(a, b, observed.value, sensor, out, overwrite, as_json,
                           **extra, **options)
         return
-    sets = _read_sets(a, b, _reader_options(read))
+    sets = _read_sets(*given, _reader_options(read))
+    from simcred.io.dataset import is_dataset
+
+    steps = progress("partitions (3 passes)" if any(map(is_dataset, sets)) else "testing states")
     if out is None:
-        result = compare_sets(*sets, progress=progress("testing states"), **extra, **options)
+        result = compare_sets(*sets, progress=steps, **extra, **options)
     else:
         from simcred.report.figures import state_map
 
         with writing(out, a, b, overwrite=overwrite) as target:
-            result = compare_sets(*sets, progress=progress("testing states"), **extra,
-                                  **options)
+            result = compare_sets(*sets, progress=steps, **extra, **options)
             (target.path / "comparison.json").write_text(result.to_json())
             state_map(result, target.path / "state_map.png")
     if as_json:

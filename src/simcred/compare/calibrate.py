@@ -79,8 +79,15 @@ def run_level_comparison(a: EncodedRuns, b: EncodedRuns, space: StateSpace,
                          options: ComparisonOptions, inputs: tuple[InputInfo, InputInfo]
                          ) -> Comparison:
     """The run-level comparison of two encoded sets, with baseline and interval if asked."""
-    counts = pooled_counts(a, b, space)
-    n_a = len(a.offsets) - 1
+    return counts_comparison(pooled_counts(a, b, space), len(a.offsets) - 1, space, options,
+                             inputs)
+
+
+def counts_comparison(counts: RunCounts, n_a: int, space: StateSpace,
+                      options: ComparisonOptions, inputs: tuple[InputInfo, InputInfo]
+                      ) -> Comparison:
+    """The run-level comparison of pooled per-run counts whose first ``n_a`` runs are set A
+    (counts built in memory or partition by partition, :mod:`simcred.compare.outofcore`)."""
     in_a = np.arange(counts.n_runs) < n_a
     outcome = run_level_test(counts, in_a, space.decode, run_spec(options), space.shape,
                              stream(options.seed, RUNS_KEY))

@@ -180,6 +180,19 @@ def compare(
     >>> result.chain.pvalue <= 0.01, result.distance > 0
     (True, True)
     """
+    from simcred.io.dataset import is_dataset
+
+    if is_dataset(a) or is_dataset(b):  # Parquet data sets: read out of core
+        from simcred.compare.outofcore import compare_datasets
+
+        return compare_datasets(
+            a, b, progress=progress, relevance=relevance, features=features, bins=bins,
+            kernel=kernel, estimator=estimator, test=test, alpha=alpha, permutations=permutations,
+            seed=seed, multiplicity=multiplicity, chain=chain, one_sided=one_sided,
+            history=history, time_bins=time_bins, resample=resample, baseline=baseline,
+            bootstrap=bootstrap, continue_on_start_difference=continue_on_start_difference,
+            stop_early=stop_early, inputs=inputs, pair_by=pair_by, group_by=group_by,
+            margin=margin)
     a, b = load(a), load(b)
     options = comparison_options(
         [a, b], features=features, bins=bins, kernel=kernel, estimator=estimator, test=test,

@@ -131,6 +131,14 @@ class RunCounts:
             matrix = sp.csr_matrix((count.astype(np.float64), run_of, indptr),
                                    shape=(len(columns), n_runs))  # sorted by (column, run)
         del keys, runs
+        return cls.from_matrix(matrix, columns, n_states)
+
+    @classmethod
+    def from_matrix(cls, matrix: sp.csr_matrix, columns: np.ndarray, n_states: int
+                    ) -> RunCounts:
+        """The counts ``matrix`` (columns × runs, entries sorted by (column, run)) whose column
+        ``c`` is the pair key ``columns[c] = (state + 1) · n_states + successor`` (sorted)."""
+        size = np.int64(n_states)
         origin = columns // size - 1
         bounds = np.r_[0, np.flatnonzero(np.diff(origin)) + 1, len(columns)]
         return cls(matrix, origin[bounds[:-1]], bounds, columns % size)
