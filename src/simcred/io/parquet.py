@@ -31,6 +31,15 @@ def read(path: Path) -> TraceSet:
     except (pa.ArrowException, OSError) as exc:
         reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise TraceSetError(f"{path}: unreadable Parquet ({reason})") from None
+    traces = from_table(table, path)
+    del table
+    pa.default_memory_pool().release_unused()  # else Arrow's pool keeps the table's pages
+    return traces
+
+
+def from_table(table: pa.Table, path: Path | str) -> TraceSet:
+    """The trace set of a table in this layout (``path`` names it in errors and is its source;
+    a partition of a data set, :mod:`simcred.io.dataset`, is read through here too)."""
     if table.num_rows == 0:
         raise TraceSetError(f"{path}: the trace set is empty (no rows)")
     if RUN not in table.column_names:
@@ -44,15 +53,18 @@ def read(path: Path) -> TraceSet:
         raise TraceSetError(f"{path}: column '{RUN}' must hold text or integer run ids, not "
                             f"{runs.type}")
     ids, run_of_row = _run_codes(runs, path)
-    rows = np.argsort(run_of_row, kind="stable")
+    # rows grouped by run already (as simcred writes them) need no reordering copy
+    grouped = bool(np.all(run_of_row[1:] >= run_of_row[:-1]))
+    rows = slice(None) if grouped else np.argsort(run_of_row, kind="stable")
     signals = [n for n in table.column_names if n not in (RUN, TIME)]
     values = np.empty((table.num_rows, len(signals)))
     for j, name in enumerate(signals):
         values[:, j] = float_column(table, name, str(path))[rows]
     lengths = np.bincount(run_of_row, minlength=len(ids))
+    time = float_column(table, TIME, str(path))[rows]
     return TraceSet(
         signals=tuple(signals),
-        time=handed_over(float_column(table, TIME, str(path))[rows]),
+        time=handed_over(time.copy() if grouped else time),  # not a view into the table
         values=handed_over(values),
         offsets=np.concatenate([[0], np.cumsum(lengths)]),
         run_ids=ids,
