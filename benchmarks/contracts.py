@@ -37,37 +37,13 @@ from rich.table import Table
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 from _timing import best_of, machine  # noqa: E402
+from contract_libraries import chain as chain_library  # noqa: E402
 
 from simcred.contracts.algebra import Contract  # noqa: E402
 from simcred.contracts.configure import configure  # noqa: E402
 from simcred.contracts.library import Library  # noqa: E402
 from simcred.contracts.monitor import monitor  # noqa: E402
 from simcred.traces import TraceSet  # noqa: E402
-
-
-def chain_library(components: int, candidates: int, seed: int) -> tuple[Library, list]:
-    """I_k maps x_k to x_{k+1}; model (k, j) assumes 0 <= x_k <= hi and guarantees
-    0 <= x_{k+1} <= out; wider domains and tighter outputs cost more."""
-    rng = np.random.default_rng(seed)
-    spec = {"variables": {f"x{k}": {"unit": "m"} for k in range(components + 1)},
-            "components": {f"I{k}": {"inputs": [f"x{k}"], "outputs": [f"x{k + 1}"]}
-                           for k in range(components)},
-            "models": {}, "architecture": [f"I{k}" for k in range(components)],
-            "test_cases": {"tc": {"assumption": "0 <= x0 <= 10",
-                                  "guarantee": f"x{components} <= 9"}}}
-    table = []
-    for k in range(components):
-        row = []
-        for j in range(candidates):
-            hi, out = int(rng.integers(6, 16)), int(rng.integers(5, 14))
-            cost = round(float(hi - out) * 0.5 + 10 + rng.uniform(0, 3), 2)
-            spec["models"][f"M{k}_{j}"] = {
-                "implements": f"I{k}", "cost": cost,
-                "contract": {"assumption": f"0 <= x{k} <= {hi}",
-                             "guarantee": f"0 <= x{k + 1} <= {out}"}}
-            row.append((f"M{k}_{j}", hi, out, cost))
-        table.append(row)
-    return Library.from_dict(spec, source=f"chain(seed={seed})"), table
 
 
 def cheapest_by_enumeration(table, input_hi: int = 10, final: int = 9):

@@ -295,14 +295,8 @@ def contracts_quotient(
     as_json: Json = False,
 ) -> None:
     """The requirement on the missing model(s): C_tc / (composition of the given models)."""
-    from simcred.contracts import readable
-    from simcred.contracts.configure import (
-        missing_model_requirement,
-        missing_ports,
-        uncovered_assumptions,
-    )
     from simcred.contracts.library import Library
-    from simcred.contracts.project import project
+    from simcred.contracts.requirement import requirement
 
     pairs: dict[str, str] = {}
     for item in given:
@@ -311,22 +305,11 @@ def contracts_quotient(
             raise OptionError(f"--given must be COMPONENT=MODEL, got {item!r}")
         pairs[component.strip()] = model.strip()
     lib = Library.read(library)
-    requirement = missing_model_requirement(lib, test_case, pairs)
-    projected = project(requirement, missing_ports(lib, pairs), types=lib.types)
-    if projected is not None:
-        requirement = projected
-    uncovered = uncovered_assumptions(lib, test_case, pairs)
-    document = {"test_case": test_case, "given": pairs,
-                "projected_onto_ports": projected is not None,
-                "assumption": readable.text(readable.within(requirement.assumption,
-                                                            types=lib.types)),
-                "guarantee": readable.text(readable.within(
-                    requirement.guarantee, requirement.assumption, types=lib.types)),
-                "uncovered": uncovered}
-    summary = (f"requirement for the missing model(s):\n  assume:    {document['assumption']}"
-               f"\n  guarantee: {document['guarantee']}")
-    summary += "".join(f"\n{line}" for line in _uncovered_lines(uncovered))
-    _emit(document, as_json, escape(summary))
+    found = requirement(lib, test_case, pairs)
+    summary = (f"requirement for the missing model(s):\n  assume:    {found.assumption}"
+               f"\n  guarantee: {found.guarantee}\n  ({found.method})")
+    summary += "".join(f"\n{line}" for line in _uncovered_lines(found.uncovered))
+    _emit(found.to_dict(), as_json, escape(summary))
 
 
 def _uncovered_lines(uncovered: list[dict]) -> list[str]:

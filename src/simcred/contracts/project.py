@@ -22,6 +22,7 @@ looked wrong.
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
 from fractions import Fraction
 from functools import cache
 
@@ -35,14 +36,20 @@ from simcred.contracts.expr import (
     Num,
     Var,
     children,
-    conjoin,
-    conjuncts,
     variables,
 )
 from simcred.contracts.smt import to_z3, z3_variables
 
-
 METHODS = ("auto", "qe")
+
+
+@dataclass(frozen=True, slots=True)
+class Projection:
+    """A projected contract and the elimination that answered: ``"qe_rec"`` (checked
+    equivalent by z3) or ``"qe"`` for each of the assumption and the guarantee."""
+
+    contract: Contract
+    method: str
 
 
 def project(contract: Contract, keep: Iterable[str], *, types: Mapping[str, str] | None = None,
@@ -51,6 +58,14 @@ def project(contract: Contract, keep: Iterable[str], *, types: Mapping[str, str]
 
     ``method="auto"``: ``qe_rec`` checked equivalent, else ``qe`` (module docs); ``"qe"``: only
     the classic tactic (the path before issue 28, kept for comparison)."""
+    found = projection(contract, keep, types=types, timeout_ms=timeout_ms, method=method)
+    return None if found is None else found.contract
+
+
+def projection(contract: Contract, keep: Iterable[str], *,
+               types: Mapping[str, str] | None = None, timeout_ms: int = 10_000,
+               method: str = "auto") -> Projection | None:
+    """:func:`project` with the elimination that answered."""
     import z3
 
     if method not in METHODS:
@@ -69,8 +84,9 @@ def project(contract: Contract, keep: Iterable[str], *, types: Mapping[str, str]
     context = z3.Context()
     assumption, saturated = assumption.translate(context), saturated.translate(context)
     try:
-        a = _eliminate(assumption, timeout_ms, method)
-        g = _within(_eliminate(saturated, timeout_ms, method), a, timeout_ms)
+        a, by_a = _eliminate_by(assumption, timeout_ms, method)
+        g, by_g = _eliminate_by(saturated, timeout_ms, method)
+        g = _within(g, a, timeout_ms)
         order = _first_mentions(contract.assumption, contract.guarantee)
         projected = Contract(_in_order(from_z3(a), order), _in_order(from_z3(g), order),
                              f"proj({contract.name})")
@@ -78,7 +94,7 @@ def project(contract: Contract, keep: Iterable[str], *, types: Mapping[str, str]
         return None
     if (variables(projected.assumption) | variables(projected.guarantee)) - keep:
         return None
-    return projected
+    return Projection(projected, f"assumption by {by_a}, guarantee by {by_g}")
 
 
 def _first_mentions(*exprs: Expr) -> dict[str, int]:
@@ -107,8 +123,15 @@ def _in_order(e: Expr, order: Mapping[str, int]) -> Expr:
     return Logic(e.op, tuple(args))
 
 
-def _eliminate(formula, timeout_ms: int, method: str = "auto"):
-    """A quantifier-free formula equivalent to ``formula`` (module docs)."""
+def _eliminate(formula, timeout_ms: int):
+    """A quantifier-free formula equivalent to ``formula`` by the classic ``qe`` (model
+    parameters, :mod:`.parameters`, use it as before)."""
+    return _apply("qe", formula, timeout_ms)
+
+
+def _eliminate_by(formula, timeout_ms: int, method: str = "auto"):
+    """A quantifier-free formula equivalent to ``formula`` (module docs), and the tactic that
+    gave it."""
     import z3
 
     if method == "auto" and z3.is_quantifier(formula):
@@ -117,8 +140,8 @@ def _eliminate(formula, timeout_ms: int, method: str = "auto"):
         except (z3.Z3Exception, NotImplementedError):
             fast = None
         if fast is not None and _equivalent(fast, formula, timeout_ms):
-            return fast
-    return _apply("qe", formula, timeout_ms)
+            return fast, "qe_rec"
+    return _apply("qe", formula, timeout_ms), "qe"
 
 
 def _equivalent(a, b, timeout_ms: int) -> bool:
