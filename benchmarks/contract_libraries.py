@@ -118,6 +118,12 @@ def non_convex(components: int, models: int, seed: int) -> tuple[Library, float 
 def chain(components: int, candidates: int, seed: int) -> tuple[Library, list]:
     """I_k maps x_k to x_{k+1}; model (k, j) assumes 0 <= x_k <= hi and guarantees
     0 <= x_{k+1} <= out; wider domains and tighter outputs cost more."""
+    spec, table = chain_spec(components, candidates, seed)
+    return Library.from_dict(spec, source=f"chain(seed={seed})"), table
+
+
+def chain_spec(components: int, candidates: int, seed: int) -> tuple[dict, list]:
+    """:func:`chain` as the library's dictionary (for a YAML file) and its table."""
     rng = np.random.default_rng(seed)
     spec = {"variables": {f"x{k}": {"unit": "m"} for k in range(components + 1)},
             "components": {f"I{k}": {"inputs": [f"x{k}"], "outputs": [f"x{k + 1}"]}
@@ -137,4 +143,4 @@ def chain(components: int, candidates: int, seed: int) -> tuple[Library, list]:
                              "guarantee": f"0 <= x{k + 1} <= {out}"}}
             row.append((f"M{k}_{j}", hi, out, cost))
         table.append(row)
-    return Library.from_dict(spec, source=f"chain(seed={seed})"), table
+    return spec, table
