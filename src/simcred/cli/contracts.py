@@ -279,11 +279,53 @@ def contracts_configure(
     else:
         summary = (f"[red]{escape(test_case)}: {result.status.value}[/red] — "
                    f"{escape(result.reason)}")
+    if result.path:
+        summary += f"\nanswered by: {escape(result.path)}"
     if result.counterexamples:
         summary += "\npoints that ruled out cheaper setups:\n" + "\n".join(
             f"  {escape(_point(p))}" for p in result.counterexamples[:10])
+    summary += "".join(f"\n{escape(line)}" for line in _cheaper_lines(result))
     _emit(result.to_dict(), as_json, summary)
     raise typer.Exit(EXIT_CODES[result.status.value])
+
+
+def _cheaper_lines(result) -> list[str]:
+    """Why the cheapest setups below the answer fail (:mod:`simcred.contracts.explain`): the
+    models that differ from the answer, the cost, the first failing clause and its values."""
+    if not result.cheaper:
+        return []
+    head = ("cheaper setups, and why each fails (re-checked with z3):" if result.setup
+            and result.status.value == "holds" else
+            "the cheapest setups, and why each fails (re-checked with z3):")
+    lines = [head]
+    for r in result.cheaper:
+        if result.setup and result.status.value == "holds":
+            changed = [f"{c} = {m} (instead of {result.setup[c]})"
+                       for c, m in r.setup.items() if result.setup.get(c) != m]
+        else:
+            changed = [f"{c} = {m}" for c, m in r.setup.items()]
+        what = ", ".join(changed)
+        if r.kind in ("model assumption", "test case guarantee"):
+            owner, clause = r.clauses[0]
+            names = _names(clause)
+            where = _point({k: v for k, v in r.point.items() if k in names})
+            why = (f"{owner} assumes '{clause}', but the test case and the setup's "
+                   f"guarantees allow {where}" if owner != "test case" else
+                   f"the test case's guarantee '{clause}' fails at {where}, which the test "
+                   "case and the setup's guarantees allow")
+            more = len(r.clauses) - 1
+            why += f" (and {more} more clause(s) there)" if more > 0 else ""
+        else:
+            why = r.reason or r.kind
+        lines.append(f"  {what}; cost {float(r.cost):g}: {why}")
+    return lines
+
+
+def _names(clause: str) -> set[str]:
+    from simcred.contracts.expr import variables
+    from simcred.contracts.parse import parse
+
+    return set(variables(parse(clause)))
 
 
 @contracts_app.command("quotient")
