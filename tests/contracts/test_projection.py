@@ -229,3 +229,47 @@ def test_cli_quotient_says_how_it_was_projected(capsys):
     assert "assume: 0 <= q <= 50" in out and "guarantee: err <= 0.2" in out
     assert "(quotient projected onto the missing ports: assumption by qe_rec, guarantee by " \
            "qe_rec)" in out
+
+
+def test_assumptions_after_the_gap_are_ensured_by_the_requirement(capsys, tmp_path):
+    """19 given models: the assumptions of the models after the gap hold whenever the missing
+    model meets the requirement — by the closed form: from x11 in M11's domain every output
+    range lies in the next domain. With M15_0 (domain x15 <= 6 < M14_1's output bound 12) the
+    requirement's guarantee is false and nothing is claimed ensured."""
+    library, table = chain(20, 3, 1)
+    setup = configure(library, "tc").setup
+    given = {c: m for c, m in setup.items() if c != "I10"}
+    rows = {m: (hi, out) for row in table for m, hi, out, _ in row}
+    found = requirement(library, "tc", given)
+    depends = [i for i in found.uncovered if i["kind"] == "depends"]
+    assert {i["model"] for i in depends} == {given[f"I{k}"] for k in range(12, 20)}
+    bound = rows[given["I11"]][1]  # closed form: the range reaching each later model
+    for k in range(12, 20):
+        assert bound <= rows[given[f"I{k}"]][0]
+        bound = rows[given[f"I{k}"]][1]
+    assert all(i["ensured"] for i in depends)
+    items = " ".join(f"--given={c}={m}" for c, m in given.items()).split()
+    path = _chain_file(tmp_path, 20)
+    assert run(["contracts", "quotient", str(path), "--test-case", "tc", *items]) == 0
+    out = " ".join(capsys.readouterr().out.split())
+    assert ("the assumptions of M12_1, M13_2, M14_1, M15_2, M16_0, M17_1, M18_2, M19_1 (on x12, "
+            "x13, x14, x15, x16, x17, x18, x19) hold whenever the missing model(s) meet the "
+            "requirement above (proven with z3)") in out
+    assert "depends on what that model guarantees" not in out
+
+    broken = {**given, "I15": "M15_0"}
+    assert rows["M15_0"][0] < rows[given["I14"]][1]
+    found = requirement(library, "tc", broken)
+    assert found.guarantee == "false"
+    assert not any(i["ensured"] for i in found.uncovered)
+    assert any(i["model"] == "M15_0" and i["clause"] == "x15 <= 6" for i in found.uncovered)
+
+
+def _chain_file(folder: Path, n: int) -> Path:
+    """The chain(n, 3, 1) library as a YAML file in ``folder``."""
+    import yaml
+
+    spec, _ = _benchmark_module("contract_libraries").chain_spec(n, 3, 1)
+    path = folder / "chain.yaml"
+    path.write_text(yaml.safe_dump(spec))
+    return path

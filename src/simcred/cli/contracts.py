@@ -363,8 +363,11 @@ def _uncovered_lines(uncovered: list[dict]) -> list[str]:
             lines.append(f"no missing model can help: {item['model']} assumes "
                          f"'{item['clause']}', but the test case allows {_point(item['at'])}")
     groups: dict[tuple[str, str], list[str]] = {}
+    ensured: dict[str, list[str]] = {}  # "depends" clauses proven to follow from the requirement
     for item in uncovered:
-        if item["kind"] != "dead end":
+        if item["kind"] == "depends" and item.get("ensured"):
+            ensured.setdefault(item["model"], []).append(item["clause"])
+        elif item["kind"] != "dead end":
             groups.setdefault((item["model"], item["kind"]), []).append(item["clause"])
     for (model, kind), clauses in groups.items():
         text = " and ".join(clauses)
@@ -372,6 +375,11 @@ def _uncovered_lines(uncovered: list[dict]) -> list[str]:
                      "the requirement above)" if kind == "requirement" else
                      f"{model} assumes '{text}': whether a missing model can ensure it depends "
                      "on what that model guarantees (see the requirement above)")
+    if ensured:
+        names = list(dict.fromkeys(n for clauses in ensured.values()
+                                   for n in sorted(_names(" and ".join(clauses)))))
+        lines.append(f"the assumptions of {', '.join(ensured)} (on {', '.join(names)}) hold "
+                     "whenever the missing model(s) meet the requirement above (proven with z3)")
     return lines
 
 
