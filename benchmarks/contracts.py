@@ -20,7 +20,9 @@
     models at n = 20): the requirement (quotient, projection, readable text, uncovered
     assumptions) with the projection by ``qe_rec`` against the classic ``qe`` (the path before,
     which gives up after its 10 s limit and prints the unprojected quotient) in the same run,
-    the quotient's size in AST nodes (linear in the models) and the whole CLI command;
+    the quotient's size in AST nodes (linear in the models) and the whole CLI command; also a
+    chain of 30, and (not --quick) one component missing from the configured setups of the
+    generated non-convex and fan-in libraries (f) and the DAG of (c);
 (e) ``until`` over 10⁶ samples at 100 Hz with a 10 s window (1,000 samples), the block
     decomposition against the loop over window offsets (the method before issue 28) on 10⁵
     samples of the same signal, in samples per second (target: 10⁶ samples < 2 s).
@@ -297,14 +299,14 @@ def bench_library(seeds) -> list[dict]:
     return rows
 
 
-def bench_quotient(sizes) -> list[dict]:
+def bench_quotient(sizes, others: bool) -> list[dict]:
     """(g): module docs."""
     import os
     import subprocess
     import tempfile
 
     import yaml
-    from contract_libraries import chain_spec
+    from contract_libraries import chain_spec, fan_in, non_convex
 
     from simcred.contracts.algebra import equivalent
     from simcred.contracts.configure import missing_model_requirement
@@ -314,28 +316,39 @@ def bench_quotient(sizes) -> list[dict]:
     def size(e) -> int:
         return 1 + sum(size(c) for c in children(e))
 
-    rows = []
+    cases = []  # (label, library, its dictionary for the CLI or None, missing component)
     for n in sizes:
         spec, _ = chain_spec(n, 3, 1)
-        library = Library.from_dict(spec, source=f"chain({n}, 3, 1)")
-        setup = configure(library, "tc").setup
-        missing = f"I{n // 2}"
+        cases.append((f"chain of {n}", Library.from_dict(spec, source=f"chain({n}, 3, 1)"),
+                      spec, f"I{n // 2}"))
+    if others:
+        cases += [("non-convex 20 × 6", non_convex(20, 6, 0)[0], None, "I10"),
+                  ("fan-in 20 × 6, a sensor missing", fan_in(20, 6, 0)[0], None, "S7"),
+                  ("fan-in 20 × 6, AD missing", fan_in(20, 6, 0)[0], None, "AD"),
+                  ("DAG 12 × 4–6 (section c, seed 0)", dag_library(0)[0], None, "C6")]
+    rows = []
+    for label, library, spec, missing in cases:
+        setup = configure(library, "tc", explain=0).setup
         given = {c: m for c, m in setup.items() if c != missing}
         quotient = missing_model_requirement(library, "tc", given)
         seconds, new = best_of(lambda library=library, given=given: requirement(
             library, "tc", given), 1)
         old_seconds, old = best_of(lambda library=library, given=given: requirement(
             library, "tc", given, projection_method="qe"), 1)
-        with tempfile.TemporaryDirectory() as folder:
-            path = Path(folder) / "chain.yaml"
-            path.write_text(yaml.safe_dump(spec))
-            command = [sys.executable, "-m", "simcred.cli", "contracts", "quotient", str(path),
-                       "--test-case", "tc", *(f"--given={c}={m}" for c, m in given.items())]
-            env = {**os.environ, "PYTHONPATH": os.pathsep.join(
-                filter(None, [str(ROOT / "src"), os.environ.get("PYTHONPATH")]))}
-            cli_seconds, done = best_of(lambda command=command, env=env: subprocess.run(
-                command, capture_output=True, text=True, check=False, env=env), 1)
-        rows.append({"case": f"(g) quotient, chain of {n}, {len(given)} given models",
+        cli_seconds = cli_exit = None
+        if spec is not None:
+            with tempfile.TemporaryDirectory() as folder:
+                path = Path(folder) / "chain.yaml"
+                path.write_text(yaml.safe_dump(spec))
+                command = [sys.executable, "-m", "simcred.cli", "contracts", "quotient",
+                           str(path), "--test-case", "tc",
+                           *(f"--given={c}={m}" for c, m in given.items())]
+                env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+                    filter(None, [str(ROOT / "src"), os.environ.get("PYTHONPATH")]))}
+                cli_seconds, done = best_of(lambda command=command, env=env: subprocess.run(
+                    command, capture_output=True, text=True, check=False, env=env), 1)
+                cli_exit = done.returncode
+        rows.append({"case": f"(g) quotient, {label}, {len(given)} given models",
                      "given_models": len(given), "seconds": seconds,
                      "quotient_nodes": size(quotient.assumption) + size(quotient.guarantee),
                      "projected": new.projected, "method": new.method,
@@ -350,7 +363,7 @@ def bench_quotient(sizes) -> list[dict]:
                                                    types=library.types).status.value
                                         if old.projected and new.projected else None),
                      "speedup_vs_old": old_seconds / seconds,
-                     "cli_seconds": cli_seconds, "cli_exit": done.returncode,
+                     "cli_seconds": cli_seconds, "cli_exit": cli_exit,
                      "target": "19 given models < 10 s"})
     return rows
 
@@ -370,7 +383,8 @@ def main() -> None:
                "temporal": lambda: bench_temporal(10**5 if quick else 10**6),
                "until": lambda: bench_until(10**5 if quick else 10**6),
                "library": lambda: bench_library(range(1) if quick else range(2)),
-               "quotient": lambda: bench_quotient((6, 20) if quick else (6, 11, 16, 20))}
+               "quotient": lambda: bench_quotient((6, 20) if quick else (6, 11, 16, 20, 30),
+                                                  others=not quick)}
     results = {"machine": machine()}
     results.update({name: benches[name]() if name in args.only else [] for name in SECTIONS})
     table = Table(title="simcred contracts benchmarks")
@@ -418,8 +432,9 @@ def main() -> None:
                       f"assume {r['assumption']}; guarantee {r['guarantee']} "
                       f"({r['quotient_nodes']} quotient nodes)",
                       f"{r['speedup_vs_old']:.0f}× the classic qe path "
-                      f"({r['old_seconds']:.1f} s, {old}); CLI {r['cli_seconds']:.1f} s; "
-                      f"{r['target']}")
+                      f"({r['old_seconds']:.1f} s, {old}); "
+                      + (f"CLI {r['cli_seconds']:.1f} s; " if r["cli_seconds"] else "")
+                      + r["target"])
     Console(width=160).print(table)
     name = "contracts" + ("-quick" if quick else "") + (
         "" if set(args.only) == set(SECTIONS) else "-" + "-".join(args.only))
