@@ -15,7 +15,7 @@ issue 28, whose answer is now checked the same way (if neither is proven equival
 projection and the quotient is shown as it is). ``qe`` gives up after its time limit on a
 20-component chain with 19 given models (the formula's disjunctions multiply); ``qe_rec`` answers
 the same projection in milliseconds (benchmarks/contracts.py, section "quotient"). The check is
-not idle: on an 11-component chain (``chain(11, 3, 1)``, the middle model missing) z3 5.4's
+not idle: on an 11-component chain (``chain(11, 3, 1)``, the middle model missing) z3-solver 5.4.1's
 ``qe`` returned an assumption that is *not* equivalent to the projection (it also holds at
 x5 = 7, x6 = 15, where no behaviour of the given models puts x5 — weaker, so the requirement
 was still sufficient, but not the exact one, and unreadable). ``qe_rec`` is
