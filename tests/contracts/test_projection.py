@@ -129,9 +129,9 @@ def test_random_chains_with_one_missing_model_project_to_the_closed_form(seed):
 
 
 def test_chain_of_11_is_the_exact_projection():
-    """chain(11, 3, 1) without I5: z3 5.4's classic ``qe`` answered an assumption that also
-    holds at x5 = 7 (not the projection; benchmarks/contracts.py section "quotient"); every
-    answer is now proven equivalent, and this one is the closed form."""
+    """chain(11, 3, 1) without I5: the classic ``qe`` of z3-solver 5.4.1 answered an
+    assumption that also holds at x5 = 7 (not the projection; benchmarks/contracts.py section
+    "quotient"); every answer is now proven equivalent, and this one is the closed form."""
     library, table = chain(11, 3, 1)
     setup = configure(library, "tc").setup
     given = {c: m for c, m in setup.items() if c != "I5"}

@@ -7,21 +7,20 @@ G' → (A → G) hold by construction), so a model satisfying it satisfies the o
 quotient, seed 003 sec. V-B). Projection needs quantifier elimination, which z3 does for linear
 real arithmetic; elsewhere it may not, and :func:`project` returns None.
 
-Elimination (our design): first z3's QSAT-based recursive elimination (tactic ``qe_rec``,
-Bjørner & Janota 2015, model-based projection), then z3 checks that its result is equivalent to
-the quantified formula (one solver call; an answer that is not proven equivalent is discarded);
-otherwise, or if it fails, z3's classic ``qe`` (virtual substitution), the only path before
+Elimination (our design): first z3's QSAT-based recursive elimination (tactic ``qe_rec``;
+Bjørner & Janota, "Playing with quantified satisfaction", LPAR 2015), then z3 checks that its
+result is equivalent to the quantified formula (one solver call; an answer not proven
+equivalent is discarded); otherwise, or if it fails, z3's classic ``qe``, the only path before
 issue 28, whose answer is now checked the same way (if neither is proven equivalent, there is no
-projection and the quotient is shown as it is). ``qe`` gives up after its time limit on a
-20-component chain with 19 given models (the formula's disjunctions multiply); ``qe_rec`` answers
-the same projection in milliseconds (benchmarks/contracts.py, section "quotient"). The check is
-not idle: on an 11-component chain (``chain(11, 3, 1)``, the middle model missing) z3-solver 5.4.1's
-``qe`` returned an assumption that is *not* equivalent to the projection (it also holds at
-x5 = 7, x6 = 15, where no behaviour of the given models puts x5 — weaker, so the requirement
-was still sufficient, but not the exact one, and unreadable). ``qe_rec`` is
-used on quantified formulas only: on a quantifier-free goal it decides satisfiability and
-returns ``true`` (``x > 0`` becomes ``true``), which is why an earlier attempt with ``qe2``
-looked wrong.
+projection and the quotient is shown as it is). ``qe`` gives up after its 10 s limit on a
+20-component chain with 19 given models; ``qe_rec`` with its check takes 0.16 s there
+(benchmarks/contracts.py, section "quotient"). The check is not idle: on an 11-component chain
+(``chain(11, 3, 1)``, the middle model missing) the classic ``qe`` of z3-solver 5.4.1 returned
+an assumption that is *not* equivalent to the projection (it also holds at x5 = 7, x6 = 15,
+where no behaviour of the given models puts x5 — weaker, so the requirement was still
+sufficient, but not the exact one, and unreadable). ``qe_rec`` is used on quantified formulas
+only: on a quantifier-free goal it decides satisfiability and returns ``true`` (``x > 0``
+becomes ``true``), which is why an earlier attempt with ``qe2`` looked wrong.
 """
 
 from __future__ import annotations
