@@ -199,3 +199,21 @@ def test_cli_configure_prints_the_path_and_the_cheaper_setups(capsys):
     assert cheaper["kind"] == "model assumption"
     assert cheaper["clauses"][0] == {"owner": "M2b", "clause": "q <= 20"}
     assert Fraction(cheaper["at_exact"]["q"]) > 20
+
+
+def test_cli_explain_option(capsys):
+    assert run(["contracts", "configure", str(FIGURE2), "--test-case", "C_tc", "--explain", "0",
+                "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["cheaper_setups"] == []
+    assert run(["contracts", "configure", str(FIGURE2), "--test-case", "C_tc", "--explain",
+                "0"]) == 0
+    assert "cheaper setups" not in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("value", ["-1", "101", "some", "1.5"])
+def test_cli_explain_out_of_range_is_one_line_exit_2(value, capsys):
+    code = run(["contracts", "configure", str(FIGURE2), "--test-case", "C_tc", "--explain",
+                value])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert err.count("\n") == 1 and "Traceback" not in err and "--explain" in err, err

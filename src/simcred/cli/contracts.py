@@ -262,15 +262,19 @@ def contracts_configure(
     library: LibraryPath,
     test_case: Annotated[str, typer.Option(help="The test case to configure a setup for.")],
     timeout_ms: Timeout = 10_000,
+    explain: Annotated[int, typer.Option(min=0, max=100, help="How many of the cheapest setups "
+                                         "below the answer to re-check and explain (the "
+                                         "clause each leaves uncovered); 0: none.")] = 3,
     as_json: Json = False,
 ) -> None:
-    """The cheapest setup whose composition refines the test case contract, with the proof."""
+    """The cheapest setup whose composition refines the test case contract, with the proof,
+    the path that answered and why the cheapest cheaper setups fail."""
     from simcred.contracts.configure import configure
     from simcred.contracts.library import Library
 
     lib = Library.read(library)
     with _about(library):
-        result = configure(lib, test_case, timeout_ms=timeout_ms)
+        result = configure(lib, test_case, timeout_ms=timeout_ms, explain=explain)
     if result.setup and result.status.value == "holds":
         setup = ", ".join(f"{c} = {m}" for c, m in result.setup.items())
         summary = (f"[green]{escape(test_case)}: cheapest valid setup[/green] {escape(setup)} "
