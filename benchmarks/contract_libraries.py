@@ -14,8 +14,14 @@ contract reasoning), so that benchmarks and tests can check optimality beyond br
   guarantees an interval of x_{k+1}. Test case: ``1 <= x0 <= 5``, guarantee ``x_n <= 12``.
   Oracle: dynamic programming along the chain over the chosen model's output interval.
 
-Seeded with numpy ``default_rng(seed)``; every function returns ``(Library, optimum cost or
-None)``.
+* :func:`chain` — interval contracts along a chain I_0 … I_{n-1} (x_k → x_{k+1}); model j of
+  I_k assumes ``0 <= x_k <= hi`` and guarantees ``0 <= x_{k+1} <= out`` (wider domains and
+  tighter outputs cost more). Test case: ``0 <= x0 <= 10``, guarantee ``x_n <= 9``. Returns
+  ``(Library, table)`` with the table of ``(model, hi, out, cost)`` per component (the
+  benchmarks' closed-form enumeration and the quotient tests' closed form use it).
+
+Seeded with numpy ``default_rng(seed)``; :func:`fan_in` and :func:`non_convex` return
+``(Library, optimum cost or None)``.
 """
 
 from __future__ import annotations
@@ -107,3 +113,34 @@ def non_convex(components: int, models: int, seed: int) -> tuple[Library, float 
         best = step
     valid = [cost for out, cost in best.items() if out[1] <= 12]
     return library, (float(min(valid)) if valid else None)
+
+
+def chain(components: int, candidates: int, seed: int) -> tuple[Library, list]:
+    """I_k maps x_k to x_{k+1}; model (k, j) assumes 0 <= x_k <= hi and guarantees
+    0 <= x_{k+1} <= out; wider domains and tighter outputs cost more."""
+    spec, table = chain_spec(components, candidates, seed)
+    return Library.from_dict(spec, source=f"chain(seed={seed})"), table
+
+
+def chain_spec(components: int, candidates: int, seed: int) -> tuple[dict, list]:
+    """:func:`chain` as the library's dictionary (for a YAML file) and its table."""
+    rng = np.random.default_rng(seed)
+    spec = {"variables": {f"x{k}": {"unit": "m"} for k in range(components + 1)},
+            "components": {f"I{k}": {"inputs": [f"x{k}"], "outputs": [f"x{k + 1}"]}
+                           for k in range(components)},
+            "models": {}, "architecture": [f"I{k}" for k in range(components)],
+            "test_cases": {"tc": {"assumption": "0 <= x0 <= 10",
+                                  "guarantee": f"x{components} <= 9"}}}
+    table = []
+    for k in range(components):
+        row = []
+        for j in range(candidates):
+            hi, out = int(rng.integers(6, 16)), int(rng.integers(5, 14))
+            cost = round(float(hi - out) * 0.5 + 10 + rng.uniform(0, 3), 2)
+            spec["models"][f"M{k}_{j}"] = {
+                "implements": f"I{k}", "cost": cost,
+                "contract": {"assumption": f"0 <= x{k} <= {hi}",
+                             "guarantee": f"0 <= x{k + 1} <= {out}"}}
+            row.append((f"M{k}_{j}", hi, out, cost))
+        table.append(row)
+    return spec, table

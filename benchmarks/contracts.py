@@ -15,6 +15,14 @@
     20 × 6 and 30 × 8, fan-in 10 × 4 and 20 × 6): the path configure takes (0-1 optimisation)
     against the generator's independent optimum, and the counterexample-guided path (the method
     before issue 28) in the same run, stopped after CEGIS_LIMIT_S seconds;
+(g) ``contracts quotient`` on a chain of n interval contracts (benchmarks/contract_libraries.py
+    ``chain(n, 3, 1)``), the cheapest valid setup given except the middle component (19 given
+    models at n = 20): the requirement (quotient, projection, readable text, uncovered
+    assumptions) with the projection by ``qe_rec`` against the classic ``qe`` (the path before,
+    which gives up after its 10 s limit and prints the unprojected quotient) in the same run,
+    the quotient's size in AST nodes (linear in the models) and the whole CLI command; also a
+    chain of 30, and (not --quick) one component missing from the configured setups of the
+    generated non-convex and fan-in libraries (f) and the DAG of (c);
 (e) ``until`` over 10⁶ samples at 100 Hz with a 10 s window (1,000 samples), the block
     decomposition against the loop over window offsets (the method before issue 28) on 10⁵
     samples of the same signal, in samples per second (target: 10⁶ samples < 2 s).
@@ -37,37 +45,13 @@ from rich.table import Table
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 from _timing import best_of, machine  # noqa: E402
+from contract_libraries import chain as chain_library  # noqa: E402
 
 from simcred.contracts.algebra import Contract  # noqa: E402
 from simcred.contracts.configure import configure  # noqa: E402
 from simcred.contracts.library import Library  # noqa: E402
 from simcred.contracts.monitor import monitor  # noqa: E402
 from simcred.traces import TraceSet  # noqa: E402
-
-
-def chain_library(components: int, candidates: int, seed: int) -> tuple[Library, list]:
-    """I_k maps x_k to x_{k+1}; model (k, j) assumes 0 <= x_k <= hi and guarantees
-    0 <= x_{k+1} <= out; wider domains and tighter outputs cost more."""
-    rng = np.random.default_rng(seed)
-    spec = {"variables": {f"x{k}": {"unit": "m"} for k in range(components + 1)},
-            "components": {f"I{k}": {"inputs": [f"x{k}"], "outputs": [f"x{k + 1}"]}
-                           for k in range(components)},
-            "models": {}, "architecture": [f"I{k}" for k in range(components)],
-            "test_cases": {"tc": {"assumption": "0 <= x0 <= 10",
-                                  "guarantee": f"x{components} <= 9"}}}
-    table = []
-    for k in range(components):
-        row = []
-        for j in range(candidates):
-            hi, out = int(rng.integers(6, 16)), int(rng.integers(5, 14))
-            cost = round(float(hi - out) * 0.5 + 10 + rng.uniform(0, 3), 2)
-            spec["models"][f"M{k}_{j}"] = {
-                "implements": f"I{k}", "cost": cost,
-                "contract": {"assumption": f"0 <= x{k} <= {hi}",
-                             "guarantee": f"0 <= x{k + 1} <= {out}"}}
-            row.append((f"M{k}_{j}", hi, out, cost))
-        table.append(row)
-    return Library.from_dict(spec, source=f"chain(seed={seed})"), table
 
 
 def cheapest_by_enumeration(table, input_hi: int = 10, final: int = 9):
@@ -315,7 +299,76 @@ def bench_library(seeds) -> list[dict]:
     return rows
 
 
-SECTIONS = ("configuration", "scale", "monitor", "temporal", "until", "library")
+def bench_quotient(sizes, others: bool) -> list[dict]:
+    """(g): module docs."""
+    import os
+    import subprocess
+    import tempfile
+
+    import yaml
+    from contract_libraries import chain_spec, fan_in, non_convex
+
+    from simcred.contracts.algebra import equivalent
+    from simcred.contracts.configure import missing_model_requirement
+    from simcred.contracts.expr import children
+    from simcred.contracts.requirement import requirement
+
+    def size(e) -> int:
+        return 1 + sum(size(c) for c in children(e))
+
+    cases = []  # (label, library, its dictionary for the CLI or None, missing component)
+    for n in sizes:
+        spec, _ = chain_spec(n, 3, 1)
+        cases.append((f"chain of {n}", Library.from_dict(spec, source=f"chain({n}, 3, 1)"),
+                      spec, f"I{n // 2}"))
+    if others:
+        cases += [("non-convex 20 × 6", non_convex(20, 6, 0)[0], None, "I10"),
+                  ("fan-in 20 × 6, a sensor missing", fan_in(20, 6, 0)[0], None, "S7"),
+                  ("fan-in 20 × 6, AD missing", fan_in(20, 6, 0)[0], None, "AD"),
+                  ("DAG 12 × 4–6 (section c, seed 0)", dag_library(0)[0], None, "C6")]
+    rows = []
+    for label, library, spec, missing in cases:
+        setup = configure(library, "tc", explain=0).setup
+        given = {c: m for c, m in setup.items() if c != missing}
+        quotient = missing_model_requirement(library, "tc", given)
+        seconds, new = best_of(lambda library=library, given=given: requirement(
+            library, "tc", given), 1)
+        old_seconds, old = best_of(lambda library=library, given=given: requirement(
+            library, "tc", given, projection_method="qe"), 1)
+        cli_seconds = cli_exit = None
+        if spec is not None:
+            with tempfile.TemporaryDirectory() as folder:
+                path = Path(folder) / "chain.yaml"
+                path.write_text(yaml.safe_dump(spec))
+                command = [sys.executable, "-m", "simcred.cli", "contracts", "quotient",
+                           str(path), "--test-case", "tc",
+                           *(f"--given={c}={m}" for c, m in given.items())]
+                env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+                    filter(None, [str(ROOT / "src"), os.environ.get("PYTHONPATH")]))}
+                cli_seconds, done = best_of(lambda command=command, env=env: subprocess.run(
+                    command, capture_output=True, text=True, check=False, env=env), 1)
+                cli_exit = done.returncode
+        rows.append({"case": f"(g) quotient, {label}, {len(given)} given models",
+                     "given_models": len(given), "seconds": seconds,
+                     "quotient_nodes": size(quotient.assumption) + size(quotient.guarantee),
+                     "projected": new.projected, "method": new.method,
+                     "assumption": new.assumption, "guarantee": new.guarantee,
+                     "old_seconds": old_seconds, "old_projected": old.projected,
+                     "old_assumption_chars": len(old.assumption),
+                     "old_guarantee_chars": len(old.guarantee),
+                     "same_text": (old.assumption, old.guarantee) == (new.assumption,
+                                                                       new.guarantee),
+                     # z3: is the classic path's projection the same contract as the new one?
+                     "old_equivalent": (equivalent(old.contract, new.contract,
+                                                   types=library.types).status.value
+                                        if old.projected and new.projected else None),
+                     "speedup_vs_old": old_seconds / seconds,
+                     "cli_seconds": cli_seconds, "cli_exit": cli_exit,
+                     "target": "19 given models < 10 s"})
+    return rows
+
+
+SECTIONS = ("configuration", "scale", "monitor", "temporal", "until", "library", "quotient")
 
 
 def main() -> None:
@@ -329,7 +382,9 @@ def main() -> None:
                "monitor": lambda: bench_monitor(10**6 if quick else 10**7),
                "temporal": lambda: bench_temporal(10**5 if quick else 10**6),
                "until": lambda: bench_until(10**5 if quick else 10**6),
-               "library": lambda: bench_library(range(1) if quick else range(2))}
+               "library": lambda: bench_library(range(1) if quick else range(2)),
+               "quotient": lambda: bench_quotient((6, 20) if quick else (6, 11, 16, 20, 30),
+                                                  others=not quick)}
     results = {"machine": machine()}
     results.update({name: benches[name]() if name in args.only else [] for name in SECTIONS})
     table = Table(title="simcred contracts benchmarks")
@@ -368,6 +423,18 @@ def main() -> None:
                       f"{r['speedup_vs_loop']:.0f}× the loop over window offsets "
                       f"({r['loop_samples_per_s']:.3g} samples/s on {r['loop_samples']:,}); "
                       f"{r['target']}")
+    for r in results["quotient"]:
+        old = ("same text" if r["same_text"] else
+               f"projected: {r['old_projected']}, {r['old_assumption_chars']} + "
+               f"{r['old_guarantee_chars']} characters" + (
+                   f", equivalent: {r['old_equivalent']}" if r["old_projected"] else ""))
+        table.add_row(r["case"], f"{r['seconds']:.2f}",
+                      f"assume {r['assumption']}; guarantee {r['guarantee']} "
+                      f"({r['quotient_nodes']} quotient nodes)",
+                      f"{r['speedup_vs_old']:.0f}× the classic qe path "
+                      f"({r['old_seconds']:.1f} s, {old}); "
+                      + (f"CLI {r['cli_seconds']:.1f} s; " if r["cli_seconds"] else "")
+                      + r["target"])
     Console(width=160).print(table)
     name = "contracts" + ("-quick" if quick else "") + (
         "" if set(args.only) == set(SECTIONS) else "-" + "-".join(args.only))

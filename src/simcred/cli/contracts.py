@@ -262,15 +262,19 @@ def contracts_configure(
     library: LibraryPath,
     test_case: Annotated[str, typer.Option(help="The test case to configure a setup for.")],
     timeout_ms: Timeout = 10_000,
+    explain: Annotated[int, typer.Option(min=0, max=100, help="How many of the cheapest setups "
+                                         "below the answer to re-check and explain (the "
+                                         "clause each leaves uncovered); 0: none.")] = 3,
     as_json: Json = False,
 ) -> None:
-    """The cheapest setup whose composition refines the test case contract, with the proof."""
+    """The cheapest setup whose composition refines the test case contract, with the proof,
+    the path that answered and why the cheapest cheaper setups fail."""
     from simcred.contracts.configure import configure
     from simcred.contracts.library import Library
 
     lib = Library.read(library)
     with _about(library):
-        result = configure(lib, test_case, timeout_ms=timeout_ms)
+        result = configure(lib, test_case, timeout_ms=timeout_ms, explain=explain)
     if result.setup and result.status.value == "holds":
         setup = ", ".join(f"{c} = {m}" for c, m in result.setup.items())
         summary = (f"[green]{escape(test_case)}: cheapest valid setup[/green] {escape(setup)} "
@@ -279,11 +283,53 @@ def contracts_configure(
     else:
         summary = (f"[red]{escape(test_case)}: {result.status.value}[/red] — "
                    f"{escape(result.reason)}")
+    if result.path:
+        summary += f"\nanswered by: {escape(result.path)}"
     if result.counterexamples:
         summary += "\npoints that ruled out cheaper setups:\n" + "\n".join(
             f"  {escape(_point(p))}" for p in result.counterexamples[:10])
+    summary += "".join(f"\n{escape(line)}" for line in _cheaper_lines(result))
     _emit(result.to_dict(), as_json, summary)
     raise typer.Exit(EXIT_CODES[result.status.value])
+
+
+def _cheaper_lines(result) -> list[str]:
+    """Why the cheapest setups below the answer fail (:mod:`simcred.contracts.explain`): the
+    models that differ from the answer, the cost, the first failing clause and its values."""
+    if not result.cheaper:
+        return []
+    head = ("cheaper setups, and why each fails (re-checked with z3):" if result.setup
+            and result.status.value == "holds" else
+            "the cheapest setups, and why each fails (re-checked with z3):")
+    lines = [head]
+    for r in result.cheaper:
+        if result.setup and result.status.value == "holds":
+            changed = [f"{c} = {m} (instead of {result.setup[c]})"
+                       for c, m in r.setup.items() if result.setup.get(c) != m]
+        else:
+            changed = [f"{c} = {m}" for c, m in r.setup.items()]
+        what = ", ".join(changed)
+        if r.kind in ("model assumption", "test case guarantee"):
+            owner, clause = r.clauses[0]
+            names = _names(clause)
+            where = _point({k: v for k, v in r.point.items() if k in names})
+            why = (f"{owner} assumes '{clause}', but the test case and the setup's "
+                   f"guarantees allow {where}" if owner != "test case" else
+                   f"the test case's guarantee '{clause}' fails at {where}, which the test "
+                   "case and the setup's guarantees allow")
+            more = len(r.clauses) - 1
+            why += f" (and {more} more clause(s) there)" if more > 0 else ""
+        else:
+            why = r.reason or r.kind
+        lines.append(f"  {what}; cost {float(r.cost):g}: {why}")
+    return lines
+
+
+def _names(clause: str) -> set[str]:
+    from simcred.contracts.expr import variables
+    from simcred.contracts.parse import parse
+
+    return set(variables(parse(clause)))
 
 
 @contracts_app.command("quotient")
@@ -295,14 +341,8 @@ def contracts_quotient(
     as_json: Json = False,
 ) -> None:
     """The requirement on the missing model(s): C_tc / (composition of the given models)."""
-    from simcred.contracts import readable
-    from simcred.contracts.configure import (
-        missing_model_requirement,
-        missing_ports,
-        uncovered_assumptions,
-    )
     from simcred.contracts.library import Library
-    from simcred.contracts.project import project
+    from simcred.contracts.requirement import requirement
 
     pairs: dict[str, str] = {}
     for item in given:
@@ -311,22 +351,11 @@ def contracts_quotient(
             raise OptionError(f"--given must be COMPONENT=MODEL, got {item!r}")
         pairs[component.strip()] = model.strip()
     lib = Library.read(library)
-    requirement = missing_model_requirement(lib, test_case, pairs)
-    projected = project(requirement, missing_ports(lib, pairs), types=lib.types)
-    if projected is not None:
-        requirement = projected
-    uncovered = uncovered_assumptions(lib, test_case, pairs)
-    document = {"test_case": test_case, "given": pairs,
-                "projected_onto_ports": projected is not None,
-                "assumption": readable.text(readable.within(requirement.assumption,
-                                                            types=lib.types)),
-                "guarantee": readable.text(readable.within(
-                    requirement.guarantee, requirement.assumption, types=lib.types)),
-                "uncovered": uncovered}
-    summary = (f"requirement for the missing model(s):\n  assume:    {document['assumption']}"
-               f"\n  guarantee: {document['guarantee']}")
-    summary += "".join(f"\n{line}" for line in _uncovered_lines(uncovered))
-    _emit(document, as_json, escape(summary))
+    found = requirement(lib, test_case, pairs)
+    summary = (f"requirement for the missing model(s):\n  assume:    {found.assumption}"
+               f"\n  guarantee: {found.guarantee}\n  ({found.method})")
+    summary += "".join(f"\n{line}" for line in _uncovered_lines(found.uncovered))
+    _emit(found.to_dict(), as_json, escape(summary))
 
 
 def _uncovered_lines(uncovered: list[dict]) -> list[str]:
@@ -338,8 +367,11 @@ def _uncovered_lines(uncovered: list[dict]) -> list[str]:
             lines.append(f"no missing model can help: {item['model']} assumes "
                          f"'{item['clause']}', but the test case allows {_point(item['at'])}")
     groups: dict[tuple[str, str], list[str]] = {}
+    ensured: dict[str, list[str]] = {}  # "depends" clauses proven to follow from the requirement
     for item in uncovered:
-        if item["kind"] != "dead end":
+        if item["kind"] == "depends" and item.get("ensured"):
+            ensured.setdefault(item["model"], []).append(item["clause"])
+        elif item["kind"] != "dead end":
             groups.setdefault((item["model"], item["kind"]), []).append(item["clause"])
     for (model, kind), clauses in groups.items():
         text = " and ".join(clauses)
@@ -347,6 +379,11 @@ def _uncovered_lines(uncovered: list[dict]) -> list[str]:
                      "the requirement above)" if kind == "requirement" else
                      f"{model} assumes '{text}': whether a missing model can ensure it depends "
                      "on what that model guarantees (see the requirement above)")
+    if ensured:
+        names = list(dict.fromkeys(n for clauses in ensured.values()
+                                   for n in sorted(_names(" and ".join(clauses)))))
+        lines.append(f"the assumptions of {', '.join(ensured)} (on {', '.join(names)}) hold "
+                     "whenever the missing model(s) meet the requirement above (proven with z3)")
     return lines
 
 

@@ -34,6 +34,7 @@ from simcred.contracts.monitor import MonitorReport, Violation, monitor
 from simcred.contracts.parse import parse
 from simcred.contracts.project import project
 from simcred.contracts.readable import text as readable_text
+from simcred.contracts.requirement import Requirement, requirement
 from simcred.contracts.temporal import Timeline
 
 __all__ = [
@@ -43,6 +44,7 @@ __all__ = [
     "Library",
     "LibraryError",
     "MonitorReport",
+    "Requirement",
     "Status",
     "Timeline",
     "Verdict",
@@ -62,6 +64,7 @@ __all__ = [
     "readable_text",
     "receptive",
     "refines",
+    "requirement",
     "setup_contract",
     "setup_refines",
     "to_text",

@@ -35,6 +35,7 @@ from simcred.contracts.algebra import (
     valid,
 )
 from simcred.contracts.evaluate import evaluate
+from simcred.contracts.explain import Rejection, cheaper_setups
 from simcred.contracts.expr import conjoin, conjuncts, to_text, variables
 from simcred.contracts.library import Library, LibraryError
 from simcred.contracts.optimise import optimise
@@ -57,6 +58,8 @@ class Configuration:
     counterexamples: list[dict] = field(default_factory=list)  # exact values (Fraction)
     reason: str = ""
     method: str = ""
+    path: str = ""  # which search answered: PATHS
+    cheaper: list[Rejection] = field(default_factory=list)  # why cheaper setups fail
 
     def to_dict(self) -> dict:
         return {"test_case": self.test_case, "status": self.status.value, "setup": self.setup,
@@ -66,7 +69,12 @@ class Configuration:
                                     for p in self.counterexamples],
                 "counterexamples_exact": [{k: _exact(v) for k, v in p.items()}
                                           for p in self.counterexamples],
-                "reason": self.reason, "method": self.method}
+                "reason": self.reason, "method": self.method, "path": self.path,
+                "cheaper_setups": [r.to_dict() for r in self.cheaper]}
+
+
+PATHS = {"intervals": "interval fast path", "optimisation": "0-1 program",
+         "cegis": "counterexample-guided search (CEGIS)", "none": "none"}
 
 
 def _plain(v):
@@ -83,14 +91,32 @@ def setup_contract(library: Library, setup: dict[str, str]) -> Contract:
 
 def configure(library: Library, test_case: str, *, fixed: dict[str, str] | None = None,
               timeout_ms: int = DEFAULT_TIMEOUT_MS, max_iterations: int = 1000,
-              search: str = "auto") -> Configuration:
+              search: str = "auto", explain: int = 3) -> Configuration:
     """The cheapest setup whose composed contract refines the test case (see module docs).
 
     In the interval fragment the search is exact interval propagation with branch-and-bound
     (:mod:`simcred.contracts.search`), and the chosen setup is then proven with z3; otherwise
     counterexample-guided search over z3 ``Optimize``. ``search="cegis"`` forces the latter
-    (for comparison).
+    (for comparison). The result's ``path`` names the search that answered; ``cheaper``
+    explains the ``explain`` cheapest setups cheaper than the answer (all setups' cheapest when
+    none is valid), re-checked with z3, each with the clause it leaves uncovered
+    (:mod:`.explain`).
     """
+    if explain < 0:
+        raise LibraryError(f"explain must be a count >= 0, got {explain!r}")
+    result = _configure(library, test_case, fixed=fixed, timeout_ms=timeout_ms,
+                        max_iterations=max_iterations, search=search)
+    if result.status is Status.UNKNOWN or explain == 0 or result.path == PATHS["none"]:
+        return result
+    choices = _choices(library, library.components(), fixed or {})
+    chosen = result.setup if result.status is Status.HOLDS else None
+    return replace(result, cheaper=cheaper_setups(
+        library, library.test_case(test_case), choices, chosen, limit=explain,
+        timeout_ms=timeout_ms))
+
+
+def _configure(library: Library, test_case: str, *, fixed, timeout_ms, max_iterations,
+               search) -> Configuration:
     if search not in ("auto", "cegis", "optimise"):
         raise LibraryError(f"search must be 'auto', 'optimise' or 'cegis', got {search!r}")
     target = library.test_case(test_case)
@@ -100,7 +126,7 @@ def configure(library: Library, test_case: str, *, fixed: dict[str, str] | None 
         return Configuration(test_case, Status.FAILS, None, None, None, 0, [],
                              f"no setup refines the test case: component '{empty[0]}' has no "
                              "model (an empty library, e.g. learned contracts without a valid "
-                             "candidate)", "none (no setup to search)")
+                             "candidate)", "none (no setup to search)", PATHS["none"])
     choices = _choices(library, library.components(), fixed)
     consistency: dict[str, Realisability] = {}
     excluded: list[str] = []  # why a model or a combination can give no certificate
@@ -121,7 +147,7 @@ def configure(library: Library, test_case: str, *, fixed: dict[str, str] | None 
                                  found.iterations, found.counterexamples,
                                  f"the solver could not decide whether the guarantees of "
                                  f"{', '.join(found.setup.values())} can all hold: "
-                                 f"{check.verdict.reason}", found.method)
+                                 f"{check.verdict.reason}", found.method, found.path)
         excluded.append(f"{' with '.join(check.models)} — {check.text()}")
         owner = {m: library.spec.models[m].implements for m in check.models}
         if len(check.models) > 1:
@@ -133,7 +159,7 @@ def configure(library: Library, test_case: str, *, fixed: dict[str, str] | None 
             return Configuration(test_case, Status.FAILS, None, None, check.verdict,
                                  found.iterations, [], "no certificate: every model of "
                                  f"component '{component}' has a guarantee that cannot hold "
-                                 f"({'; '.join(excluded)})", found.method)
+                                 f"({'; '.join(excluded)})", found.method, found.path)
 
 
 def _search(library, test_case, target, choices, forbidden, search, timeout_ms, max_iterations):
@@ -144,12 +170,13 @@ def _search(library, test_case, target, choices, forbidden, search, timeout_ms, 
     if problem is not None:
         result = _by_intervals(library, test_case, target, choices, problem, timeout_ms)
         if result is not None:
-            return result
+            return replace(result, path=PATHS["intervals"])
     if search in ("auto", "optimise"):
         result = _by_optimisation(library, test_case, target, choices, forbidden, timeout_ms)
         if result is not None:
-            return result
-    return _by_cegis(library, test_case, target, choices, timeout_ms, max_iterations, forbidden)
+            return replace(result, path=PATHS["optimisation"])
+    return replace(_by_cegis(library, test_case, target, choices, timeout_ms, max_iterations,
+                             forbidden), path=PATHS["cegis"])
 
 
 def _by_optimisation(library, test_case, target, choices, forbidden, timeout_ms):

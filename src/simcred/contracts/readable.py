@@ -69,7 +69,8 @@ def _scaled(e: Compare) -> Compare:
 
 
 def _union(parts: list[Expr]) -> Expr | None:
-    """A disjunction of bounds on one variable whose union is one interval, as that interval."""
+    """A disjunction of bounds on one variable whose union is one interval, as that interval;
+    with gaps, the disjuncts in ascending order (whatever order the solver gave them in)."""
     found = []
     for p in parts:
         clauses = p.args if isinstance(p, Logic) and p.op == "and" else (p,)
@@ -89,7 +90,9 @@ def _union(parts: list[Expr]) -> Expr | None:
             break  # already unbounded above: the rest lies inside
         if span.lo is not None and (span.lo > merged.hi or (
                 span.lo == merged.hi and merged.hi_open and span.lo_open)):
-            return None  # a gap: not one interval
+            # a gap: not one interval; the intervals in ascending order
+            ranked = sorted(zip(found, parts, strict=True), key=lambda f: _lower_key(f[0][1]))
+            return Logic("or", tuple(p for _, p in ranked))
         if span.hi is None or span.hi > merged.hi or (span.hi == merged.hi and not span.hi_open):
             merged = Interval(merged.lo, span.hi, merged.lo_open, span.hi_open)
     if merged is None:
