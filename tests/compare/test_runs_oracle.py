@@ -342,12 +342,17 @@ def test_exact_enumeration_every_split_as_observed_rejects_at_most_alpha(options
 @given(st.integers(1, 40), st.lists(st.integers(1, 25), min_size=1, max_size=30),
        st.integers(0, 2**32 - 1))
 def test_run_counts_by_table_equal_the_sorted_counts(n_states, lengths, seed):
-    """The lookup-table count (small key spaces) gives the sort path's matrix, entry for entry."""
+    """The lookup-table count (small key spaces, in parts, block by block) gives the sort
+    path's matrix, entry for entry."""
     rng = np.random.default_rng(seed)
     offsets = np.r_[0, np.cumsum(lengths)]
     codes = np.minimum(rng.geometric(0.3, offsets[-1]) - 1, n_states - 1)
-    table = runs.RunCounts.from_codes(codes, offsets, n_states)
+    cut = len(lengths) // 2  # two parts (A, B), counted block by block of a few rows
+    parts = [(codes[:offsets[cut]], offsets[:cut + 1]),
+             (codes[offsets[cut]:], offsets[cut:] - offsets[cut])] if cut else [(codes, offsets)]
     with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(runs, "BLOCK_ROWS", int(rng.integers(1, 40)))
+        table = runs.RunCounts.from_parts(parts, n_states)
         patch.setattr(runs, "DIRECT_KEYS", 0)
         sorted_ = runs.RunCounts.from_codes(codes, offsets, n_states)
     for name in ("indptr", "indices", "data"):

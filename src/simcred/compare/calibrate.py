@@ -70,9 +70,7 @@ def stream(seed: int, *key: int) -> np.random.Generator:
 
 
 def pooled_counts(a: EncodedRuns, b: EncodedRuns, space: StateSpace) -> RunCounts:
-    codes = np.concatenate([a.codes, b.codes])
-    offsets = np.concatenate([a.offsets, b.offsets[1:] + a.offsets[-1]])
-    return RunCounts.from_codes(codes, offsets, space.n_states)
+    return RunCounts.from_parts([(a.codes, a.offsets), (b.codes, b.offsets)], space.n_states)
 
 
 def run_level_comparison(a: EncodedRuns, b: EncodedRuns, space: StateSpace,

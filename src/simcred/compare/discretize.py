@@ -15,6 +15,8 @@ from simcred.errors import OptionError
 
 #: Values looked at first when checking whether a feature has at most B distinct values.
 DISTINCT_PROBE = 4096
+#: Values binned at a time when counting the pooled values per bin.
+CHUNK = 2**20
 #: Largest state space: pair codes ``from * |S| + to`` must fit into int64.
 MAX_STATES = 2**31
 
@@ -139,5 +141,8 @@ def feature_edges(column: np.ndarray, n_bins: int, scratch: bool = False) -> np.
             return (distinct[:-1] + distinct[1:]) / 2
     edges = np.unique(np.quantile(column, np.arange(1, n_bins) / n_bins,
                                   overwrite_input=scratch))
-    held = np.bincount(np.searchsorted(edges, column, side="right"), minlength=len(edges) + 1)
+    held = np.zeros(len(edges) + 1, dtype=np.int64)
+    for lo in range(0, len(column), CHUNK):  # in chunks: no bin index per value at once
+        held += np.bincount(np.searchsorted(edges, column[lo:lo + CHUNK], side="right"),
+                            minlength=len(edges) + 1)
     return edges[held[:-1] > 0]

@@ -254,8 +254,9 @@ class Prepared:
         info = InputInfo(traces.source, traces.digest(), traces.n_runs, traces.n_rows)
         if resample is not None:
             traces = resample_runs(traces, resample)
-        return cls(traces.features(features), traces.time if time else np.empty(0),
-                   traces.offsets, info)
+        values = traces.values if tuple(features) == tuple(traces.signals) \
+            else traces.features(features)  # all signals in order: the set's own (read-only)
+        return cls(values, traces.time if time else np.empty(0), traces.offsets, info)
 
     @classmethod
     def for_options(cls, traces: TraceSet, options: ComparisonOptions) -> Prepared:

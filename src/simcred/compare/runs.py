@@ -51,6 +51,7 @@ References
 from __future__ import annotations
 
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import StrEnum
 
@@ -94,6 +95,8 @@ class OneSided(StrEnum):
 
 #: Largest key space ``(|S| + 1)·|S|`` counted through a lookup table rather than a sort.
 DIRECT_KEYS = 2**22
+#: Rows per block of runs when counting through the lookup table.
+BLOCK_ROWS = 2**20
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -113,24 +116,36 @@ class RunCounts:
     @classmethod
     def from_codes(cls, codes: np.ndarray, offsets: np.ndarray, n_states: int) -> RunCounts:
         """Count start states and within-run transitions of state ``codes`` split by ``offsets``."""
-        n_runs = len(offsets) - 1
+        return cls.from_parts([(codes, offsets)], n_states)
+
+    @classmethod
+    def from_parts(cls, parts: Sequence[tuple[np.ndarray, np.ndarray]], n_states: int
+                   ) -> RunCounts:
+        """:meth:`from_codes` of the parts' runs one after the other (set A's, then B's),
+        without joining them: small state spaces are counted block by block of runs
+        (:data:`BLOCK_ROWS` rows), so the working memory does not grow with the data."""
         size = np.int64(n_states)
-        last = offsets[1:] - 1  # a run's last row starts no transition
-        starts = codes[offsets[:-1]]
-        keys = (codes[:-1] + 1) * size + codes[1:]  # block START is origin START + 1 = 0
-        keys[last[:-1]] = -1
-        keys = np.concatenate([starts, keys[keys >= 0]])
-        lengths = np.diff(offsets) - 1
-        runs = np.concatenate([np.arange(n_runs, dtype=np.int64),
-                               np.repeat(np.arange(n_runs, dtype=np.int64), lengths)])
-        if (size + 1) * size <= DIRECT_KEYS:
-            columns, matrix = _counted_directly(keys, runs, n_runs, int((size + 1) * size))
-        else:
-            columns, column_of, run_of, count = _pair_counts(keys, runs, n_runs)
+        if (size + 1) * size > DIRECT_KEYS:
+            codes = np.concatenate([c for c, _ in parts])
+            starts = np.cumsum([0] + [len(c) for c, _ in parts[:-1]])
+            offsets = np.concatenate([[0]] + [o[1:] + s for (_, o), s in zip(parts, starts,
+                                                                             strict=True)])
+            keys, runs = _pair_keys(codes, offsets, size)
+            columns, column_of, run_of, count = _pair_counts(keys, runs, len(offsets) - 1)
             indptr = np.r_[0, np.cumsum(np.bincount(column_of, minlength=len(columns)))]
             matrix = sp.csr_matrix((count.astype(np.float64), run_of, indptr),
-                                   shape=(len(columns), n_runs))  # sorted by (column, run)
-        del keys, runs
+                                   shape=(len(columns), len(offsets) - 1))  # (column, run)
+            return cls.from_matrix(matrix, columns, n_states)
+        blocks = [(codes, offsets, lo, hi) for codes, offsets in parts
+                  for lo, hi in _run_blocks(offsets)]
+        present = np.zeros(int((size + 1) * size), dtype=bool)
+        for block in blocks:
+            present[_pair_keys(*_block(*block), size)[0]] = True
+        columns = np.flatnonzero(present)
+        column_index = np.cumsum(present) - 1
+        del present
+        matrix = sp.hstack([_block_counts(*_block(*block), size, column_index, len(columns))
+                            for block in blocks], format="csr")
         return cls.from_matrix(matrix, columns, n_states)
 
     @classmethod
@@ -158,21 +173,47 @@ class RunCounts:
                          self.successors[used])
 
 
-def _counted_directly(keys: np.ndarray, runs: np.ndarray, n_runs: int, key_space: int
-                      ) -> tuple[np.ndarray, sp.csr_matrix]:
-    """Distinct keys and the (key × run) count matrix without sorting: keys index a table.
+def _run_blocks(offsets: np.ndarray) -> list[tuple[int, int]]:
+    """Consecutive ranges of runs of about :data:`BLOCK_ROWS` rows each (at least one run)."""
+    n_runs = len(offsets) - 1
+    cuts = np.searchsorted(offsets, np.arange(BLOCK_ROWS, offsets[-1], BLOCK_ROWS))
+    bounds = np.unique(np.r_[0, np.clip(cuts, 1, n_runs), n_runs])
+    return list(zip(bounds[:-1].tolist(), bounds[1:].tolist(), strict=True))
 
-    ``runs`` must not decrease within any one key (both the start block and the transitions
-    are listed run by run), so the COO → CSR conversion leaves each row's runs sorted and
-    adding up duplicates is one linear pass: O(rows + key space) instead of a sort.
+
+def _block(codes: np.ndarray, offsets: np.ndarray, lo: int, hi: int
+           ) -> tuple[np.ndarray, np.ndarray]:
+    """The codes and offsets of runs ``lo .. hi - 1`` (views, offsets from 0)."""
+    return codes[offsets[lo]:offsets[hi]], offsets[lo:hi + 1] - offsets[lo]
+
+
+def _pair_keys(codes: np.ndarray, offsets: np.ndarray, size: np.int64
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """Per start state and per transition: its key ``(from + 1) · |S| + to`` (a start: its
+    state, block START = origin START + 1 = 0) and its run; starts first, run by run."""
+    n_runs = len(offsets) - 1
+    starts = codes[offsets[:-1]]
+    keys = (codes[:-1] + 1) * size + codes[1:]
+    keys[offsets[1:-1] - 1] = -1  # a run's last row starts no transition
+    keys = np.concatenate([starts, keys[keys >= 0]])
+    runs = np.concatenate([np.arange(n_runs, dtype=np.int64),
+                           np.repeat(np.arange(n_runs, dtype=np.int64), np.diff(offsets) - 1)])
+    return keys, runs
+
+
+def _block_counts(codes: np.ndarray, offsets: np.ndarray, size: np.int64,
+                  column_index: np.ndarray, n_columns: int) -> sp.csr_matrix:
+    """The (column × run) counts of one block of runs, without sorting.
+
+    Runs never decrease within one key (starts and transitions are listed run by run), so the
+    COO → CSR conversion leaves each row's runs sorted and adding up duplicates is one linear
+    pass.
     """
-    present = np.bincount(keys, minlength=key_space) > 0
-    columns = np.flatnonzero(present)
-    column_of = (np.cumsum(present) - 1)[keys]
-    matrix = sp.csr_matrix((np.ones(len(keys)), (column_of, runs)),
-                           shape=(len(columns), n_runs))
+    keys, runs = _pair_keys(codes, offsets, size)
+    matrix = sp.csr_matrix((np.ones(len(keys)), (column_index[keys], runs)),
+                           shape=(n_columns, len(offsets) - 1))
     matrix.sum_duplicates()
-    return columns, matrix
+    return matrix
 
 
 def _pair_counts(keys: np.ndarray, runs: np.ndarray, n_runs: int):

@@ -52,25 +52,59 @@ def from_table(table: pa.Table, path: Path | str) -> TraceSet:
             or pa.types.is_integer(label_type)):
         raise TraceSetError(f"{path}: column '{RUN}' must hold text or integer run ids, not "
                             f"{runs.type}")
-    ids, run_of_row = _run_codes(runs, path)
-    # rows grouped by run already (as simcred writes them) need no reordering copy
-    grouped = bool(np.all(run_of_row[1:] >= run_of_row[:-1]))
-    rows = slice(None) if grouped else np.argsort(run_of_row, kind="stable")
-    signals = [n for n in table.column_names if n not in (RUN, TIME)]
+    grouped = _grouped_runs(runs)
+    if grouped is None:
+        ids, run_of_row = _run_codes(runs, path)
+        rows = np.argsort(run_of_row, kind="stable")
+        offsets = np.r_[0, np.cumsum(np.bincount(run_of_row, minlength=len(ids)))]
+        del run_of_row
+    else:  # rows grouped by run (as simcred writes them): no per-row codes, no reordering
+        (ids, offsets), rows = grouped, slice(None)
+    del runs
+    table = table.drop_columns([RUN])
+    pool = pa.default_memory_pool()
+    signals = [n for n in table.column_names if n != TIME]
     values = np.empty((table.num_rows, len(signals)))
-    for j, name in enumerate(signals):
+    for j, name in enumerate(signals):  # one column at a time, its Arrow pages given back
         values[:, j] = float_column(table, name, str(path))[rows]
-    lengths = np.bincount(run_of_row, minlength=len(ids))
+        table = table.drop_columns([name])
+        pool.release_unused()
     time = float_column(table, TIME, str(path))[rows]
+    time = time.copy() if grouped else time  # not a view into Arrow's buffer
     return TraceSet(
         signals=tuple(signals),
-        time=handed_over(time.copy() if grouped else time),  # not a view into the table
+        time=handed_over(time),
         values=handed_over(values),
-        offsets=np.concatenate([[0], np.cumsum(lengths)]),
+        offsets=offsets,
         run_ids=ids,
         metadata=_metadata(table, path),
         source=str(path),
     )
+
+
+def _grouped_runs(runs: pa.ChunkedArray) -> tuple[tuple[str, ...], np.ndarray] | None:
+    """Run labels and offsets read off a dictionary column whose rows are grouped by run with
+    distinct labels (as :func:`write` stores them; a run may span row groups); None for any
+    other column, which :func:`_run_codes` reads."""
+    if not pa.types.is_dictionary(runs.type):
+        return None
+    labels: list[str] = []
+    starts: list[np.ndarray] = []
+    position = 0
+    for chunk in runs.chunks:  # one per row group, each with its own dictionary
+        index = chunk.indices.to_numpy(zero_copy_only=False)
+        if len(index) == 0:
+            continue
+        first = np.r_[0, np.flatnonzero(index[1:] != index[:-1]) + 1]
+        names = [str(v) for v in chunk.dictionary.take(pa.array(index[first])).to_pylist()]
+        if labels and names[0] == labels[-1]:  # the last run goes on in this row group
+            names, first = names[1:], first[1:]
+        labels += names
+        starts.append(first + position)
+        position += len(index)
+    if len(set(labels)) != len(labels):
+        return None  # a run in two blocks, or labels equal as text: the general reading
+    return tuple(labels), np.r_[np.concatenate(starts), position].astype(np.int64)
 
 
 def _run_codes(runs: pa.ChunkedArray, path: Path) -> tuple[tuple[str, ...], np.ndarray]:
