@@ -122,22 +122,17 @@ class DaskEngine(Engine):
             return self.client.gather(futures)
 
     def keep(self, task, items):
-        from dask.distributed import wait
-
-        futures = self.client.map(_run_task, items, task=task, values={},
-                                  key=_keys(task, len(items)))
-        wait(futures)
-        with _worker_deaths():
-            for future in futures:
-                if future.status == "error":
-                    future.result()  # raises the task's own error here
-        return futures
+        # not waited for: a later map's tasks start as soon as their handles' results exist,
+        # and a failed task's error is raised where its result (or a task using it) is fetched
+        return self.client.map(_run_task, items, task=task, values={},
+                               key=_keys(task, len(items)))
 
     def put(self, values):
         return self.client.scatter(list(values), hash=False)
 
     def fetch(self, handles):
-        return self.client.gather(list(handles))
+        with _worker_deaths():
+            return self.client.gather(list(handles))
 
     def close(self) -> None:
         self.client.close()

@@ -7,6 +7,7 @@ import pytest
 
 from helpers import ar_set
 from simcred.compare import compare, matrix
+from simcred.errors import TraceSetError
 from simcred.report.figures import _project, distance_heatmap, state_map
 from simcred.traces import TraceSet
 
@@ -53,10 +54,13 @@ def test_matrix_of_files_is_identical_for_every_worker_count(three_sets, tmp_pat
         raise AssertionError("the client read a trace set")
 
     monkeypatch.setattr(TraceSet, "read", classmethod(no_reading_here))
+    (tmp_path / "broken.parquet").write_text("not parquet")
     for workers in (1, 2):
         runner = DaskEngine(workers=workers)
         try:
             assert matrix(paths, runner=runner, **options).to_json() == serial
+            with pytest.raises(TraceSetError, match="broken.parquet: unreadable Parquet"):
+                matrix([*paths, tmp_path / "broken.parquet"], runner=runner, **options)
         finally:
             runner.close()
 
