@@ -63,3 +63,18 @@ def cli_compare_known_answer(capsys, a, b, feature, same, *options):
     assert doc["chain"]["rejected"] is (not same)
     assert (doc["distance"] == 0.0) is same
     return doc
+
+
+def benchmark_module(name: str):
+    """A module of benchmarks/ loaded by its path: putting benchmarks/ on sys.path would shadow
+    installed packages for every later test (benchmarks/sumo.py hides SUMO's ``sumo``)."""
+    import importlib.util
+    import sys
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(f"_bench_{name}", path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # dataclasses look their module up while the file runs
+    spec.loader.exec_module(module)
+    return module

@@ -10,10 +10,8 @@ clause does not); the closed form of interval chains for which kind of clause fa
 from __future__ import annotations
 
 import copy
-import importlib.util
 import itertools
 import json
-import sys
 from fractions import Fraction
 from pathlib import Path
 
@@ -21,6 +19,7 @@ import numpy as np
 import pytest
 import yaml
 
+from helpers import benchmark_module
 from simcred.cli import run
 from simcred.contracts.algebra import refines
 from simcred.contracts.configure import configure, setup_contract
@@ -34,18 +33,9 @@ FIGURE2 = ROOT / "examples" / "contracts" / "figure2.yaml"
 UNITS = ROOT / "examples" / "contracts" / "units_and_time.yaml"
 
 
-def _benchmark_module(name: str):
-    """A module of benchmarks/ loaded by its path (not via sys.path: benchmarks/sumo.py would
-    hide SUMO's ``sumo``)."""
-    path = ROOT / "benchmarks" / f"{name}.py"
-    spec = importlib.util.spec_from_file_location(f"_bench_{name}", path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
 
 
-_libraries = _benchmark_module("contract_libraries")
+_libraries = benchmark_module("contract_libraries")
 chain, fan_in, non_convex = _libraries.chain, _libraries.fan_in, _libraries.non_convex
 
 

@@ -8,33 +8,19 @@ programme over its numbers (larger ones), and the counterexample-guided path.
 
 from __future__ import annotations
 
-import importlib.util
 import itertools
-import sys
 from fractions import Fraction
-from pathlib import Path
 
 import pytest
 
+from helpers import benchmark_module
 from simcred.contracts.algebra import Status, valid
 from simcred.contracts.configure import configure, setup_refines
 from simcred.contracts.intervals import Interval
 from simcred.contracts.optimise import _within_union
 from simcred.contracts.parse import parse
 
-
-def _benchmark_module(name: str):
-    """A module of benchmarks/ loaded by its path: putting benchmarks/ on sys.path would shadow
-    installed packages for every later test (benchmarks/sumo.py hides SUMO's ``sumo``)."""
-    path = Path(__file__).resolve().parents[2] / "benchmarks" / f"{name}.py"
-    spec = importlib.util.spec_from_file_location(f"_bench_{name}", path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # dataclasses look their module up while the file runs
-    spec.loader.exec_module(module)
-    return module
-
-
-_libraries = _benchmark_module("contract_libraries")
+_libraries = benchmark_module("contract_libraries")
 fan_in, non_convex = _libraries.fan_in, _libraries.non_convex
 
 

@@ -13,12 +13,12 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from helpers import benchmark_module
 from simcred.cli import run
 from simcred.contracts import readable
 from simcred.contracts.algebra import Contract, compose_all, equivalent, refines
@@ -35,18 +35,9 @@ UNITS = ROOT / "examples" / "contracts" / "units_and_time.yaml"
 VEHICLE = ROOT / "src" / "simcred" / "data" / "contracts" / "vehicle.yaml"
 
 
-def _benchmark_module(name: str):
-    """A module of benchmarks/ loaded by its path (not via sys.path: benchmarks/sumo.py would
-    hide SUMO's ``sumo``)."""
-    path = ROOT / "benchmarks" / f"{name}.py"
-    spec = importlib.util.spec_from_file_location(f"_bench_{name}", path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
 
 
-chain = _benchmark_module("contract_libraries").chain
+chain = benchmark_module("contract_libraries").chain
 
 
 def closed_form(table, choice: dict[int, int], missing: int, *, top: int = 10,
@@ -269,7 +260,7 @@ def _chain_file(folder: Path, n: int) -> Path:
     """The chain(n, 3, 1) library as a YAML file in ``folder``."""
     import yaml
 
-    spec, _ = _benchmark_module("contract_libraries").chain_spec(n, 3, 1)
+    spec, _ = benchmark_module("contract_libraries").chain_spec(n, 3, 1)
     path = folder / "chain.yaml"
     path.write_text(yaml.safe_dump(spec))
     return path
