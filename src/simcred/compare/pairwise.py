@@ -19,7 +19,7 @@ from simcred.compare.process import Prepared, compare_prepared, comparison_optio
 from simcred.compare.result import Comparison, ComparisonOptions
 from simcred.compare.tables import matrix_frame
 from simcred.engine import Engine, Progress, engine
-from simcred.errors import OptionError
+from simcred.errors import OptionError, TraceSetError
 from simcred.traces import TraceSet
 
 
@@ -113,6 +113,9 @@ def matrix(
     >>> m.distances.shape, float(m.distances[0, 2])
     ((3, 3), 0.0)
     """
+    for given in sets:  # a stat, not a read: the workers read the files
+        if not isinstance(given, TraceSet) and not Path(given).exists():
+            raise TraceSetError(f"{given}: no such file or directory")
     if len(sets) < 2:
         raise OptionError(f"a distance matrix needs at least 2 trace sets, got {len(sets)}")
     if runner is None:
