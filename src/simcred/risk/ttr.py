@@ -54,7 +54,7 @@ from simcred.risk.scene import (
     forward_states,
     road_frames,
 )
-from simcred.risk.ttr_search import CollidingRows, search_ttr
+from simcred.risk.ttr_search import CollidingRows, bisect_ttr, scan_ttr
 
 # work arrays of one chunk of scenes (and of a block of TTR search starts) hold at most about this
 # many samples
@@ -191,9 +191,29 @@ def _take(a: np.ndarray, shape: tuple[int, ...], sel: np.ndarray) -> np.ndarray:
     return np.broadcast_to(a, shape).reshape(-1, shape[-1])[sel]
 
 
+def _scene_risk(ttr: np.ndarray, probabilities: np.ndarray, reaction: ReactionTime
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Contributions (S, O, P), risk per object (S, O) and per scene (S,) of TTRs (S, O, P).
+
+    Monotone: TTRs no larger element by element give risks no smaller (in floating point too:
+    every step is a monotone, rounded operation)."""
+    contribution = probabilities * reaction.accident_probability(ttr)
+    per_object = contribution.sum(axis=-1)
+    with np.errstate(divide="ignore"):                  # log1p(-1) = -inf: a certain accident
+        total = 0.0 - np.expm1(np.log1p(-np.minimum(per_object, 1.0)).sum(axis=-1))  # no -0.0
+    return contribution, per_object, total
+
+
 def _chunk(ego: dict[str, np.ndarray], obj: dict[str, np.ndarray], predictions: PredictionSet,
-           evasion: EvasionSet, lanes: Lanes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """TTR, maneuver code and planned collision time (scenes, objects, predictions)."""
+           evasion: EvasionSet, lanes: Lanes, floor: float | None = None,
+           reaction: ReactionTime | None = None
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """TTR, maneuver code and planned collision time (scenes, objects, predictions).
+
+    ``floor`` (with ``reaction``): only scenes whose risk can reach ``floor`` are searched in
+    full; in the others the TTRs are lower bounds (0 before the scan, the scan's lower end
+    after it) whose risk is an upper bound below ``floor``, and the codes are those of the
+    scan (or -1). Used by :func:`max_risk`."""
     times = predictions.times
     x_ego = ego["x"]                       # lanes run along x: work relative to the EGO's x
     plan = _plan({**ego, "x": np.zeros_like(x_ego)}, predictions, lanes)
@@ -208,7 +228,11 @@ def _chunk(ego: dict[str, np.ndarray], obj: dict[str, np.ndarray], predictions: 
     collision_time = np.where(collides, times[np.minimum(first, times.size - 1)], np.inf)
     ttr = np.where(collides, 0.0, np.inf)                               # first == 0: TTR 0
     code = np.full(collides.shape, -1)
-    sel = np.flatnonzero(collides & (first > 0))
+    searched = collides & (first > 0)
+    if floor is not None:      # TTRs 0: the largest risk each scene can have
+        bound = _scene_risk(ttr, predictions.probabilities, reaction)[2]
+        searched &= (bound >= floor)[:, None, None]
+    sel = np.flatnonzero(searched)
     if sel.size:
         scene = sel // (collides.shape[1] * collides.shape[2])
         path = plan["path"]
@@ -221,8 +245,15 @@ def _chunk(ego: dict[str, np.ndarray], obj: dict[str, np.ndarray], predictions: 
                                    path.length[scene]),
             ego_half=tuple(h[scene] for h in plan["half"]),
         )
-        found, found_code = search_ttr(rows, first.ravel()[sel], times, evasion, lanes,
-                                        work_samples=_CHUNK_SAMPLES)
+        lo_idx, hi_idx, scan_code = scan_ttr(rows, first.ravel()[sel], times, evasion, lanes,
+                                             work_samples=_CHUNK_SAMPLES)
+        only = None
+        if floor is not None:  # the scan's lower ends: a bound on each scene's risk
+            np.put(ttr, sel, np.where(lo_idx >= 0, times[np.maximum(lo_idx, 0)], 0.0))
+            bound = _scene_risk(ttr, predictions.probabilities, reaction)[2]
+            only = bound[sel // (collides.shape[1] * collides.shape[2])] >= floor
+        found, found_code = bisect_ttr(rows, lo_idx, hi_idx, scan_code, times, evasion, lanes,
+                                       only=only)
         np.put(ttr, sel, found)
         np.put(code, sel, found_code)
     return ttr, code, collision_time
@@ -300,10 +331,7 @@ def risk(ego: VehicleStates, objects: VehicleStates, *,
                     {k: v[i:i + per_chunk] for k, v in o.items()}, nodes, evasion, lanes)
              for i in range(0, n_scenes, per_chunk)]
     ttr, code, collision_time = (np.concatenate(a) for a in zip(*parts, strict=True))
-    contribution = nodes.probabilities * reaction.accident_probability(ttr)
-    per_object = contribution.sum(axis=-1)
-    with np.errstate(divide="ignore"):                  # log1p(-1) = -inf: a certain accident
-        total = 0.0 - np.expm1(np.log1p(-np.minimum(per_object, 1.0)).sum(axis=-1))  # no -0.0
+    contribution, per_object, total = _scene_risk(ttr, nodes.probabilities, reaction)
     flat = contribution.reshape(n_scenes, -1)
     best = np.argmax(flat, axis=1)
     none = flat[np.arange(n_scenes), best] <= 0
@@ -317,6 +345,43 @@ def risk(ego: VehicleStates, objects: VehicleStates, *,
         resolution=predictions.dt / 2 ** evasion.bisection_steps,
         predictions=predictions, evasion=evasion, lanes=lanes, reaction=reaction,
     )
+
+
+def max_risk(ego: VehicleStates, objects: VehicleStates, *,
+             predictions: PredictionSet | None = None, evasion: EvasionSet | None = None,
+             lanes: Lanes | None = None, reaction: ReactionTime | None = None,
+             coarse: int = 5) -> float:
+    """``risk(...).risk.max()`` (the same value), searching only the scenes that can hold it.
+
+    Every ``coarse``-th scene is assessed in full first; its largest risk is a floor. The
+    other scenes are then skipped where their risk cannot reach the floor: before the TTR
+    search when the probabilities of their colliding predictions (TTR 0) stay below it, before
+    the bisection when the scan's lower TTR ends do. The scenes assessed in full get the
+    values :func:`risk` gives them (the TTR of a row depends on its own scene only), so the
+    maximum is :func:`risk`'s, not an approximation (tested on the variation campaign).
+    """
+    predictions, evasion, lanes, reaction, e, o = _risk_iv(ego, objects, predictions, evasion,
+                                                           lanes, reaction)
+    if not (isinstance(coarse, int) and coarse >= 1):
+        raise OptionError(f"coarse must be an integer >= 1, got {coarse!r}")
+    nodes = predictions.expanded()
+    n_scenes, n_obj = o["x"].shape
+    per_chunk = max(1, _CHUNK_SAMPLES // (n_obj * len(nodes.predictions) * nodes.times.size))
+
+    def largest(scenes: np.ndarray, floor: float | None) -> float:
+        best = -np.inf
+        for i in range(0, scenes.size, per_chunk):
+            take = scenes[i:i + per_chunk]
+            ttr = _chunk({k: v[take] for k, v in e.items()}, {k: v[take] for k, v in o.items()},
+                         nodes, evasion, lanes, floor=floor, reaction=reaction)[0]
+            best = max(best, float(_scene_risk(ttr, nodes.probabilities, reaction)[2].max()))
+        return best
+
+    every = np.arange(n_scenes)
+    first = every[::coarse]
+    best = largest(first, None)
+    rest = np.setdiff1d(every, first)
+    return max(best, largest(rest, best)) if rest.size else best
 
 
 def _risk_iv(ego: Any, objects: Any, predictions: Any, evasion: Any, lanes: Any, reaction: Any
