@@ -34,8 +34,7 @@ from simcred.engine import Engine, shared
 from simcred.errors import SimcredError
 from simcred.kinematics import LANE_WIDTH, MOTION_SIGNALS, Track
 from simcred.reprocess.reaction import Reaction, ReactionCriteria, reaction
-from simcred.risk import VehicleStates
-from simcred.risk import risk as assess_risk
+from simcred.risk import VehicleStates, max_risk
 from simcred.scenario.description import ScenarioDescription
 from simcred.scenario.variation import (
     PlausibilityLimits,
@@ -195,12 +194,14 @@ def _assess(run: dict[str, np.ndarray], index: int, original: tuple[np.ndarray, 
             c: VaryConfig) -> Outcome:
     ego, to = (Track.from_columns(run, name, time=TIME).with_rates() for name in (c.ego, c.to))
     step = max(1, int(round(c.risk_dt / (ego.t[1] - ego.t[0]))))
-    risk = assess_risk(VehicleStates.of_tracks(ego[::step], name=c.ego),
-                       VehicleStates.of_tracks([to[::step]], name="objects")).risk
+    # the maximum alone: max_risk skips the scenes that cannot hold it (same value as
+    # risk(...).risk.max())
+    peak = max_risk(VehicleStates.of_tracks(ego[::step], name=c.ego),
+                    VehicleStates.of_tracks([to[::step]], name="objects"))
     ego_reaction = reaction(ego.t, ego.y, ego.v, ego.heading, ego.acceleration, c.criteria)
     lateral = np.abs(to.y - ego.y[0])
     deviation = np.hypot(to.x - original[0], to.y - original[1])
-    return Outcome(index, float(risk.max()), ego_reaction,
+    return Outcome(index, peak, ego_reaction,
                    bool((lateral < c.lane_width / 2).any() and lateral[0] >= c.lane_width / 2),
                    float(deviation.max()))
 

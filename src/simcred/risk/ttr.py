@@ -368,20 +368,27 @@ def max_risk(ego: VehicleStates, objects: VehicleStates, *,
     n_scenes, n_obj = o["x"].shape
     per_chunk = max(1, _CHUNK_SAMPLES // (n_obj * len(nodes.predictions) * nodes.times.size))
 
-    def largest(scenes: np.ndarray, floor: float | None) -> float:
-        best = -np.inf
+    def risks(scenes: np.ndarray, floor: float | None) -> np.ndarray:
+        """Risks of ``scenes``: exact, or upper bounds below ``floor``."""
+        parts = [np.zeros(0)]
         for i in range(0, scenes.size, per_chunk):
             take = scenes[i:i + per_chunk]
             ttr = _chunk({k: v[take] for k, v in e.items()}, {k: v[take] for k, v in o.items()},
                          nodes, evasion, lanes, floor=floor, reaction=reaction)[0]
-            best = max(best, float(_scene_risk(ttr, nodes.probabilities, reaction)[2].max()))
-        return best
+            parts.append(_scene_risk(ttr, nodes.probabilities, reaction)[2])
+        return np.concatenate(parts)
 
     every = np.arange(n_scenes)
-    first = every[::coarse]
-    best = largest(first, None)
-    rest = np.setdiff1d(every, first)
-    return max(best, largest(rest, best)) if rest.size else best
+    done = every[::coarse]
+    found = risks(done, None)
+    best = float(found.max())
+    # the neighbours of the riskiest coarse scene (risk peaks can be one scene wide), then the rest
+    top = int(done[np.argmax(found)])
+    near = np.setdiff1d(every[max(top - coarse + 1, 0):top + coarse], done)
+    for scenes in (near, np.setdiff1d(every, np.concatenate([done, near]))):
+        if scenes.size:
+            best = max(best, float(risks(scenes, best).max()))
+    return best
 
 
 def _risk_iv(ego: Any, objects: Any, predictions: Any, evasion: Any, lanes: Any, reaction: Any
