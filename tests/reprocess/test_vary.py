@@ -126,8 +126,8 @@ def test_max_risk_is_the_full_risk_series_maximum_bit_for_bit(serial):
     c = serial.config
     runs = [(serial.reference_runs.run(0), serial.reference)] + [
         (serial.runs.run(k), o) for k, o in enumerate(serial.outcomes)]
-    for run, outcome in runs:
-        ego, to = (Track.from_columns(run, name, time=TIME).with_rates()
+    for one, outcome in runs:
+        ego, to = (Track.from_columns(one, name, time=TIME).with_rates()
                    for name in (c.ego, c.to))
         step = max(1, int(round(c.risk_dt / (ego.t[1] - ego.t[0]))))
         full = risk(VehicleStates.of_tracks(ego[::step], name=c.ego),
