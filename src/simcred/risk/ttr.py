@@ -245,13 +245,17 @@ def _chunk(ego: dict[str, np.ndarray], obj: dict[str, np.ndarray], predictions: 
                                    path.length[scene]),
             ego_half=tuple(h[scene] for h in plan["half"]),
         )
-        lo_idx, hi_idx, scan_code = scan_ttr(rows, first.ravel()[sel], times, evasion, lanes,
-                                             work_samples=_CHUNK_SAMPLES)
-        only = None
-        if floor is not None:  # the scan's lower ends: a bound on each scene's risk
+        scene_of = sel // (collides.shape[1] * collides.shape[2])
+
+        def reachable(lo_idx: np.ndarray) -> np.ndarray:
+            """Rows whose scene's risk, with the TTRs' lower ends ``lo_idx``, reaches floor."""
             np.put(ttr, sel, np.where(lo_idx >= 0, times[np.maximum(lo_idx, 0)], 0.0))
-            bound = _scene_risk(ttr, predictions.probabilities, reaction)[2]
-            only = bound[sel // (collides.shape[1] * collides.shape[2])] >= floor
+            return _scene_risk(ttr, predictions.probabilities, reaction)[2][scene_of] >= floor
+
+        lo_idx, hi_idx, scan_code = scan_ttr(rows, first.ravel()[sel], times, evasion, lanes,
+                                             work_samples=_CHUNK_SAMPLES,
+                                             prune=None if floor is None else reachable)
+        only = None if floor is None else reachable(lo_idx)
         found, found_code = bisect_ttr(rows, lo_idx, hi_idx, scan_code, times, evasion, lanes,
                                        only=only)
         np.put(ttr, sel, found)

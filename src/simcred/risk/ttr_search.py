@@ -14,6 +14,7 @@ References
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -127,11 +128,17 @@ def search_ttr(r: CollidingRows, first: np.ndarray, times: np.ndarray, evasion: 
 
 
 def scan_ttr(r: CollidingRows, first: np.ndarray, times: np.ndarray, evasion: EvasionSet,
-             lanes: Lanes, *, work_samples: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+             lanes: Lanes, *, work_samples: int,
+             prune: Callable[[np.ndarray], np.ndarray] | None = None
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The scan of :func:`search_ttr`: per row the last avoidable scanned start index (-1:
     none), the end of the interval holding the TTR, and the maneuver code at that start. The
     TTR that :func:`bisect_ttr` refines is at least ``times[lo_idx]`` (0 where ``lo_idx`` is
-    -1)."""
+    -1).
+
+    ``prune``: called after every block with the current ``lo_idx`` (lower ends of every
+    row's TTR), returns the rows (bool) still worth scanning; the others stop where they are
+    (their ``lo_idx`` stays a lower end, not the scan's)."""
     q = evasion.scan_step
     lo_idx = np.full(first.size, -1)              # last avoidable start; -1: none (TTR 0)
     hi_idx = first.copy()
@@ -157,6 +164,8 @@ def scan_ttr(r: CollidingRows, first: np.ndarray, times: np.ndarray, evasion: Ev
         active = active[~stopped]
         k += q * block
         active = active[first[active] > k]       # the next start is at or after the collision
+        if prune is not None and active.size:
+            active = active[prune(lo_idx)[active]]
     return lo_idx, hi_idx, code
 
 
