@@ -59,6 +59,9 @@ from simcred.risk.ttr_search import CollidingRows, bisect_ttr, scan_ttr
 # work arrays of one chunk of scenes (and of a block of TTR search starts) hold at most about this
 # many samples
 _CHUNK_SAMPLES = 1 << 16
+# max_risk's chunks: larger (fewer numpy calls on the small arrays of its pruned phases; about
+# 2 MB per work array)
+_MAX_RISK_SAMPLES = 1 << 18
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -206,11 +209,12 @@ def _scene_risk(ttr: np.ndarray, probabilities: np.ndarray, reaction: ReactionTi
 
 def _chunk(ego: dict[str, np.ndarray], obj: dict[str, np.ndarray], predictions: PredictionSet,
            evasion: EvasionSet, lanes: Lanes, floor: float | None = None,
-           reaction: ReactionTime | None = None
+           reaction: ReactionTime | None = None, work_samples: int = _CHUNK_SAMPLES
            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """TTR, maneuver code and planned collision time (scenes, objects, predictions).
 
-    ``floor`` (with ``reaction``): only scenes whose risk can reach ``floor`` are searched in
+    ``floor`` (with ``reaction``; a number or one per scene): only scenes whose risk can reach
+    their ``floor`` are searched in
     full; in the others the TTRs are lower bounds (0 before the scan, the scan's lower end
     after it) whose risk is an upper bound below ``floor``, and the codes are those of the
     scan (or -1). Used by :func:`max_risk`."""
@@ -230,6 +234,7 @@ def _chunk(ego: dict[str, np.ndarray], obj: dict[str, np.ndarray], predictions: 
     code = np.full(collides.shape, -1)
     searched = collides & (first > 0)
     if floor is not None:      # TTRs 0: the largest risk each scene can have
+        floor = np.broadcast_to(np.asarray(floor, dtype=float), collides.shape[:1])
         bound = _scene_risk(ttr, predictions.probabilities, reaction)[2]
         searched &= (bound >= floor)[:, None, None]
     sel = np.flatnonzero(searched)
@@ -250,10 +255,10 @@ def _chunk(ego: dict[str, np.ndarray], obj: dict[str, np.ndarray], predictions: 
         def reachable(lo_idx: np.ndarray) -> np.ndarray:
             """Rows whose scene's risk, with the TTRs' lower ends ``lo_idx``, reaches floor."""
             np.put(ttr, sel, np.where(lo_idx >= 0, times[np.maximum(lo_idx, 0)], 0.0))
-            return _scene_risk(ttr, predictions.probabilities, reaction)[2][scene_of] >= floor
+            return (_scene_risk(ttr, predictions.probabilities, reaction)[2] >= floor)[scene_of]
 
         lo_idx, hi_idx, scan_code = scan_ttr(rows, first.ravel()[sel], times, evasion, lanes,
-                                             work_samples=_CHUNK_SAMPLES,
+                                             work_samples=work_samples,
                                              prune=None if floor is None else reachable)
         only = None if floor is None else reachable(lo_idx)
         found, found_code = bisect_ttr(rows, lo_idx, hi_idx, scan_code, times, evasion, lanes,
@@ -354,45 +359,58 @@ def risk(ego: VehicleStates, objects: VehicleStates, *,
 def max_risk(ego: VehicleStates, objects: VehicleStates, *,
              predictions: PredictionSet | None = None, evasion: EvasionSet | None = None,
              lanes: Lanes | None = None, reaction: ReactionTime | None = None,
-             coarse: int = 5) -> float:
+             coarse: int = 5, sizes: Sequence[int] | None = None) -> float | np.ndarray:
     """``risk(...).risk.max()`` (the same value), searching only the scenes that can hold it.
 
-    Every ``coarse``-th scene is assessed in full first; its largest risk is a floor. The
-    other scenes are then skipped where their risk cannot reach the floor: before the TTR
-    search when the probabilities of their colliding predictions (TTR 0) stay below it, before
-    the bisection when the scan's lower TTR ends do. The scenes assessed in full get the
-    values :func:`risk` gives them (the TTR of a row depends on its own scene only), so the
-    maximum is :func:`risk`'s, not an approximation (tested on the variation campaign).
+    Every ``coarse``-th scene is assessed in full first; its largest risk is a floor, raised
+    by the neighbours of the riskiest of them (a risk peak can be one scene wide). The other
+    scenes are then skipped where their risk cannot reach the floor: before the TTR search
+    when the probabilities of their colliding predictions (TTR 0) stay below it, during the
+    scan and before the bisection when the TTRs' lower ends found so far do. The scenes
+    assessed in full get the values :func:`risk` gives them (the TTR of a row depends on its
+    own scene only), so the maximum is :func:`risk`'s, not an approximation (tested, also on
+    the variation campaign).
+
+    ``sizes``: the scenes are consecutive groups of these sizes (say, the runs of a campaign,
+    assessed in one call); the result is then each group's maximum, an array.
     """
     predictions, evasion, lanes, reaction, e, o = _risk_iv(ego, objects, predictions, evasion,
                                                            lanes, reaction)
     if not (isinstance(coarse, int) and coarse >= 1):
         raise OptionError(f"coarse must be an integer >= 1, got {coarse!r}")
-    nodes = predictions.expanded()
     n_scenes, n_obj = o["x"].shape
-    per_chunk = max(1, _CHUNK_SAMPLES // (n_obj * len(nodes.predictions) * nodes.times.size))
+    counts = np.array([n_scenes] if sizes is None else list(sizes), dtype=int)
+    if counts.ndim != 1 or counts.size == 0 or (counts < 1).any() or counts.sum() != n_scenes:
+        raise OptionError(f"sizes must be >= 1 each and add up to the {n_scenes} scenes")
+    nodes = predictions.expanded()
+    per_chunk = max(1, _MAX_RISK_SAMPLES // (n_obj * len(nodes.predictions) * nodes.times.size))
+    group = np.repeat(np.arange(counts.size), counts)
+    local = np.arange(n_scenes) - np.concatenate([[0], np.cumsum(counts)[:-1]])[group]
 
-    def risks(scenes: np.ndarray, floor: float | None) -> np.ndarray:
-        """Risks of ``scenes``: exact, or upper bounds below ``floor``."""
+    def risks(scenes: np.ndarray, floor: np.ndarray | None) -> np.ndarray:
+        """Risks of ``scenes``: exact, or upper bounds below their ``floor``."""
         parts = [np.zeros(0)]
         for i in range(0, scenes.size, per_chunk):
             take = scenes[i:i + per_chunk]
             ttr = _chunk({k: v[take] for k, v in e.items()}, {k: v[take] for k, v in o.items()},
-                         nodes, evasion, lanes, floor=floor, reaction=reaction)[0]
+                         nodes, evasion, lanes, reaction=reaction, work_samples=_MAX_RISK_SAMPLES,
+                         floor=None if floor is None else floor[i:i + per_chunk])[0]
             parts.append(_scene_risk(ttr, nodes.probabilities, reaction)[2])
         return np.concatenate(parts)
 
-    every = np.arange(n_scenes)
-    done = every[::coarse]
+    done = np.flatnonzero(local % coarse == 0)         # every group's first scene among them
     found = risks(done, None)
-    best = float(found.max())
-    # the neighbours of the riskiest coarse scene (risk peaks can be one scene wide), then the rest
-    top = int(done[np.argmax(found)])
-    near = np.setdiff1d(every[max(top - coarse + 1, 0):top + coarse], done)
-    for scenes in (near, np.setdiff1d(every, np.concatenate([done, near]))):
+    best = np.full(counts.size, -np.inf)
+    np.maximum.at(best, group[done], found)
+    top = np.zeros(counts.size, dtype=int)             # the riskiest coarse scene of each group
+    order = np.lexsort((-found, group[done]))
+    firsts = order[np.r_[True, np.diff(group[done][order]) > 0]]
+    top[group[done][firsts]] = local[done][firsts]
+    near = (np.abs(local - top[group]) < coarse) & (local % coarse != 0)
+    for scenes in (np.flatnonzero(near), np.flatnonzero(~near & (local % coarse != 0))):
         if scenes.size:
-            best = max(best, float(risks(scenes, best).max()))
-    return best
+            np.maximum.at(best, group[scenes], risks(scenes, best[group[scenes]]))
+    return float(best[0]) if sizes is None else best
 
 
 def _risk_iv(ego: Any, objects: Any, predictions: Any, evasion: Any, lanes: Any, reaction: Any
