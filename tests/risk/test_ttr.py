@@ -364,6 +364,20 @@ def test_max_risk_with_a_one_scene_peak():
     assert max_risk(ego, to, coarse=5) == float(full.max())
 
 
+def test_max_risk_of_groups_is_each_groups_maximum():
+    """sizes: consecutive groups of scenes (a campaign's runs in one call), one maximum each,
+    the same as one call per group."""
+    ego, objects = _random_scenes(4, 50)
+    sizes = [12, 1, 30, 7]
+    full = risk(ego, objects).risk
+    bounds = np.cumsum([0] + sizes)
+    grouped = max_risk(ego, objects, sizes=sizes)
+    expected = [full[a:b].max() for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+    np.testing.assert_array_equal(grouped, expected)
+    with pytest.raises(OptionError, match="sizes"):
+        max_risk(ego, objects, sizes=[10, 10])
+
+
 def test_max_risk_rejects_a_bad_coarse_step():
     ego, objects = _random_scenes(1, 3)
     with pytest.raises(OptionError, match="coarse"):
