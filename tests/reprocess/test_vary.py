@@ -114,3 +114,22 @@ def test_cli_vary_rejects_a_malformed_description(tmp_path, capsys):
     assert run(["vary", str(bad), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip()
     assert "bad.json" in err and len(err.splitlines()) == 1
+
+
+def test_max_risk_is_the_full_risk_series_maximum_bit_for_bit(serial):
+    """The campaign assesses with max_risk (scenes that cannot hold the maximum are skipped);
+    the value must be exactly the maximum of the full risk series (the old path)."""
+    from simcred.kinematics import Track
+    from simcred.risk import VehicleStates, risk
+    from simcred.traces import TIME
+
+    c = serial.config
+    runs = [(serial.reference_runs.run(0), serial.reference)] + [
+        (serial.runs.run(k), o) for k, o in enumerate(serial.outcomes)]
+    for one, outcome in runs:
+        ego, to = (Track.from_columns(one, name, time=TIME).with_rates()
+                   for name in (c.ego, c.to))
+        step = max(1, int(round(c.risk_dt / (ego.t[1] - ego.t[0]))))
+        full = risk(VehicleStates.of_tracks(ego[::step], name=c.ego),
+                    VehicleStates.of_tracks([to[::step]], name="objects")).risk
+        assert outcome.max_risk == float(full.max())

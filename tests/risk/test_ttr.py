@@ -15,6 +15,7 @@ from simcred.risk import (
     PredictionSet,
     ReactionTime,
     VehicleStates,
+    max_risk,
     risk,
     risk_series,
     time_headway,
@@ -330,6 +331,57 @@ def test_chunks_and_series_give_the_same_result(monkeypatch):
     per_object = series.risk_per_object
     np.testing.assert_allclose(series.risk, 1 - (1 - per_object[:, 0]) * (1 - per_object[:, 1]))
     assert np.isfinite(series.ttr).mean() > 0.1
+
+
+def _random_scenes(seed, n):
+    rng = np.random.default_rng(seed)
+    ego = VehicleStates(x=np.zeros(n), y=0.0, v=rng.uniform(20, 30, n), heading=0.0,
+                        acceleration=rng.uniform(-1, 1, n), name="ego")
+    objects = VehicleStates(**{"x": rng.uniform(-20, 60, (n, 2)), "y": rng.uniform(-4, 4, (n, 2)),
+                               "v": rng.uniform(5, 30, (n, 2)), "heading": np.zeros((n, 2)),
+                               "acceleration": rng.uniform(-3, 0, (n, 2))}, name="objects")
+    return ego, objects
+
+
+@pytest.mark.parametrize("coarse", [1, 3, 5, 500])
+def test_max_risk_equals_the_maximum_of_risk_bit_for_bit(coarse):
+    for seed, n in ((1, 60), (2, 7), (3, 1)):
+        ego, objects = _random_scenes(seed, n)
+        assert max_risk(ego, objects, coarse=coarse) == float(risk(ego, objects).risk.max())
+
+
+def test_max_risk_with_a_one_scene_peak():
+    """A peak one scene wide between coarse scenes: found (the neighbours of the riskiest
+    coarse scene, then every scene whose bound reaches the floor)."""
+    n = 40
+    ego = VehicleStates(x=np.zeros(n), y=0.0, v=27.8, heading=0.0, name="ego")
+    x = np.full(n, 150.0)
+    x[17] = 25.0                                     # one close scene, not on the coarse grid
+    x[30] = 60.0
+    to = VehicleStates(x=x, y=0.0, v=20.0, heading=0.0, name="to")
+    full = risk(ego, to).risk
+    assert full.argmax() == 17 and full.max() > 0
+    assert max_risk(ego, to, coarse=5) == float(full.max())
+
+
+def test_max_risk_of_groups_is_each_groups_maximum():
+    """sizes: consecutive groups of scenes (a campaign's runs in one call), one maximum each,
+    the same as one call per group."""
+    ego, objects = _random_scenes(4, 50)
+    sizes = [12, 1, 30, 7]
+    full = risk(ego, objects).risk
+    bounds = np.cumsum([0] + sizes)
+    grouped = max_risk(ego, objects, sizes=sizes)
+    expected = [full[a:b].max() for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+    np.testing.assert_array_equal(grouped, expected)
+    with pytest.raises(OptionError, match="sizes"):
+        max_risk(ego, objects, sizes=[10, 10])
+
+
+def test_max_risk_rejects_a_bad_coarse_step():
+    ego, objects = _random_scenes(1, 3)
+    with pytest.raises(OptionError, match="coarse"):
+        max_risk(ego, objects, coarse=0)
 
 
 def test_reaction_time_mapping():

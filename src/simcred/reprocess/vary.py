@@ -34,8 +34,8 @@ from simcred.engine import Engine, shared
 from simcred.errors import SimcredError
 from simcred.kinematics import LANE_WIDTH, MOTION_SIGNALS, Track
 from simcred.reprocess.reaction import Reaction, ReactionCriteria, reaction
-from simcred.risk import VehicleStates
-from simcred.risk import risk as assess_risk
+from simcred.risk import VehicleStates, max_risk
+from simcred.risk.scene import STATE_FIELDS
 from simcred.scenario.description import ScenarioDescription
 from simcred.scenario.variation import (
     PlausibilityLimits,
@@ -188,19 +188,33 @@ def _resimulate_chunk(job: tuple[int, list[ScenarioDescription]]
     if start < 0:
         runs = replace(runs, run_ids=(REFERENCE,))
     path = original.objects[c.to].positions(runs.run(0)[TIME])
-    return runs, [_assess(runs.run(k), i, path, c) for k, i in enumerate(indices)]
+    tracks = [tuple(Track.from_columns(runs.run(k), name, time=TIME).with_rates()
+                    for name in (c.ego, c.to)) for k in range(len(indices))]
+    peaks = _max_risks(tracks, c)
+    return runs, [_assess(ego, to, i, peak, path, c)
+                  for (ego, to), i, peak in zip(tracks, indices, peaks, strict=True)]
 
 
-def _assess(run: dict[str, np.ndarray], index: int, original: tuple[np.ndarray, np.ndarray],
-            c: VaryConfig) -> Outcome:
-    ego, to = (Track.from_columns(run, name, time=TIME).with_rates() for name in (c.ego, c.to))
-    step = max(1, int(round(c.risk_dt / (ego.t[1] - ego.t[0]))))
-    risk = assess_risk(VehicleStates.of_tracks(ego[::step], name=c.ego),
-                       VehicleStates.of_tracks([to[::step]], name="objects")).risk
+def _max_risks(tracks: list[tuple[Track, Track]], c: VaryConfig) -> np.ndarray:
+    """Each run's maximum TTR risk (every ``risk_dt``), all runs in one :func:`max_risk` call
+    (the same values as ``risk(...).risk.max()`` run by run)."""
+    states = []
+    for ego, to in tracks:
+        step = max(1, int(round(c.risk_dt / (ego.t[1] - ego.t[0]))))
+        states.append((VehicleStates.of_tracks(ego[::step], name=c.ego),
+                       VehicleStates.of_tracks([to[::step]], name="objects")))
+    ego, objects = ({f: np.concatenate([getattr(s[j], f) for s in states]) for f in STATE_FIELDS}
+                    for j in (0, 1))
+    return max_risk(VehicleStates(**ego, name=c.ego), VehicleStates(**objects, name="objects"),
+                    sizes=[s[0].shape[0] for s in states])
+
+
+def _assess(ego: Track, to: Track, index: int, peak: float,
+            original: tuple[np.ndarray, np.ndarray], c: VaryConfig) -> Outcome:
     ego_reaction = reaction(ego.t, ego.y, ego.v, ego.heading, ego.acceleration, c.criteria)
     lateral = np.abs(to.y - ego.y[0])
     deviation = np.hypot(to.x - original[0], to.y - original[1])
-    return Outcome(index, float(risk.max()), ego_reaction,
+    return Outcome(index, float(peak), ego_reaction,
                    bool((lateral < c.lane_width / 2).any() and lateral[0] >= c.lane_width / 2),
                    float(deviation.max()))
 

@@ -15,7 +15,7 @@ from simcred.risk.prediction import (
     ReactionTime,
 )
 from simcred.risk.scene import Lanes, VehicleStates
-from simcred.risk.ttr import RiskResult, risk, risk_series
+from simcred.risk.ttr import RiskResult, max_risk, risk, risk_series
 
 __all__ = [
     "DEFAULT_PREDICTIONS",
@@ -27,6 +27,7 @@ __all__ = [
     "ReactionTime",
     "RiskResult",
     "VehicleStates",
+    "max_risk",
     "risk",
     "risk_series",
     "time_headway",

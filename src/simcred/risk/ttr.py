@@ -54,11 +54,14 @@ from simcred.risk.scene import (
     forward_states,
     road_frames,
 )
-from simcred.risk.ttr_search import CollidingRows, search_ttr
+from simcred.risk.ttr_search import CollidingRows, bisect_ttr, scan_ttr
 
 # work arrays of one chunk of scenes (and of a block of TTR search starts) hold at most about this
 # many samples
 _CHUNK_SAMPLES = 1 << 16
+# max_risk's chunks: larger (fewer numpy calls on the small arrays of its pruned phases; about
+# 2 MB per work array)
+_MAX_RISK_SAMPLES = 1 << 18
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -191,9 +194,30 @@ def _take(a: np.ndarray, shape: tuple[int, ...], sel: np.ndarray) -> np.ndarray:
     return np.broadcast_to(a, shape).reshape(-1, shape[-1])[sel]
 
 
+def _scene_risk(ttr: np.ndarray, probabilities: np.ndarray, reaction: ReactionTime
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Contributions (S, O, P), risk per object (S, O) and per scene (S,) of TTRs (S, O, P).
+
+    Monotone: TTRs no larger element by element give risks no smaller (in floating point too:
+    every step is a monotone, rounded operation)."""
+    contribution = probabilities * reaction.accident_probability(ttr)
+    per_object = contribution.sum(axis=-1)
+    with np.errstate(divide="ignore"):                  # log1p(-1) = -inf: a certain accident
+        total = 0.0 - np.expm1(np.log1p(-np.minimum(per_object, 1.0)).sum(axis=-1))  # no -0.0
+    return contribution, per_object, total
+
+
 def _chunk(ego: dict[str, np.ndarray], obj: dict[str, np.ndarray], predictions: PredictionSet,
-           evasion: EvasionSet, lanes: Lanes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """TTR, maneuver code and planned collision time (scenes, objects, predictions)."""
+           evasion: EvasionSet, lanes: Lanes, floor: float | None = None,
+           reaction: ReactionTime | None = None, work_samples: int = _CHUNK_SAMPLES
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """TTR, maneuver code and planned collision time (scenes, objects, predictions).
+
+    ``floor`` (with ``reaction``; a number or one per scene): only scenes whose risk can reach
+    their ``floor`` are searched in
+    full; in the others the TTRs are lower bounds (0 before the scan, the scan's lower end
+    after it) whose risk is an upper bound below ``floor``, and the codes are those of the
+    scan (or -1). Used by :func:`max_risk`."""
     times = predictions.times
     x_ego = ego["x"]                       # lanes run along x: work relative to the EGO's x
     plan = _plan({**ego, "x": np.zeros_like(x_ego)}, predictions, lanes)
@@ -208,7 +232,12 @@ def _chunk(ego: dict[str, np.ndarray], obj: dict[str, np.ndarray], predictions: 
     collision_time = np.where(collides, times[np.minimum(first, times.size - 1)], np.inf)
     ttr = np.where(collides, 0.0, np.inf)                               # first == 0: TTR 0
     code = np.full(collides.shape, -1)
-    sel = np.flatnonzero(collides & (first > 0))
+    searched = collides & (first > 0)
+    if floor is not None:      # TTRs 0: the largest risk each scene can have
+        floor = np.broadcast_to(np.asarray(floor, dtype=float), collides.shape[:1])
+        bound = _scene_risk(ttr, predictions.probabilities, reaction)[2]
+        searched &= (bound >= floor)[:, None, None]
+    sel = np.flatnonzero(searched)
     if sel.size:
         scene = sel // (collides.shape[1] * collides.shape[2])
         path = plan["path"]
@@ -221,8 +250,19 @@ def _chunk(ego: dict[str, np.ndarray], obj: dict[str, np.ndarray], predictions: 
                                    path.length[scene]),
             ego_half=tuple(h[scene] for h in plan["half"]),
         )
-        found, found_code = search_ttr(rows, first.ravel()[sel], times, evasion, lanes,
-                                        work_samples=_CHUNK_SAMPLES)
+        scene_of = sel // (collides.shape[1] * collides.shape[2])
+
+        def reachable(lo_idx: np.ndarray) -> np.ndarray:
+            """Rows whose scene's risk, with the TTRs' lower ends ``lo_idx``, reaches floor."""
+            np.put(ttr, sel, np.where(lo_idx >= 0, times[np.maximum(lo_idx, 0)], 0.0))
+            return (_scene_risk(ttr, predictions.probabilities, reaction)[2] >= floor)[scene_of]
+
+        lo_idx, hi_idx, scan_code = scan_ttr(rows, first.ravel()[sel], times, evasion, lanes,
+                                             work_samples=work_samples,
+                                             prune=None if floor is None else reachable)
+        only = None if floor is None else reachable(lo_idx)
+        found, found_code = bisect_ttr(rows, lo_idx, hi_idx, scan_code, times, evasion, lanes,
+                                       only=only)
         np.put(ttr, sel, found)
         np.put(code, sel, found_code)
     return ttr, code, collision_time
@@ -300,10 +340,7 @@ def risk(ego: VehicleStates, objects: VehicleStates, *,
                     {k: v[i:i + per_chunk] for k, v in o.items()}, nodes, evasion, lanes)
              for i in range(0, n_scenes, per_chunk)]
     ttr, code, collision_time = (np.concatenate(a) for a in zip(*parts, strict=True))
-    contribution = nodes.probabilities * reaction.accident_probability(ttr)
-    per_object = contribution.sum(axis=-1)
-    with np.errstate(divide="ignore"):                  # log1p(-1) = -inf: a certain accident
-        total = 0.0 - np.expm1(np.log1p(-np.minimum(per_object, 1.0)).sum(axis=-1))  # no -0.0
+    contribution, per_object, total = _scene_risk(ttr, nodes.probabilities, reaction)
     flat = contribution.reshape(n_scenes, -1)
     best = np.argmax(flat, axis=1)
     none = flat[np.arange(n_scenes), best] <= 0
@@ -317,6 +354,63 @@ def risk(ego: VehicleStates, objects: VehicleStates, *,
         resolution=predictions.dt / 2 ** evasion.bisection_steps,
         predictions=predictions, evasion=evasion, lanes=lanes, reaction=reaction,
     )
+
+
+def max_risk(ego: VehicleStates, objects: VehicleStates, *,
+             predictions: PredictionSet | None = None, evasion: EvasionSet | None = None,
+             lanes: Lanes | None = None, reaction: ReactionTime | None = None,
+             coarse: int = 5, sizes: Sequence[int] | None = None) -> float | np.ndarray:
+    """``risk(...).risk.max()`` (the same value), searching only the scenes that can hold it.
+
+    Every ``coarse``-th scene is assessed in full first; its largest risk is a floor, raised
+    by the neighbours of the riskiest of them (a risk peak can be one scene wide). The other
+    scenes are then skipped where their risk cannot reach the floor: before the TTR search
+    when the probabilities of their colliding predictions (TTR 0) stay below it, during the
+    scan and before the bisection when the TTRs' lower ends found so far do. The scenes
+    assessed in full get the values :func:`risk` gives them (the TTR of a row depends on its
+    own scene only), so the maximum is :func:`risk`'s, not an approximation (tested, also on
+    the variation campaign).
+
+    ``sizes``: the scenes are consecutive groups of these sizes (say, the runs of a campaign,
+    assessed in one call); the result is then each group's maximum, an array.
+    """
+    predictions, evasion, lanes, reaction, e, o = _risk_iv(ego, objects, predictions, evasion,
+                                                           lanes, reaction)
+    if not (isinstance(coarse, int) and coarse >= 1):
+        raise OptionError(f"coarse must be an integer >= 1, got {coarse!r}")
+    n_scenes, n_obj = o["x"].shape
+    counts = np.array([n_scenes] if sizes is None else list(sizes), dtype=int)
+    if counts.ndim != 1 or counts.size == 0 or (counts < 1).any() or counts.sum() != n_scenes:
+        raise OptionError(f"sizes must be >= 1 each and add up to the {n_scenes} scenes")
+    nodes = predictions.expanded()
+    per_chunk = max(1, _MAX_RISK_SAMPLES // (n_obj * len(nodes.predictions) * nodes.times.size))
+    group = np.repeat(np.arange(counts.size), counts)
+    local = np.arange(n_scenes) - np.concatenate([[0], np.cumsum(counts)[:-1]])[group]
+
+    def risks(scenes: np.ndarray, floor: np.ndarray | None) -> np.ndarray:
+        """Risks of ``scenes``: exact, or upper bounds below their ``floor``."""
+        parts = [np.zeros(0)]
+        for i in range(0, scenes.size, per_chunk):
+            take = scenes[i:i + per_chunk]
+            ttr = _chunk({k: v[take] for k, v in e.items()}, {k: v[take] for k, v in o.items()},
+                         nodes, evasion, lanes, reaction=reaction, work_samples=_MAX_RISK_SAMPLES,
+                         floor=None if floor is None else floor[i:i + per_chunk])[0]
+            parts.append(_scene_risk(ttr, nodes.probabilities, reaction)[2])
+        return np.concatenate(parts)
+
+    done = np.flatnonzero(local % coarse == 0)         # every group's first scene among them
+    found = risks(done, None)
+    best = np.full(counts.size, -np.inf)
+    np.maximum.at(best, group[done], found)
+    top = np.zeros(counts.size, dtype=int)             # the riskiest coarse scene of each group
+    order = np.lexsort((-found, group[done]))
+    firsts = order[np.r_[True, np.diff(group[done][order]) > 0]]
+    top[group[done][firsts]] = local[done][firsts]
+    near = (np.abs(local - top[group]) < coarse) & (local % coarse != 0)
+    for scenes in (np.flatnonzero(near), np.flatnonzero(~near & (local % coarse != 0))):
+        if scenes.size:
+            np.maximum.at(best, group[scenes], risks(scenes, best[group[scenes]]))
+    return float(best[0]) if sizes is None else best
 
 
 def _risk_iv(ego: Any, objects: Any, predictions: Any, evasion: Any, lanes: Any, reaction: Any

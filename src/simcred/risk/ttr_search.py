@@ -14,6 +14,7 @@ References
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -122,6 +123,22 @@ def search_ttr(r: CollidingRows, first: np.ndarray, times: np.ndarray, evasion: 
     when few rows are active, of at most about ``work_samples`` samples; results do not depend
     on that.
     """
+    lo_idx, hi_idx, code = scan_ttr(r, first, times, evasion, lanes, work_samples=work_samples)
+    return bisect_ttr(r, lo_idx, hi_idx, code, times, evasion, lanes)
+
+
+def scan_ttr(r: CollidingRows, first: np.ndarray, times: np.ndarray, evasion: EvasionSet,
+             lanes: Lanes, *, work_samples: int,
+             prune: Callable[[np.ndarray], np.ndarray] | None = None
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The scan of :func:`search_ttr`: per row the last avoidable scanned start index (-1:
+    none), the end of the interval holding the TTR, and the maneuver code at that start. The
+    TTR that :func:`bisect_ttr` refines is at least ``times[lo_idx]`` (0 where ``lo_idx`` is
+    -1).
+
+    ``prune``: called after every block with the current ``lo_idx`` (lower ends of every
+    row's TTR), returns the rows (bool) still worth scanning; the others stop where they are
+    (their ``lo_idx`` stays a lower end, not the scan's)."""
     q = evasion.scan_step
     lo_idx = np.full(first.size, -1)              # last avoidable start; -1: none (TTR 0)
     hi_idx = first.copy()
@@ -147,13 +164,32 @@ def search_ttr(r: CollidingRows, first: np.ndarray, times: np.ndarray, evasion: 
         active = active[~stopped]
         k += q * block
         active = active[first[active] > k]       # the next start is at or after the collision
+        if prune is not None and active.size:
+            active = active[prune(lo_idx)[active]]
+    return lo_idx, hi_idx, code
+
+
+def bisect_ttr(r: CollidingRows, lo_idx: np.ndarray, hi_idx: np.ndarray, code: np.ndarray,
+               times: np.ndarray, evasion: EvasionSet, lanes: Lanes,
+               only: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The bisection of :func:`search_ttr` after :func:`scan_ttr`: TTR and maneuver code.
+
+    ``only`` (bool, rows): refine these rows only; the others keep the scan's lower end
+    ``times[lo_idx]``. The groups and the samples each group checks are those of all rows, so
+    a refined row gets the value it gets without ``only``.
+    """
+    q = evasion.scan_step
+    code = code.copy()
     lo = np.where(lo_idx >= 0, times[np.maximum(lo_idx, 0)], 0.0)
     hi = times[hi_idx]
     # rows grouped by their lo (about a second each): a group checks from its earliest lo on
     valid = lo_idx >= 0
     for group in np.unique(lo_idx[valid] // _BISECTION_GROUP):
-        refine = np.flatnonzero(valid & (lo_idx // _BISECTION_GROUP == group))
-        j0 = int(lo_idx[refine].min()) + 1        # the sample after the earliest lo
+        members = valid & (lo_idx // _BISECTION_GROUP == group)
+        j0 = int(lo_idx[members].min()) + 1       # the sample after the earliest lo
+        refine = np.flatnonzero(members if only is None else members & only)
+        if not refine.size:
+            continue
         for _ in range(evasion.bisection_steps + (q - 1).bit_length()):
             mid = 0.5 * (lo[refine] + hi[refine])
             ok = avoids(r, refine, mid, j0, times, evasion, lanes)
