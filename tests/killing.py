@@ -102,9 +102,11 @@ def kill_and_resume(args: list[str], out: Path, count: int, total: int,
     killed, sent = kill_after(command(args, out), out, count)
     assert sent or (count == total and killed == code), (count, killed)  # the point was seen
     if finished_despite_kill(out, want):  # the kill came after the job finished
+        print(f"kill point {count}/{total}: finished before the kill (exit {killed})")
         return killed
     assert killed == -signal.SIGKILL, killed  # interrupted, and nothing looks complete
     assert chunks(out) >= count  # finished chunks are never lost
+    print(f"kill point {count}/{total}: killed with {chunks(out)} chunks kept")  # with -s
     done = subprocess.run(command(args, out, "--resume"), env=environment(), timeout=timeout,
                           stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     assert done.returncode == code, (done.returncode, done.stderr[-2000:])
