@@ -4,7 +4,6 @@ uninterrupted run; while it is interrupted no output that looks complete exists.
 
 from __future__ import annotations
 
-import os
 import signal
 import subprocess
 import sys
@@ -14,9 +13,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from killing import chunks as _chunks
+from killing import environment, files, finished_despite_kill
 from simcred.outputs import partial_path
 
-SRC = Path(__file__).resolve().parents[2] / "src"
 KILLS = 5
 RUNS = "2"  # runs per trace set: the smallest paper 000 (the default is hundreds)
 
@@ -26,27 +26,13 @@ def _command(out: Path, *extra: str) -> list[str]:
             "--seed", "3", "--out", str(out), *extra]
 
 
-def _environment() -> dict[str, str]:
-    return {**os.environ, "PYTHONPATH": str(SRC), "OMP_NUM_THREADS": "1"}
-
-
-def _files(root: Path) -> dict[str, bytes]:
-    return {p.relative_to(root).as_posix(): p.read_bytes()
-            for p in sorted(root.rglob("*")) if p.is_file()}
-
-
-def _chunks(out: Path) -> int:
-    folder = partial_path(out) / "checkpoints"
-    return len([p for p in folder.glob("map*")]) if folder.is_dir() else 0
-
-
 @pytest.mark.slow
 def test_paper_000_killed_five_times_and_resumed_is_byte_identical(tmp_path):
-    env = _environment()
+    env = environment()
     started = time.monotonic()
     subprocess.run(_command(tmp_path / "whole"), env=env, check=True, timeout=600)
     duration = time.monotonic() - started  # only to spread the kills over a run, not asserted
-    expected = _files(tmp_path / "whole")
+    expected = files(tmp_path / "whole")
     assert "claims.json" in expected and any(name.endswith(".png") for name in expected)
 
     out = tmp_path / "out"
@@ -63,8 +49,7 @@ def test_paper_000_killed_five_times_and_resumed_is_byte_identical(tmp_path):
             process.wait()
         codes.append(process.returncode)
         process.stderr.close()
-        if out.exists():  # the job had finished (renamed its output) when the kill came
-            assert _files(out) == expected  # what looks complete is complete
+        if finished_despite_kill(out, expected):  # it had renamed its output when the kill came
             break
         kept.append(_chunks(out))
     print(f"exit codes {codes}, finished chunks kept after each {kept}")  # shown with -s
@@ -73,5 +58,5 @@ def test_paper_000_killed_five_times_and_resumed_is_byte_identical(tmp_path):
     assert kept == sorted(kept) and (not kept or kept[-1] > 0), kept  # chunks never lost
     if not out.exists():
         subprocess.run(_command(out, "--resume"), env=env, check=True, timeout=600)
-    assert _files(out) == expected
+    assert files(out) == expected
     assert not partial_path(out).exists()
