@@ -123,6 +123,16 @@ def test_parse_model():
         SumoModel("IDM", {'x" y': 1.0})
 
 
+def test_every_listed_model_is_one_sumo_runs(real):
+    """The model list is SUMO's own: each replays an episode (IIDM was listed, SUMO has none)."""
+    from simcred.sim.sumo import MODELS as LISTED
+
+    one = take(real, [0])
+    assert set(replay(one, list(LISTED), seed=1)) == set(LISTED)
+    with pytest.raises(OptionError, match="must be one of"):
+        parse_model("IIDM")
+
+
 def test_bad_inputs(real):
     no_leader = TraceSet.from_runs([{"t": [0, 0.1], "gap": [5, 5], "v": [1, 1]}])
     with pytest.raises(TraceSetError, match="v_leader"):

@@ -120,7 +120,7 @@ def simulate_cutin(
 
 SumoModels = Annotated[str, typer.Option(
     "--models", help="Comma-separated SUMO car-following models (Krauss, IDM, EIDM, ACC, CACC, "
-    "IIDM, KraussPS, Wiedemann, W99); vType attributes after a colon, separated by '+': "
+    "KraussPS, Wiedemann, W99); vType attributes after a colon, separated by '+': "
     "IDM:tau=1.2+accel=1.5.")]
 
 

@@ -50,7 +50,9 @@ from simcred.traces import RUN_INFO, TIME, TraceSet, concat, take
 REQUIRED = ("gap", "v", "v_leader")
 SIGNALS = ("gap", "dv", "v", "a", "v_leader")
 #: Car-following models of SUMO that :class:`SumoModel` accepts (``carFollowModel`` values).
-MODELS = ("Krauss", "IDM", "EIDM", "ACC", "CACC", "IIDM", "KraussPS", "Wiedemann", "W99")
+#: SUMO's car-following models (its ``carFollowModel`` names) simcred replays with; "IIDM" was
+#: listed once, but SUMO has no such model (libsumo: "Unknown car following model 'IIDM'").
+MODELS = ("Krauss", "IDM", "EIDM", "ACC", "CACC", "KraussPS", "Wiedemann", "W99")
 ROAD_LENGTH = 20_000.0  # m
 ROAD_SPEED = 36.11  # m/s (130 km/h): speed limit of the road, the followers' desired speed
 FOLLOWER_START = 10.0  # m, lane position of the follower's front at the start
