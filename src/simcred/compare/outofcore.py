@@ -48,6 +48,7 @@ from simcred.compare.calibrate import counts_comparison
 from simcred.compare.discretize import StateSpace, _check_size
 from simcred.compare.facts import SetFacts
 from simcred.compare.quantiles import EdgePlan, Sketch, Tally
+from simcred.compare.resample import within_run_steps
 from simcred.compare.result import Comparison, InputInfo
 from simcred.compare.runs import RunCounts
 from simcred.engine import Progress
@@ -184,13 +185,6 @@ class _Source:
         return InputInfo(self.source, "sha256:" + self.hash.hexdigest(), self.n_runs, rows)
 
 
-def _within_run_steps(part: TraceSet) -> np.ndarray:
-    steps = np.diff(part.time)
-    keep = np.ones(len(steps), dtype=bool)
-    keep[part.offsets[1:-1] - 1] = False  # the boundary between two runs is not a step
-    return steps[keep]
-
-
 class _Passes:
     """The three passes over both sets (a generator of one step per partition)."""
 
@@ -240,7 +234,7 @@ class _Passes:
         values = part.features(self.names)
         for j, b in enumerate(self.bins):
             self.sketches[j] = self.sketches[j].merge(Sketch.of(values[:, j], cap=b))
-        source.steps = source.steps.merge(Sketch.of(_within_run_steps(part), cap=1))
+        source.steps = source.steps.merge(Sketch.of(within_run_steps(part), cap=1))
 
     def _plan(self) -> None:
         self.plans = [EdgePlan.of(s, b) for s, b in zip(self.sketches, self.bins, strict=True)]
@@ -256,7 +250,7 @@ class _Passes:
             if plan.needs_counts:
                 self.tallies[j] = self.tallies[j].merge(plan.brackets.tally(values[:, j]))
         source.step_tally = source.step_tally.merge(
-            source.step_brackets.tally(_within_run_steps(part)))
+            source.step_brackets.tally(within_run_steps(part)))
 
     def _period(self, source: _Source) -> None:
         middle = source.step_tally.order_statistics(source.step_brackets)

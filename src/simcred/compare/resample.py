@@ -23,11 +23,16 @@ from simcred.traces import TraceSet
 PERIOD_RTOL = 1e-3
 
 
+def within_run_steps(traces: TraceSet) -> np.ndarray:
+    """Every time step inside a run (the step across a boundary between two runs is none)."""
+    within = np.ones(max(traces.n_rows - 1, 0), dtype=bool)
+    within[traces.offsets[1:-1] - 1] = False
+    return np.diff(traces.time)[within]
+
+
 def sample_period(traces: TraceSet) -> float:
     """Median time step within runs."""
-    within = np.ones(max(traces.n_rows - 1, 0), dtype=bool)
-    within[traces.offsets[1:-1] - 1] = False  # not a step: the boundary between two runs
-    steps = np.diff(traces.time)[within]
+    steps = within_run_steps(traces)
     return float(np.median(steps)) if steps.size else math.nan  # nan: runs of one sample
 
 

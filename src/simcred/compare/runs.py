@@ -138,6 +138,8 @@ class RunCounts:
             return cls.from_matrix(matrix, columns, n_states)
         blocks = [(codes, offsets, lo, hi) for codes, offsets in parts
                   for lo, hi in _run_blocks(offsets)]
+        # two passes over the blocks (their keys computed twice) rather than keeping every
+        # block's keys: the columns must be known before any block's counts are placed
         present = np.zeros(int((size + 1) * size), dtype=bool)
         for block in blocks:
             present[_pair_keys(*_block(*block), size)[0]] = True
