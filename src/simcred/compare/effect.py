@@ -88,6 +88,7 @@ from scipy.stats import norm
 from simcred.compare.design import Design, DesignKind
 from simcred.compare.runs import exceedance_pvalues
 from simcred.compare.transitions import Transitions
+from simcred.compare.unit_sums import unit_matrix
 from simcred.errors import OptionError
 
 #: A state enters the effect when it holds at least this share of EACH side's transitions ...
@@ -250,9 +251,7 @@ def _permuted_plugin(entries: _Entries, keep: np.ndarray, assignments: np.ndarra
     j = entries.first.shape[1]
     values = np.hstack([entries.count[take, None], entries.first[take], entries.second[take]])
     width = values.shape[1]
-    matrix = sp.csr_matrix((values.ravel(), ((state[:, None] * width + np.arange(width)).ravel(),
-                                             np.repeat(unit, width))),
-                           shape=(n_states * width, n_units))
+    matrix = unit_matrix(unit, state, values.T, width, n_units, n_states)
     totals = np.bincount(entries.unit, weights=entries.count, minlength=n_units)
     pooled = np.asarray(matrix.sum(axis=1)).reshape(n_states, width, 1)
     side_a = assignments.T.astype(np.float64)  # (units, P + 1)
@@ -336,7 +335,7 @@ class _Sums:
     need, as a sparse (states · width) × clusters matrix, so that any resampling weights of the
     clusters give every replicate's moments and variances with one product."""
 
-    matrix: sp.csc_matrix
+    matrix: np.ndarray | sp.csc_matrix  # (states · width) × clusters
     visits: sp.csr_matrix  # (states · 2) × clusters: the cluster's side-k member visits
     totals: np.ndarray  # (clusters, 2)
     column: dict
@@ -352,21 +351,16 @@ class _Sums:
         side, cluster = entries.side[take], entries.cluster[take]
         n_states, n_clusters = int(keep.sum()), entries.n_clusters
         j = entries.first.shape[1]
-        # keys ordered by cluster, then state: each cluster's row of the transposed matrix is
-        # its keys' values in order, so the sparse matrix is assembled without a sort
         key, inverse = np.unique(cluster * n_states + state, return_inverse=True)
         x = np.zeros((len(key), 2, 1 + 2 * j))  # per (state, cluster) and side: N, S1, S2
-        np.add.at(x, (inverse, side), np.hstack([entries.count[take, None],
-                                                  entries.first[take], entries.second[take]]))
-        columns = _product_columns(x, j, entries.pairs)
-        column = {name: i for i, name in enumerate(columns)}
-        width = len(columns)
-        values = np.stack(list(columns.values()), axis=1)
-        del x, columns
-        indptr = np.r_[0, np.cumsum(np.bincount(key // n_states, minlength=n_clusters) * width)]
-        indices = ((key % n_states)[:, None] * width + np.arange(width)).ravel()
-        matrix = sp.csr_matrix((values.ravel(), indices, indptr),
-                               shape=(n_clusters, n_states * width)).T  # CSC, no copy
+        x[inverse, side] = np.hstack([entries.count[take, None], entries.first[take],
+                                      entries.second[take]])  # (state, unit) occurs once
+        spec = _product_spec(j, entries.pairs)
+        column = {name: i for i, (name, _, _) in enumerate(spec)}
+        matrix = unit_matrix(key // n_states, key % n_states,
+                             (_product(x, one, two) for _, one, two in spec), len(spec),
+                             n_clusters, n_states)
+        del x
         visits = sp.csr_matrix(
             (np.ones(int(take.sum())), (2 * state + side, cluster)),
             shape=(2 * n_states, n_clusters))
@@ -413,27 +407,30 @@ class _Sums:
         return out
 
 
-def _product_columns(x: np.ndarray, j: int, pairs: bool) -> dict:
-    """Per (state, cluster) row: the sums of each side and their products (and, for pairs, the
-    products of the two members' sums)."""
-    out = {}
+def _product_spec(j: int, pairs: bool) -> list[tuple[tuple, tuple[int, int],
+                                                     tuple[int, int] | None]]:
+    """The columns kept per (state, cluster) row, as (name, factor, factor or None) with a
+    factor (side, sum) over N, S1 and S2 of each feature: the sums of each side, their products
+    and, for pairs, the products of the two members' sums."""
+    out: list = []
     for k in (0, 1):
-        n = x[:, k, 0]
-        out["N", k], out["NN", k] = n, n * n
+        out += [(("N", k), (k, 0), None), (("NN", k), (k, 0), (k, 0))]
         for f in range(j):
-            s1, s2 = x[:, k, 1 + f], x[:, k, 1 + j + f]
-            out["S1", k, f], out["S2", k, f] = s1, s2
-            out["NS1", k, f], out["NS2", k, f] = n * s1, n * s2
-            out["S1S1", k, f], out["S1S2", k, f], out["S2S2", k, f] = s1 * s1, s1 * s2, s2 * s2
+            s1, s2 = (k, 1 + f), (k, 1 + j + f)
+            out += [(("S1", k, f), s1, None), (("S2", k, f), s2, None),
+                    (("NS1", k, f), (k, 0), s1), (("NS2", k, f), (k, 0), s2),
+                    (("S1S1", k, f), s1, s1), (("S1S2", k, f), s1, s2), (("S2S2", k, f), s2, s2)]
     if pairs:
-        out["NN", "AB"] = x[:, 0, 0] * x[:, 1, 0]
+        out.append((("NN", "AB"), (0, 0), (1, 0)))
         for f in range(j):
             parts = {"N": 0, "S1": 1 + f, "S2": 1 + j + f}
-            for p, ip in parts.items():
-                for s, is_ in parts.items():
-                    if p != "N" or s != "N":
-                        out[p + s, "AB", f] = x[:, 0, ip] * x[:, 1, is_]
+            out += [((p + s, "AB", f), (0, ip), (1, is_)) for p, ip in parts.items()
+                    for s, is_ in parts.items() if p != "N" or s != "N"]
     return out
+
+
+def _product(x: np.ndarray, one: tuple[int, int], two: tuple[int, int] | None) -> np.ndarray:
+    return x[:, one[0], one[1]] if two is None else x[:, one[0], one[1]] * x[:, two[0], two[1]]
 
 
 def _side_moments(get, n, inflate, k, j) -> dict[str, np.ndarray]:
