@@ -35,11 +35,18 @@ from simcred.contracts.monitor import MonitorReport, monitor
 from simcred.errors import SimcredError
 from simcred.regions.tables import domains_frame
 from simcred.traces import TraceSet
-from simcred.validate.cells import Grid, grid_of, segments
-from simcred.validate.domain import CellStatus, Domain, cell_rule, learn_domain
+from simcred.validate.cells import Grid, Segments, grid_of, segments
+from simcred.validate.domain import (
+    CellRule,
+    CellStatus,
+    Domain,
+    cell_rule,
+    cell_settings,
+    learn_domain,
+)
 from simcred.validate.learned import COMPONENT, TEST_CASE, library_dict
 from simcred.validate.learned import number as _exact_text
-from simcred.validate.plan import Plan, pilot, plan
+from simcred.validate.plan import PairedInput, Plan, pilot, plan
 from simcred.validate.ranking import Ranked, rank
 from simcred.validate.spec import RunsSpec, ValidationFileError, ValidationSpec
 from simcred.validate.tolerance import Resolution, placeholder, resolve
@@ -151,8 +158,8 @@ def validate(spec: ValidationSpec, inputs: Inputs, *, source: str = "<memory>",
     relevant = _relevant_cells(grid, empty.test_case(TEST_CASE), empty)
     reference = segments(inputs.reference, grid, spec.segments.min_length)
     spec, resolution = resolve(spec, reference, relevant)
-    domains = {n: learn_domain(spec, grid, reference, runs, n,
-                               cell_rule(spec, len(relevant), n in inputs.replays))
+    rules = {n: cell_rule(spec, len(relevant), n in inputs.replays) for n in inputs.candidates}
+    domains = {n: learn_domain(spec, grid, reference, runs, n, rules[n])
                for n, runs in inputs.candidates.items()}
     data = library_dict(spec, domains, units)
     library = Library.from_dict(data, source="learned contracts")
@@ -163,12 +170,21 @@ def validate(spec: ValidationSpec, inputs: Inputs, *, source: str = "<memory>",
     configuration = _configuration(library)
     uncovered = {n: _uncovered(d, relevant, beyond_text) for n, d in domains.items()}
     monitors = _monitors(library, inputs)
-    verdict, summary = _overall(spec, verdicts, configuration)
+    verdict, summary = _overall(spec, verdicts, configuration, planned)
     halves = pilot(spec, reference, relevant)
-    needs = plan(spec, grid, halves, relevant, domains) if planned else None
+    needs = plan(spec, grid, halves, relevant, domains,
+                 _paired(spec, grid, reference, inputs, rules)) if planned else None
     ranking = rank(domains, relevant, spec, tuple(halves.comparisons.values()))
     return Validation(spec, grid, domains, verdicts, verdict, summary, data, configuration,
                       uncovered, monitors, ranking, needs, resolution)
+
+
+def _paired(spec: ValidationSpec, grid: Grid, reference: Segments, inputs: Inputs,
+            rules: dict[str, CellRule]) -> dict[str, PairedInput]:
+    """The candidates whose runs pair with the reference's, for the plan."""
+    settings = cell_settings(spec)
+    return {n: PairedInput(rules[n], reference, settings.segments(inputs.candidates[n], grid))
+            for n in inputs.candidates if rules[n].pair_by is not None}
 
 
 def _check_signals(spec: ValidationSpec, inputs: Inputs) -> None:
@@ -275,7 +291,7 @@ def _monitors(library: Library, inputs: Inputs) -> dict[str, MonitorReport]:
 
 
 def _overall(spec: ValidationSpec, verdicts: dict[str, CandidateVerdict],
-             configuration: dict[str, Any] | None) -> tuple[str, str]:
+             configuration: dict[str, Any] | None, planned: bool) -> tuple[str, str]:
     question = f"'{spec.test_case.conditions}'"
     if configuration is not None and configuration["status"] == "holds":
         chosen = configuration["setup"][COMPONENT]
@@ -285,6 +301,8 @@ def _overall(spec: ValidationSpec, verdicts: dict[str, CandidateVerdict],
         names = ", ".join(verdicts)
         return NOT_VALID, f"NOT VALID: no candidate ({names}) is valid for {question}"
     open_ = ", ".join(n for n, v in verdicts.items() if v.verdict == INCONCLUSIVE)
+    where = ("the plan says how much data would decide" if planned else
+             "`simcred validate --plan` says how much data would decide")
     return INCONCLUSIVE, (f"INCONCLUSIVE: the data do not decide for {question} ({open_}: "
                           "deviations not placed on either side of the tolerance, cells "
-                          "without enough data or outside the grid)")
+                          f"without enough data or outside the grid); {where}")

@@ -55,9 +55,10 @@ def error_rates(result: Validation) -> dict[str, Any]:
                        f"test case, each deviation's upper {1 - alpha:.4g} bound below its "
                        "tolerance (intersection-union test)",
         "false_not_valid": f"at most {alpha:g} per candidate within tolerance in every cell: "
-                           f"NOT VALID needs a deviation's lower {1 - alpha / max(cells, 1):.4g} "
-                           f"bound above its tolerance in some cell (Bonferroni over the "
-                           f"{cells} cells)",
+                           f"NOT VALID needs, in some cell, a deviation's lower "
+                           f"{1 - alpha / max(cells, 1):.4g} bound above its tolerance and its "
+                           f"permutation test rejecting the same law at "
+                           f"{alpha / max(cells, 1):.4g} (Bonferroni over the {cells} cells)",
         "overall": f"the chosen candidate is wrongly valid with probability at most {alpha:g} "
                    "times the number of candidates that are not within tolerance",
         "bounds": "cluster-bootstrap (basic) bounds over the design's units: approximate; their "
