@@ -337,6 +337,6 @@ def acc_halves(rng: np.random.Generator, episodes: int | None = None
     return sets[0], sets[1]
 
 
-__all__ = ["ACC_CAR", "CLIP", "CLIP_SYMMETRIC", "DEFECTS", "DELAYS", "DIAGNOSTIC", "DT", "PHI", "WINDOW",
-           "acc_episodes", "acc_halves", "closed_loop_pair", "crashed", "draw_windows", "human", "human_halves", "simulate",
-           "split_units"]
+__all__ = ["ACC_CAR", "CLIP", "CLIP_SYMMETRIC", "DEFECTS", "DELAYS", "DIAGNOSTIC", "DT", "PHI",
+           "WINDOW", "acc_episodes", "acc_halves", "closed_loop_pair", "crashed", "draw_windows",
+           "human", "human_halves", "simulate", "split_units"]

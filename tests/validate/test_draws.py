@@ -24,7 +24,7 @@ def _set(tag: str, keys: list[str], level: float) -> TraceSet:
             runs.append((run, level + i))
             info[run] = {SOURCE_RUN: key, "driver": key}
     lengths = [3] * len(runs)
-    values = np.concatenate([np.full((n, 1), v) for (_, v), n in zip(runs, lengths)])
+    values = np.concatenate([np.full((n, 1), v) for (_, v), n in zip(runs, lengths, strict=True)])
     return TraceSet(("x",), np.tile(np.arange(3.0), len(runs)), values,
                     np.r_[0, np.cumsum(lengths)], tuple(r for r, _ in runs),
                     {RUN_INFO: info}, tag)
