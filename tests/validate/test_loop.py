@@ -385,3 +385,25 @@ def test_relative_tolerance_is_resolved_from_the_reference_halves(tmp_path):
                                                "tolerance": {"x": {"relative": 1.0}}},
                           min_data={"runs": 2, "samples": 10}, runs=2, steps=40)
     assert run(["-q", "validate", str(path), "--out", str(tmp_path / "few")]) == 2
+
+
+def test_an_inconclusive_cell_says_what_data_would_decide_it(tmp_path):
+    """Issue 22: INCONCLUSIVE comes with the data that would be needed — per undecided cell the
+    normal rule's units per side at the candidate's estimate (the plan's number)."""
+    from simcred.validate import read_inputs, read_validation, validate
+    from simcred.validate.plan import cell_rows
+
+    path = write_universe(tmp_path, test_case={"conditions": "5 <= v < 20",
+                                               "tolerance": {"x": 0.5}})
+    spec, base = read_validation(path)
+    result = validate(spec, read_inputs(spec, base))
+    power = 0.8 ** (1 / 3)
+    undecided = [c for c in result.domains["sim"].cells if c.status.value == "inconclusive"]
+    assert undecided, "the design should leave a cell undecided at tolerance 0.5"
+    reasons = result.candidates["sim"].reasons
+    for cell in undecided:
+        rows = cell_rows("sim", cell, spec, power)
+        needed = max(r.needed for r in rows)
+        line = next(r for r in reasons if r.startswith(f"inconclusive in {cell.label}"))
+        assert f"about {needed} units per side would show it within tolerance" in line
+    assert "--plan" in result.summary

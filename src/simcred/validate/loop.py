@@ -37,6 +37,7 @@ from simcred.regions.tables import domains_frame
 from simcred.traces import TraceSet
 from simcred.validate.cells import Grid, Segments, grid_of, segments
 from simcred.validate.domain import (
+    CellResult,
     CellRule,
     CellStatus,
     Domain,
@@ -46,7 +47,15 @@ from simcred.validate.domain import (
 )
 from simcred.validate.learned import COMPONENT, TEST_CASE, library_dict
 from simcred.validate.learned import number as _exact_text
-from simcred.validate.plan import PairedInput, Plan, pilot, plan
+from simcred.validate.plan import (
+    POWER,
+    PairedInput,
+    Plan,
+    cell_rows,
+    needed_text,
+    pilot,
+    plan,
+)
 from simcred.validate.ranking import Ranked, rank
 from simcred.validate.spec import RunsSpec, ValidationFileError, ValidationSpec
 from simcred.validate.tolerance import Resolution, placeholder, resolve
@@ -165,7 +174,7 @@ def validate(spec: ValidationSpec, inputs: Inputs, *, source: str = "<memory>",
     library = Library.from_dict(data, source="learned contracts")
     target = library.test_case(TEST_CASE)
     beyond_text = _beyond_grid(grid, target, library)
-    verdicts = {n: _candidate_verdict(n, d, relevant, library, target, beyond_text)
+    verdicts = {n: _candidate_verdict(spec, n, d, relevant, library, target, beyond_text)
                 for n, d in domains.items()}
     configuration = _configuration(library)
     uncovered = {n: _uncovered(d, relevant, beyond_text) for n, d in domains.items()}
@@ -255,8 +264,8 @@ def _uncovered(domain: Domain, relevant: tuple[int, ...], beyond: str) -> list[s
     return out + ([beyond] if beyond else [])
 
 
-def _candidate_verdict(name: str, domain: Domain, relevant: tuple[int, ...], library: Library,
-                       target: Contract, beyond: str) -> CandidateVerdict:
+def _candidate_verdict(spec: ValidationSpec, name: str, domain: Domain, relevant: tuple[int, ...],
+                       library: Library, target: Contract, beyond: str) -> CandidateVerdict:
     cells = [domain.cells[c] for c in relevant]
     bad = [c for c in cells if c.status is CellStatus.NOT_VALID]
     proof = None
@@ -269,13 +278,20 @@ def _candidate_verdict(name: str, domain: Domain, relevant: tuple[int, ...], lib
         return CandidateVerdict(name, VALID, (f"valid in all {len(cells)} cells of the test "
                                               "case; its learned contract refines the test "
                                               "case (z3)",), relevant, proof)
-    reasons = [f"{c.status.value} in {c.label}: {c.reason}" for c in cells
-               if c.status is not CellStatus.VALID]
+    power = POWER ** (1 / max(len(relevant), 1))
+    reasons = [_undecided(name, c, spec, power) for c in cells if c.status is not CellStatus.VALID]
     if beyond:
         reasons.append(beyond)
     if not cells:
         reasons.append("no cell of the grid meets the test case's conditions")
     return CandidateVerdict(name, INCONCLUSIVE, tuple(reasons), relevant, proof)
+
+
+def _undecided(name: str, cell: CellResult, spec: ValidationSpec, power: float) -> str:
+    """An undecided cell's reason, with the data that would decide it when it was compared."""
+    need = needed_text(cell_rows(name, cell, spec, power)) \
+        if cell.status is CellStatus.INCONCLUSIVE else ""
+    return f"{cell.status.value} in {cell.label}: {cell.reason}" + (f"; {need}" if need else "")
 
 
 def _monitors(library: Library, inputs: Inputs) -> dict[str, MonitorReport]:

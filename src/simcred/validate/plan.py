@@ -66,6 +66,7 @@ from scipy.stats import norm
 from simcred.compare import Comparison
 from simcred.regions.cells import Grid, Segments
 from simcred.regions.engine import (
+    CellResult,
     CellRule,
     CellStatus,
     Domain,
@@ -337,14 +338,31 @@ def _row(source, cell, label, m, effect, spec, alpha, cell_power) -> PlanRow:
 def _candidate_rows(name, domain, relevant, spec, alpha, cell_power) -> list[PlanRow]:
     out = []
     for cell in relevant:
-        result = domain.cells[cell]
-        if result.comparison is None:
-            continue
-        m = min(result.reference_units, result.candidate_units)
-        out += [_row(name, cell, result.label, m, effect, spec, alpha, cell_power)
-                for effect in result.comparison.response.effect.features
-                if effect.feature in spec.test_case.tolerance]
+        out += cell_rows(name, domain.cells[cell], spec, cell_power)
     return out
+
+
+def cell_rows(name: str, result: CellResult, spec: ValidationSpec, cell_power: float
+              ) -> list[PlanRow]:
+    """One candidate's plan rows in one compared cell (none without a comparison)."""
+    if result.comparison is None:
+        return []
+    m = min(result.reference_units, result.candidate_units)
+    return [_row(name, result.cell, result.label, m, effect, spec, spec.comparison.alpha,
+                 cell_power)
+            for effect in result.comparison.response.effect.features
+            if effect.feature in spec.test_case.tolerance]
+
+
+def needed_text(rows: list[PlanRow]) -> str:
+    """What an undecided cell would need, by the normal rule at the candidate's estimate."""
+    if not rows:
+        return ""
+    if any(r.needed is None for r in rows):
+        return ("at its estimate no amount of data would show it within tolerance (normal "
+                "rule; `--plan` simulates)")
+    return (f"about {max(r.needed for r in rows)} units per side would show it within "
+            f"tolerance at its estimate (now {rows[0].units}; normal rule, `--plan` simulates)")
 
 
 def _simulate(spec: ValidationSpec, pools: dict[int, TraceSet], rule: CellRule,
