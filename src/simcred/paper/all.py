@@ -6,7 +6,6 @@ Layout: ``paper000/``, ``paper002/`` (with ``variations/``), ``paper003/``, ``cl
 
 from __future__ import annotations
 
-import hashlib
 import importlib.metadata
 import json
 import platform
@@ -14,7 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from simcred._json import dumps, envelope
+from simcred._json import dumps, envelope, file_sha256
 from simcred.engine import Engine
 from simcred.paper import seed000, seed002, seed003
 from simcred.paper.claims import Claim, write_claims
@@ -46,10 +45,6 @@ def versions() -> dict[str, str]:
     return found
 
 
-def _sha256(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()
-
-
 def run_all(out: Path, options: AllOptions, *, runner: Engine, progress=None,
             progress_for=lambda _: None) -> dict[str, list[Claim]]:
     """Run every seed into ``out`` and write the combined ``claims.json``."""
@@ -69,10 +64,10 @@ def run_all(out: Path, options: AllOptions, *, runner: Engine, progress=None,
         "monitored_runs": {k: v.n_runs for k, v in monitored.items()},
         "monitor_tolerance": seed003.TOLERANCE})
     inputs = {
-        seed003.LIBRARY.name: _sha256(seed003.LIBRARY),
-        "paper002/measurement/gt.parquet": _sha256(out / "paper002/measurement/gt.parquet"),
-        "paper002/measurement/sd.parquet": _sha256(out / "paper002/measurement/sd.parquet"),
-        "paper002/descriptions/fit_GT.json": _sha256(out / "paper002/descriptions/fit_GT.json"),
+        seed003.LIBRARY.name: file_sha256(seed003.LIBRARY),
+        "paper002/measurement/gt.parquet": file_sha256(out / "paper002/measurement/gt.parquet"),
+        "paper002/measurement/sd.parquet": file_sha256(out / "paper002/measurement/sd.parquet"),
+        "paper002/descriptions/fit_GT.json": file_sha256(out / "paper002/descriptions/fit_GT.json"),
     }
     _write_combined(out, options, inputs)
     return claims

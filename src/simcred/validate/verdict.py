@@ -8,7 +8,6 @@ checkout, its commit.
 
 from __future__ import annotations
 
-import hashlib
 import platform
 import subprocess
 from pathlib import Path
@@ -17,7 +16,7 @@ from typing import Any
 import numpy as np
 import scipy
 
-from simcred._json import dumps, envelope
+from simcred._json import dumps, envelope, file_sha256
 from simcred._version import __version__
 from simcred.validate.loop import MAX_VIOLATIONS, Inputs, Validation
 
@@ -85,7 +84,7 @@ def provenance(result: Validation, inputs: Inputs, validation_file: Path | None,
     return {
         "validation_file": None if validation_file is None else {
             "path": validation_file.name,
-            "sha256": hashlib.sha256(validation_file.read_bytes()).hexdigest()},
+            "sha256": file_sha256(validation_file)},
         "inputs": {"reference": _set(inputs.reference),
                    "candidates": {n: _set(t) for n, t in inputs.candidates.items()},
                    "monitor": [_set(t) for t in inputs.monitored]},
