@@ -45,7 +45,9 @@ def test_report_text(report):
 
 def test_verdict_states_its_error_rates(report):
     import json
-    rates = json.loads((report.parent / "verdict.json").read_text())["error_rates"]
+    document = json.loads((report.parent / "verdict.json").read_text())
+    assert "z3-solver" in document["provenance"]["versions"]  # its proofs are in the verdict
+    rates = document["error_rates"]
     assert rates["alpha"] == 0.05 and rates["test_case_cells"] == 3
     assert "upper 0.95 bound" in rates["false_valid"]
     assert "lower 0.9833 bound" in rates["false_not_valid"]  # Bonferroni: 1 - 0.05 / 3

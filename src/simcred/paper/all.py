@@ -6,14 +6,13 @@ Layout: ``paper000/``, ``paper002/`` (with ``variations/``), ``paper003/``, ``cl
 
 from __future__ import annotations
 
-import importlib.metadata
 import json
-import platform
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from simcred._json import dumps, envelope, file_sha256
+from simcred._version import versions as package_versions
 from simcred.engine import Engine
 from simcred.paper import seed000, seed002, seed003
 from simcred.paper.claims import Claim, write_claims
@@ -36,13 +35,7 @@ class AllOptions:
 
 
 def versions() -> dict[str, str]:
-    found = {"python": platform.python_version()}
-    for name in ("simcred", *PACKAGES):
-        try:
-            found[name] = importlib.metadata.version(name)
-        except importlib.metadata.PackageNotFoundError:
-            found[name] = "not installed"
-    return found
+    return package_versions(*PACKAGES)
 
 
 def run_all(out: Path, options: AllOptions, *, runner: Engine, progress=None,

@@ -8,16 +8,12 @@ checkout, its commit.
 
 from __future__ import annotations
 
-import platform
 import subprocess
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-import scipy
-
 from simcred._json import dumps, envelope, file_sha256
-from simcred._version import __version__
+from simcred._version import versions
 from simcred.validate.loop import MAX_VIOLATIONS, Inputs, Validation
 
 
@@ -90,8 +86,7 @@ def provenance(result: Validation, inputs: Inputs, validation_file: Path | None,
                    "monitor": [_set(t) for t in inputs.monitored]},
         "options": result.spec.model_dump(mode="json"),
         "seed": result.spec.comparison.seed,
-        "versions": {"simcred": __version__, "numpy": np.__version__,
-                     "scipy": scipy.__version__, "python": platform.python_version()},
+        "versions": versions("numpy", "scipy", "z3-solver"),
         "git_commit": git_commit(),
         "date": date,
     }
