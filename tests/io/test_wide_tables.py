@@ -109,3 +109,83 @@ def test_an_a9_recording_over_the_limit_is_refused(tmp_path):
     path.write_text(",".join(names) + "\n" + ",".join(["0"] * len(names)) + "\n")
     with pytest.raises(TraceSetError, match="more than 10000"):
         read_a9(path)
+
+
+# -- the limit in the formats whose signals are not one file's columns ---------------------------
+
+
+def test_long_csv_objects_turned_into_too_many_signals_are_refused(tmp_path):
+    """Four columns, but 10,000 objects x 1 value: t + 10,000 signals."""
+    objects = np.repeat(np.arange(MAX_COLUMNS), 2)
+    lines = ["run,t,id,x", *(f"a,{k % 2},{o},1.0" for k, o in enumerate(objects))]
+    path = tmp_path / "objects.csv"
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    with pytest.raises(TraceSetError, match=r"run 'a': 10001 columns, more than 10000"):
+        longformat.read(path, run_column="run", object_column="id")
+
+
+def test_sumo_fcd_with_too_many_vehicles_as_signals_is_refused(tmp_path):
+    """2,500 vehicles x 5 attributes (x, y, angle, speed, pos) as signals of one run."""
+    from simcred.io import sumo_fcd
+
+    vehicles = "".join(f'<vehicle id="v{j}" x="1" y="2" angle="0" speed="3" pos="4"/>'
+                       for j in range(2500))
+    steps = "".join(f'<timestep time="{t}">{vehicles}</timestep>' for t in (0.0, 1.0))
+    path = tmp_path / "fcd.xml"
+    path.write_text(f"<fcd-export>{steps}</fcd-export>", encoding="utf-8")
+    with pytest.raises(TraceSetError, match="12501 columns, more than 10000"):
+        sumo_fcd.read(path, objects_as="signals")
+
+
+def _wide_csv_text(columns: int) -> str:
+    return ",".join(["Time", *(f"c{j}" for j in range(columns - 1))]) + "\n" + \
+        ",".join(["0"] * columns) + "\n"
+
+
+def test_a_levelx_tracks_file_over_the_limit_is_refused(tmp_path):
+    from simcred.io import levelx
+
+    for name in ("01_tracks.csv", "01_tracksMeta.csv", "01_recordingMeta.csv"):
+        (tmp_path / name).write_text(_wide_csv_text(MAX_COLUMNS + 1), encoding="utf-8")
+    with pytest.raises(TraceSetError, match="more than 10000"):
+        levelx.read(tmp_path)
+
+
+def test_an_openacc_file_over_the_limit_is_refused(tmp_path):
+    from simcred.io.openacc import META_ROWS, read_recording
+
+    path = tmp_path / "acc.csv"
+    path.write_text("".join(f"{key},x\n" for key in META_ROWS) + _wide_csv_text(MAX_COLUMNS + 1),
+                    encoding="utf-8")
+    with pytest.raises(TraceSetError, match="more than 10000"):
+        read_recording(path)
+
+
+def test_a_parquet_data_set_partition_over_the_limit_is_refused(tmp_path):
+    from simcred.io.dataset import ParquetDataset
+
+    pq.write_table(_wide_table(MAX_COLUMNS + 1), tmp_path / "part-0.parquet")
+    with pytest.raises(TraceSetError, match="more than 10000"):
+        ParquetDataset.open(tmp_path)
+
+
+def test_too_many_ros_fields_in_a_run_are_refused():
+    from simcred.io import rosbag
+
+    fields = {f"f{j}": np.zeros(2) for j in range(MAX_COLUMNS)}
+    with pytest.raises(TraceSetError, match="10001 columns, more than 10000"):
+        rosbag._run("r", {"odom": (np.arange(2.0), fields, None)}, "bag")
+
+
+def test_an_mdf_file_with_too_many_channels_is_refused(tmp_path):
+    asammdf = pytest.importorskip("asammdf")
+    from simcred.io import mdf
+
+    t = np.arange(2.0)
+    signals = [asammdf.Signal(np.zeros(2), t, name=f"c{j}") for j in range(MAX_COLUMNS)]
+    path = tmp_path / "wide.mf4"
+    with asammdf.MDF() as file:
+        file.append(signals)
+        file.save(path)
+    with pytest.raises(TraceSetError, match="10001 columns, more than 10000"):
+        mdf.read(path)

@@ -18,6 +18,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 
 from simcred.errors import OptionError, TraceSetError
+from simcred.io._columns import check_signals
 from simcred.traces import TIME, TraceSet, handed_over
 
 OBJECTS_AS = ("signals", "runs")
@@ -130,6 +131,7 @@ def to_traceset(records: Records, *, objects_as: str = "signals", missing: str =
             continue
         kept.append(run_names[r])
         where = f"{records.where}: run '{run_names[r]}'"
+        check_signals(_width(records, rows, obj_code[rows]), where)  # before the columns
         t, names, block, lost = _run_block(records, rows, obj_code[rows], obj_names, where,
                                            missing)
         if signals is None:
@@ -178,6 +180,12 @@ def _check_duplicates(records, order, run_code, obj_code, run_names, obj_names) 
         raise TraceSetError(f"{records.where}: {who} has two {records.row_name}s at "
                             f"t={float(records.time[a])!r} "
                             f"({records.row_name}s {a + 1} and {b + 1})")
+
+
+def _width(records: Records, rows: np.ndarray, codes: np.ndarray) -> int:
+    """The signals :func:`_run_block` makes of a run: its (object, field) pairs with a value,
+    counted in linear time (a run of 100,000 objects is refused before its columns are made)."""
+    return sum(np.unique(codes[present[rows]]).size for _, present in records.fields.values())
 
 
 def _run_block(records, rows, codes, obj_names, where, missing):

@@ -16,7 +16,7 @@ import pyarrow.parquet as pq
 
 from simcred._json import loads
 from simcred.errors import TraceSetError
-from simcred.io._columns import check_table, check_width, float_column
+from simcred.io._columns import float_column, parquet_table
 from simcred.io._paths import local
 from simcred.traces import TIME, TraceSet, handed_over
 
@@ -26,8 +26,7 @@ METADATA_KEY = b"simcred"
 
 def read(path: Path) -> TraceSet:
     try:
-        check_width(len(pq.read_schema(local(path))), str(path))  # before any value is read
-        table = check_table(pq.read_table(local(path)), str(path))
+        table = parquet_table(path)  # the width checked before any value is read
     except (pa.ArrowException, OSError) as exc:
         reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise TraceSetError(f"{path}: unreadable Parquet ({reason})") from None
