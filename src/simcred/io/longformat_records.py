@@ -131,7 +131,6 @@ def to_traceset(records: Records, *, objects_as: str = "signals", missing: str =
             continue
         kept.append(run_names[r])
         where = f"{records.where}: run '{run_names[r]}'"
-        check_signals(_width(records, rows, obj_code[rows]), where)  # before the columns
         t, names, block, lost = _run_block(records, rows, obj_code[rows], obj_names, where,
                                            missing)
         if signals is None:
@@ -190,6 +189,7 @@ def _width(records: Records, rows: np.ndarray, codes: np.ndarray) -> int:
 
 def _run_block(records, rows, codes, obj_names, where, missing):
     """Time steps, signal names and the (steps, signals) block of one run; rows dropped."""
+    check_signals(_width(records, rows, codes), where)  # before its columns are made
     groups = [rows[codes == c] for c in np.unique(codes)]  # objects by first appearance
     group_times = [records.time[g] for g in groups]
     if missing == "error":
