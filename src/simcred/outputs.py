@@ -169,8 +169,7 @@ def output_path(out: Path, inputs: Sequence[Path] = (), *, kind: str = "director
         resume; a callable decides from the exception); otherwise it is removed, so nothing
         half-written remains.
     """
-    if kind == "file":
-        _drop_moved(out, inputs)
+    (_drop_moved if kind == "file" else _recover_replaced)(out, inputs)
     check_out(out, inputs, overwrite=overwrite, kind=kind)
     partial, out = partial_path(out), real(out)
     if partial.is_symlink() or (partial.exists() and not partial.is_dir()):
@@ -285,14 +284,52 @@ def output_dir(out: Path, inputs: Sequence[Path] = (), *, overwrite: bool = Fals
         yield partial
 
 
+def replaced_path(out: Path) -> Path:
+    """Where an existing directory output waits, hidden beside it, while its replacement is
+    renamed into place (:func:`_replace_dir`)."""
+    target = real(out)
+    return target.with_name(f".{target.name}.simcred-replaced")
+
+
 def _replace_dir(partial: Path, out: Path) -> None:
+    """Rename ``partial`` to ``out``; an existing ``out`` is first moved to
+    :func:`replaced_path`, removed afterwards. A kill between the steps leaves that folder,
+    which the next run resolves (:func:`_recover_replaced`)."""
     if out.exists():
-        trash = Path(tempfile.mkdtemp(prefix=f".{out.name}.old-", dir=out.parent))
-        os.replace(out, trash / out.name)
+        old = replaced_path(out)
+        os.replace(out, old)  # refused (one line) if something else is at that name
         os.replace(partial, out)
-        shutil.rmtree(trash, ignore_errors=True)
+        shutil.rmtree(old, ignore_errors=True)
     else:
         os.replace(partial, out)
+
+
+def _recover_replaced(out: Path, inputs: Sequence[Path]) -> None:
+    """Finish a replacement of the directory ``out`` that a kill interrupted: with no ``out``
+    (killed between the two renames) the previous output is put back, as it was; with ``out``
+    in place (killed before the old one was removed) the old one is removed. Only a folder that
+    is simcred's (its :data:`MARKER`, or empty), no input, and not while a running command
+    holds ``OUT.partial``."""
+    try:
+        old, target, partial = replaced_path(out), real(out), partial_path(out)
+    except OptionError:
+        return
+    if (old.is_symlink() or not old.is_dir()
+            or any(contains(old, item) or contains(item, old) for item in inputs)):
+        return
+    try:
+        _refuse_foreign(old, "the replaced output")
+    except OptionError:
+        if any(old.iterdir()):
+            return
+    lock = _lock(partial) if partial.is_dir() and not partial.is_symlink() else None
+    try:
+        if os.path.lexists(target):
+            shutil.rmtree(old)
+        else:
+            os.replace(old, target)
+    finally:
+        _unlock(lock)
 
 
 def write_atomic(path: Path, data: bytes | str) -> Path:

@@ -1,14 +1,22 @@
-"""A job killed between renaming its file output into place (``OUT.partial/<name>`` -> ``OUT``)
+"""Kills inside the last steps of writing an output (issue 29).
+
+A file output: a job killed between renaming it into place (``OUT.partial/<name>`` -> ``OUT``)
 and removing ``OUT.partial`` leaves a complete ``OUT`` beside a stale ``OUT.partial``. The next
 run, plain, ``--resume`` or ``--overwrite``, recognises it (simcred's marker, and a record of the
 very file now at ``OUT``) and removes it; a partial output that is not provably done is never
-removed so (issue 29; simcred.outputs._drop_moved).
+removed so (simcred.outputs._drop_moved).
 
-The state is made deterministically: the writer's removal of ``OUT.partial`` is replaced by a
-"kill" (an exception no handler catches) right after the rename."""
+A directory output replacing an older one (``--overwrite``): the old ``OUT`` is moved aside
+(``.OUT.simcred-replaced``), then ``OUT.partial`` renamed to ``OUT``. Killed between the two, the
+next run puts the old output back as it was; killed after them, it removes the old one
+(simcred.outputs._recover_replaced).
+
+The states are made deterministically: a step of the writer is replaced by a "kill" (an
+exception no handler catches)."""
 
 from __future__ import annotations
 
+import os
 import shutil
 import types
 from pathlib import Path
@@ -17,7 +25,7 @@ import pytest
 
 import simcred.outputs as outputs
 from simcred.cli import run
-from simcred.outputs import MARKER, MOVED, partial_path
+from simcred.outputs import MARKER, MOVED, partial_path, replaced_path
 
 ARGS = ["simulate", "tjunction", "--runs", "4", "--chunk-size", "2", "--seed", "1"]
 
@@ -96,3 +104,83 @@ def test_a_done_job_leaves_no_partial_output(tmp_path):
     assert run(_command(out)) == 0
     assert out.is_file() and not partial_path(out).exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out.parquet"]
+
+
+# -- a directory output replaced with --overwrite -------------------------------------------------
+
+EXAMPLE = ["-q", "example", "--runs", "3", "--steps", "5"]
+
+
+def tree(root: Path) -> dict[str, bytes]:
+    return {p.relative_to(root).as_posix(): p.read_bytes() for p in sorted(root.rglob("*"))
+            if p.is_file()}
+
+
+class _KillingOs:
+    """``os`` for simcred.outputs, except that renaming ``OUT.partial`` to ``OUT`` dies."""
+
+    def __init__(self, out: Path) -> None:
+        self.partial = partial_path(out)
+
+    def __getattr__(self, name):
+        return getattr(os, name)
+
+    def replace(self, source, target):
+        if Path(source) == self.partial:
+            raise Killed
+        return os.replace(source, target)
+
+
+@pytest.fixture
+def replaced(tmp_path) -> tuple[Path, dict[str, bytes]]:
+    """``out``, written by ``example --seed 1``, and its files."""
+    out = tmp_path / "out"
+    assert run([*EXAMPLE, "--seed", "1", "--out", str(out)]) == 0
+    return out, tree(out)
+
+
+def _overwrite_killed(out: Path, patch_name: str, patched, monkeypatch) -> None:
+    with monkeypatch.context() as patch:
+        patch.setattr(outputs, patch_name, patched)
+        with pytest.raises(Killed):
+            run([*EXAMPLE, "--seed", "2", "--out", str(out), "--overwrite"])
+
+
+def test_killed_between_the_renames_the_old_output_comes_back(replaced, monkeypatch, capsys):
+    out, old = replaced
+    _overwrite_killed(out, "os", _KillingOs(out), monkeypatch)
+    assert not out.exists() and tree(replaced_path(out)) == old  # the state of the kill
+    assert partial_path(out).is_dir()
+    capsys.readouterr()
+    assert run([*EXAMPLE, "--seed", "2", "--out", str(out)]) == 2  # plain: OUT is back
+    assert "--overwrite" in capsys.readouterr().err
+    assert tree(out) == old and not replaced_path(out).exists()
+    assert run([*EXAMPLE, "--seed", "2", "--out", str(out), "--overwrite"]) == 0
+    assert tree(out) != old and not partial_path(out).exists()
+    assert not replaced_path(out).exists()
+
+
+def test_killed_after_the_renames_the_old_output_is_removed(replaced, monkeypatch):
+    out, _ = replaced
+    assert run([*EXAMPLE, "--seed", "2", "--out", str(out.with_name("new"))]) == 0
+    new = tree(out.with_name("new"))
+
+    def rmtree(path, *args, **kwargs):
+        if Path(path) == replaced_path(out):
+            raise Killed
+        return shutil.rmtree(path, *args, **kwargs)
+
+    _overwrite_killed(out, "shutil", types.SimpleNamespace(rmtree=rmtree), monkeypatch)
+    assert tree(out) == new and replaced_path(out).is_dir()  # the state of the kill
+    assert run([*EXAMPLE, "--seed", "2", "--out", str(out)]) == 2
+    assert tree(out) == new and not replaced_path(out).exists()
+    assert not partial_path(out).exists()
+
+
+def test_a_foreign_folder_at_the_replaced_name_is_left_alone(replaced):
+    out, old = replaced
+    foreign = replaced_path(out)
+    foreign.mkdir()
+    (foreign / "mine.txt").write_text("a user's file")
+    assert run([*EXAMPLE, "--seed", "2", "--out", str(out)]) == 2
+    assert (foreign / "mine.txt").read_text() == "a user's file" and tree(out) == old
