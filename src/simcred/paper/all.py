@@ -38,14 +38,14 @@ def versions() -> dict[str, str]:
     return package_versions(*PACKAGES)
 
 
-def run_all(out: Path, options: AllOptions, *, runner: Engine, progress=None,
+def run_all(out: Path, options: AllOptions, *, runner: Engine,
             progress_for=lambda _: None) -> dict[str, list[Claim]]:
     """Run every seed into ``out`` and write the combined ``claims.json``."""
     out.mkdir(parents=True, exist_ok=True)
     claims = {"000": seed000.run_all(out / "paper000", runs=options.runs, seed=options.seed,
                                      runner=runner, progress_for=progress_for)}
     run002 = seed002.run_all(out / "paper002", seed=options.seed, variations=options.variations,
-                             runner=runner, progress=progress, progress_for=progress_for)
+                             runner=runner, progress_for=progress_for)
     claims["002"] = run002.claims
     monitored = {"resimulations": concat(list(run002.result.resimulations.values()),
                                          source="paper002 resimulations"),
