@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 import numpy as np
@@ -23,15 +22,6 @@ def _csv(path: Path, names: list[str], rows: np.ndarray) -> Path:
     return path
 
 
-def _seconds(read, path: Path) -> float:
-    best = float("inf")
-    for _ in range(3):
-        started = time.perf_counter()
-        read(path)
-        best = min(best, time.perf_counter() - started)
-    return best
-
-
 def _one_run(rows: int, signals: int) -> TraceSet:
     values = np.arange(rows * signals, dtype=np.float64).reshape(rows, signals) / 7
     return TraceSet.from_runs([{"t": np.arange(rows, dtype=np.float64),
@@ -46,26 +36,19 @@ FORMATS = {"csv-dir": ("", TraceSet.write, csvdir.read),
 
 
 @pytest.mark.parametrize("name", FORMATS)
-def test_ten_thousand_columns_read_in_linear_time(name, tmp_path):
-    """2 rows x 10,000 columns (t, run, 9,998 signals): under 5 s, within a bounded ratio of
-    5,000 rows x 2 columns, and about twice the time of half the columns (not four times).
-    benchmarks/wide_columns.py measures the same (docs/benchmarks.md)."""
+def test_ten_thousand_columns_read_back_exactly(name, tmp_path):
+    """2 rows x 10,000 columns (t, run, 9,998 signals) read back value for value. Their speed
+    (linear in the columns, < 5 s, as a ratio to 5,000 rows x 2 columns) is measured by
+    benchmarks/wide_columns.py (docs/benchmarks.md), not asserted here: no wall-clock time in
+    a test."""
     suffix, write, read = FORMATS[name]
-
-    def written(stem: str, rows: int, signals: int) -> Path:
-        path = tmp_path / f"{stem}{suffix}"
-        write(_one_run(rows, signals), path)
-        return path
-
-    wide, half, tall = (written("wide", 2, MAX_COLUMNS - 2),
-                        written("half", 2, MAX_COLUMNS // 2 - 2), written("tall", 5000, 1))
-    assert read(wide).values.shape == (2, MAX_COLUMNS - 2)
-    wide_s, half_s, tall_s = (_seconds(read, p) for p in (wide, half, tall))
-    assert wide_s < 5.0
-    # measured alone: 0.3-1.0 s against 1-3 ms tall (a quadratic lookup: 235 s, 47,000 times)
-    assert wide_s < 2000 * tall_s + 1.0
-    # linear: twice the columns, about twice the time (Parquet: 3x, pyarrow's own reader)
-    assert wide_s < 4.0 * half_s + 0.3
+    wide = _one_run(2, MAX_COLUMNS - 2)
+    path = tmp_path / f"wide{suffix}"
+    write(wide, path)
+    found = read(path)
+    assert found.values.shape == (2, MAX_COLUMNS - 2)
+    assert found.signals == wide.signals
+    np.testing.assert_array_equal(found.values, wide.values)
 
 
 def test_csv_header_over_the_limit_is_refused(tmp_path):
