@@ -5,7 +5,7 @@ import pickle
 import pytest
 
 from simcred.errors import SimcredError
-from simcred.reprocess.representation import GT, SD, Rep, Sensor, Source
+from simcred.reprocess.representation import GT, SD, Rep, SensorKind, Source
 
 NAMES = ["GT", "SD", "rGT", "rSD", "rGT[sb]", "rSD[sb]", "fit(GT)", "fit(SD)", "fit(rGT)",
          "fit(rSD)", "fit(rGT[sb])", "fit(rSD[sb])"]
@@ -24,9 +24,9 @@ def test_a_name_round_trips_through_its_fields(name):
 def test_fields_against_the_paper_names():
     key = Rep("fit(rSD[sb])")
     assert (key.source, key.resimulated, key.sensor, key.fitted) == (
-        Source.SD, True, Sensor.SCENARIO_BASED, True)
+        Source.SD, True, SensorKind.SCENARIO_BASED, True)
     assert key.unfitted == "rSD[sb]" and key.unfitted.ideal() == "rSD"
-    assert GT.fit() == "fit(GT)" and SD.resimulation(Sensor.SCENARIO_BASED) == "rSD[sb]"
+    assert GT.fit() == "fit(GT)" and SD.resimulation(SensorKind.SCENARIO_BASED) == "rSD[sb]"
     assert Rep("fit(rGT[sb])").file_stem == "fit_rGT_sb" and GT.file_stem == "GT"
     assert {Rep("rGT"): 1}["rGT"] == 1  # plain strings still find typed keys
 

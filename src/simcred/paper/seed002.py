@@ -27,9 +27,9 @@ from simcred.reprocess.pipeline import (
     reprocess,
 )
 from simcred.reprocess.reaction import Reaction
-from simcred.reprocess.representation import GT, Sensor
+from simcred.reprocess.representation import GT, SensorKind
 from simcred.reprocess.vary import (
-    Campaign,
+    VariationCampaign,
     VaryConfig,
     risk_percentile_claim_values,
     run_campaign,
@@ -137,7 +137,7 @@ def scenario_based_claims(result: Reprocessed, label: str = "") -> list[Claim]:
     """[1] §IV's proposal: resimulated with the scenario-based sensor model, the EGO behaves as
     in GT and its risk follows GT's. ``label`` tags the claims of another drive."""
     r = result.reactions
-    rgt_sb = GT.resimulation(Sensor.SCENARIO_BASED)
+    rgt_sb = GT.resimulation(SensorKind.SCENARIO_BASED)
     if rgt_sb not in r:
         return []
     sb, gt, ideal = r[rgt_sb], r["GT"], r["rGT"]
@@ -163,7 +163,7 @@ def mechanism_claims(result: Reprocessed, dynamic: Reprocessed, static: Reproces
     """[1] §IV's explanation: the dynamic sensor error (delayed velocity and heading), not the
     static offset, shifts the reaction. ``dynamic`` and ``static`` are the same drive
     reprocessed with only that part of the sensor model in the GT resimulation."""
-    rgt_sb = GT.resimulation(Sensor.SCENARIO_BASED)
+    rgt_sb = GT.resimulation(SensorKind.SCENARIO_BASED)
     t_gt, t_rgt = result.reactions["GT"].time, result.reactions["rGT"].time
     t_dyn, t_static = dynamic.reactions[rgt_sb].time, static.reactions[rgt_sb].time
     t_offset = result.analysis["t_offset"]
@@ -280,7 +280,7 @@ def reaction_shift(result: Reprocessed, study: SensorStudy) -> dict[str, object]
         return {"reactions": {k: v.to_dict() for k, v in r.reactions.items()},
                 "analysis": r.analysis}
 
-    rgt_sb = str(GT.resimulation(Sensor.SCENARIO_BASED))
+    rgt_sb = str(GT.resimulation(SensorKind.SCENARIO_BASED))
     return {
         "paper": {"dt_react_GT_rGT": PAPER_SHIFT, "t_offset": 0.05,
                   "dt_react_rGT_rSD": "≈ t_offset"},
@@ -339,7 +339,7 @@ def run_reprocessing(out: Path, *, seed: int = 0, config: cutin.CutInConfig | No
     return done
 
 
-def variation_claims(campaign: Campaign) -> list[Claim]:
+def variation_claims(campaign: VariationCampaign) -> list[Claim]:
     """[1] §V's findings on the variations of fit(GT), resimulated like rGT."""
     summary = campaign.summary()
     p5, reference, p95 = risk_percentile_claim_values(campaign)
@@ -359,7 +359,7 @@ def variation_claims(campaign: Campaign) -> list[Claim]:
 
 def run_variations(out: Path, result: Reprocessed, *, n: int = 300, seed: int = 1,
                    runner: Engine | None = None, progress_for=lambda _: None
-                   ) -> tuple[Campaign, list[Claim]]:
+                   ) -> tuple[VariationCampaign, list[Claim]]:
     """Vary fit(GT) ``n`` times, resimulate as rGT (ideal sensor, KS), write into ``out``."""
     config = VaryConfig(n=n, seed=seed, vehicle=result.config.vehicle, dt=result.config.dt,
                         driver=result.config.driver)
@@ -375,7 +375,7 @@ class Seed002Run:
 
     claims: list[Claim]
     result: Reprocessed
-    campaign: Campaign
+    campaign: VariationCampaign
     study: SensorStudy
 
     def reaction_summary(self) -> str:

@@ -13,8 +13,8 @@ from simcred.report.figures import plt, save_figure
 from simcred.reprocess import output
 from simcred.reprocess.decomposition import QUANTITIES, STEPS
 from simcred.reprocess.pipeline import LOG_RISK_FLOOR, Reprocessed, log_risk
-from simcred.reprocess.representation import GT, SD, Rep, Sensor
-from simcred.reprocess.vary import Campaign, write_campaign
+from simcred.reprocess.representation import GT, SD, Rep, SensorKind
+from simcred.reprocess.vary import VariationCampaign, write_campaign
 
 EGO_COLOR, TO_COLOR = "#1f4e9c", "#2ca02c"
 RGT, RSD = GT.resimulation(), SD.resimulation()
@@ -23,8 +23,8 @@ TRACE_STYLES = {  # representation -> (label, colour, line style)
     SD: ("SD (no GT recorded)", "#222222", "-"),
     RGT: ("rGT (ideal sensor)", "#1f77b4", "--"),
     RSD: ("rSD (ideal sensor)", "#17becf", "--"),
-    GT.resimulation(Sensor.SCENARIO_BASED): ("rGT (scenario-based sensor)", "#d62728", "-."),
-    SD.resimulation(Sensor.SCENARIO_BASED): ("rSD (scenario-based sensor)", "#ff7f0e", ":"),
+    GT.resimulation(SensorKind.SCENARIO_BASED): ("rGT (scenario-based sensor)", "#d62728", "-."),
+    SD.resimulation(SensorKind.SCENARIO_BASED): ("rSD (scenario-based sensor)", "#ff7f0e", ":"),
 }
 def _styles(result: Reprocessed) -> list[tuple[Rep, tuple[str, str, str]]]:
     """The representations to draw: the measurement (GT, or SD when there is no GT) and every
@@ -258,7 +258,7 @@ def write_reprocessed(result: Reprocessed, directory: str | Path) -> dict[str, P
     return files
 
 
-def write_variations(campaign: Campaign, directory: str | Path) -> dict[str, Path]:
+def write_variations(campaign: VariationCampaign, directory: str | Path) -> dict[str, Path]:
     """:func:`simcred.reprocess.vary.write_campaign` and ``figures/fig8_variations.png``."""
     files = write_campaign(campaign, directory)
     files["figure"] = fig8_variations(campaign, Path(directory) / "figures" /

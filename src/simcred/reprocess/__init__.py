@@ -14,14 +14,20 @@ from simcred.reprocess.obstacles import reprocess_obstacles
 from simcred.reprocess.output import write
 from simcred.reprocess.pipeline import ReprocessConfig, Reprocessed, reprocess
 from simcred.reprocess.reaction import Reaction, ReactionCriteria, reaction
-from simcred.reprocess.representation import GT, SD, Rep, Sensor, Source
+from simcred.reprocess.representation import GT, SD, Rep, SensorKind, Source
 from simcred.reprocess.timebase import Drive, Gap, Recording, align
-from simcred.reprocess.vary import Campaign, Outcome, VaryConfig, run_campaign, write_campaign
+from simcred.reprocess.vary import (
+    Outcome,
+    VariationCampaign,
+    VaryConfig,
+    run_campaign,
+    write_campaign,
+)
 
 __all__ = [
     "GT",
     "SD",
-    "Campaign",
+    "VariationCampaign",
     "Drive",
     "ErrorStats",
     "Gap",
@@ -33,7 +39,7 @@ __all__ = [
     "Rep",
     "ReprocessConfig",
     "Reprocessed",
-    "Sensor",
+    "SensorKind",
     "Source",
     "VaryConfig",
     "align",

@@ -34,8 +34,7 @@ from simcred.io.measurement import Measurement
 from simcred.kinematics import MOTION_SIGNALS, Track
 from simcred.reprocess.decomposition import ErrorStats, decompose
 from simcred.reprocess.reaction import Reaction, ReactionCriteria, reaction, reaction_analysis
-from simcred.reprocess.representation import GT, SD, Rep, Source
-from simcred.reprocess.representation import Sensor as SensorKind
+from simcred.reprocess.representation import GT, SD, Rep, SensorKind, Source
 from simcred.reprocess.timebase import MAX_GAP, Aligned, Drive, align
 from simcred.reprocess.units import check_units
 from simcred.risk import VehicleStates, risk, time_headway, time_to_collision

@@ -20,7 +20,7 @@ from enum import StrEnum
 
 from simcred.errors import SimcredError
 
-__all__ = ["GT", "SD", "Rep", "Sensor", "Source"]
+__all__ = ["GT", "SD", "Rep", "SensorKind", "Source"]
 
 
 class Source(StrEnum):
@@ -30,21 +30,21 @@ class Source(StrEnum):
     SD = "SD"
 
 
-class Sensor(StrEnum):
+class SensorKind(StrEnum):
     """The sensor model of a resimulation."""
 
     IDEAL = "ideal"
     SCENARIO_BASED = "scenario-based"
 
 
-_SUFFIX = {Sensor.IDEAL: "", Sensor.SCENARIO_BASED: "[sb]"}
+_SUFFIX = {SensorKind.IDEAL: "", SensorKind.SCENARIO_BASED: "[sb]"}
 _PATTERN = re.compile(r"^(?P<fit>fit\()?(?P<r>r)?(?P<source>GT|SD)(?P<sb>\[sb\])?(?(fit)\))$")
 
 
 class Rep(str):
     """One representation; equal to (and hashed as) its printed name.
 
-    >>> key = Rep.of("GT", resimulated=True, sensor=Sensor.SCENARIO_BASED).fit()
+    >>> key = Rep.of("GT", resimulated=True, sensor=SensorKind.SCENARIO_BASED).fit()
     >>> key, key.unfitted, key.sensor.value, key.unfitted.ideal()
     ('fit(rGT[sb])', 'rGT[sb]', 'scenario-based', 'rGT')
     """
@@ -52,7 +52,7 @@ class Rep(str):
     __slots__ = ("source", "resimulated", "sensor", "fitted")
     source: Source
     resimulated: bool
-    sensor: Sensor
+    sensor: SensorKind
     fitted: bool
 
     def __new__(cls, name: str) -> Rep:
@@ -62,16 +62,16 @@ class Rep(str):
         self = super().__new__(cls, name)
         self.source = Source(match["source"])
         self.resimulated = match["r"] is not None
-        self.sensor = Sensor.SCENARIO_BASED if match["sb"] else Sensor.IDEAL
+        self.sensor = SensorKind.SCENARIO_BASED if match["sb"] else SensorKind.IDEAL
         self.fitted = match["fit"] is not None
-        if self.sensor is Sensor.SCENARIO_BASED and not self.resimulated:
+        if self.sensor is SensorKind.SCENARIO_BASED and not self.resimulated:
             raise SimcredError(f"not a representation: {name!r} ([sb] only on a resimulation)")
         return self
 
     @classmethod
     def of(cls, source: Source | str, *, resimulated: bool = False,
-           sensor: Sensor = Sensor.IDEAL, fitted: bool = False) -> Rep:
-        name = f"{'r' if resimulated else ''}{Source(source).value}{_SUFFIX[Sensor(sensor)]}"
+           sensor: SensorKind = SensorKind.IDEAL, fitted: bool = False) -> Rep:
+        name = f"{'r' if resimulated else ''}{Source(source).value}{_SUFFIX[SensorKind(sensor)]}"
         return cls(f"fit({name})" if fitted else name)
 
     def _with(self, **changes) -> Rep:
@@ -87,13 +87,13 @@ class Rep(str):
         """What was fitted: ``fit(rGT)`` → ``rGT`` (itself if not a fit)."""
         return self._with(fitted=False)
 
-    def resimulation(self, sensor: Sensor = Sensor.IDEAL) -> Rep:
+    def resimulation(self, sensor: SensorKind = SensorKind.IDEAL) -> Rep:
         """The resimulation of this measurement's description: ``GT`` → ``rGT`` / ``rGT[sb]``."""
         return Rep.of(self.source, resimulated=True, sensor=sensor)
 
     def ideal(self) -> Rep:
         """The same representation with the ideal sensor model: ``rGT[sb]`` → ``rGT``."""
-        return self._with(sensor=Sensor.IDEAL)
+        return self._with(sensor=SensorKind.IDEAL)
 
     @property
     def file_stem(self) -> str:
@@ -104,7 +104,7 @@ class Rep(str):
 
     @property
     def scenario_based(self) -> bool:
-        return self.sensor is Sensor.SCENARIO_BASED
+        return self.sensor is SensorKind.SCENARIO_BASED
 
     def __reduce__(self):
         return Rep, (str(self),)

@@ -99,7 +99,7 @@ class Outcome(JsonResult):
 
 
 @dataclass(frozen=True, slots=True, eq=False)
-class Campaign(JsonResult):
+class VariationCampaign(JsonResult):
     """Everything :func:`run_campaign` produced; :meth:`to_dict` is :meth:`summary`."""
 
     config: VaryConfig
@@ -116,7 +116,7 @@ class Campaign(JsonResult):
 
     def __repr__(self) -> str:
         v = self.variations
-        return (f"Campaign({v.generated} generated, {v.kept} kept, reference max risk "
+        return (f"VariationCampaign({v.generated} generated, {v.kept} kept, reference max risk "
                 f"{self.reference.max_risk:.3g})")
 
     def to_dict(self) -> dict[str, Any]:
@@ -149,7 +149,7 @@ class Campaign(JsonResult):
 
 def run_campaign(description: ScenarioDescription, config: VaryConfig | None = None, *,
                  sensor: Sensor | None = None, runner: Engine | None = None,
-                 progress_for=lambda description: None) -> Campaign:
+                 progress_for=lambda description: None) -> VariationCampaign:
     """Generate, resimulate and assess the variations of ``description`` (see the module)."""
     c = VaryConfig() if config is None else config
     runner = runner or Engine()
@@ -173,7 +173,8 @@ def run_campaign(description: ScenarioDescription, config: VaryConfig | None = N
     outcomes = tuple(o for _, chunk in parts[1:] for o in chunk)
     runs = concat([p[0] for p in parts[1:]]) if len(parts) > 1 else reference_runs
     comparison = _compare_to_original(runs, reference_runs, c)
-    return Campaign(c, variations, reference[0], outcomes, runs, reference_runs, comparison)
+    return VariationCampaign(c, variations, reference[0], outcomes, runs, reference_runs,
+                             comparison)
 
 
 def _resimulate_chunk(job: tuple[int, list[ScenarioDescription]]
@@ -242,14 +243,14 @@ def _subsample(traces: TraceSet, features: list[str], step: int) -> TraceSet:
     return TraceSet.from_runs(runs, run_ids=traces.run_ids, source=traces.source)
 
 
-def risk_percentile_claim_values(campaign: Campaign) -> tuple[float, float, float]:
+def risk_percentile_claim_values(campaign: VariationCampaign) -> tuple[float, float, float]:
     """(p5, reference max risk, p95) of the variations' maximum risks."""
     p5, p95 = np.percentile(campaign.max_risks, [5, 95])
     return float(p5), campaign.reference.max_risk, float(p95)
 
 
 
-def write_campaign(campaign: Campaign, directory) -> dict[str, Any]:
+def write_campaign(campaign: VariationCampaign, directory) -> dict[str, Any]:
     """``variations.json`` (summary), ``variation_set.json`` (every variation: records and kept
     TO tracks), ``runs.parquet`` (resimulated runs), ``reference.parquet`` and
     ``comparison.json``; :func:`simcred.report.seed002.write_variations` adds Fig. 8."""
