@@ -163,7 +163,8 @@ INJECTIONS = [
     ("simcred/scenario/fit.py", "from simcred.sim import vehicles", "layer 3 (sim) is above"),
     ("simcred/sim/resimulation.py", "from simcred.sim.experiments import cutin",
      "experiments are leaves"),
-    ("simcred/reprocess/pipeline.py", "from simcred.report import seed002", "layer 5 (report)"),
+    ("simcred/reprocess/pipeline.py", "from simcred.report import reprocessing",
+     "layer 5 (report)"),
     ("simcred/risk/measures.py", "import simcred.scenario.description", "siblings of layer 2"),
     ("simcred/engine.py", "    from simcred import errors", "only the CLI imports the package"),
 ]

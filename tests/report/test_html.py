@@ -187,15 +187,15 @@ def test_figures_in_the_papers_order_then_extras(full_report):
     assert order == sorted(order)  # extra_histogram.png (unknown) comes last
     assert "Fig. 5: the input functions" in section
     assert "Table 3 with a permutation test" in section
-    seed002 = _section(html, "seed-002")
-    assert "Fig. 3: the scenario description fitted to GT" in seed002
-    assert "Fig. 8: the simulations of the variations" in seed002
+    reprocessing = _section(html, "seed-002")
+    assert "Fig. 3: the scenario description fitted to GT" in reprocessing
+    assert "Fig. 8: the simulations of the variations" in reprocessing
 
 
 def test_provenance_is_flattened_and_run_record_shown(full_report):
     _, html = full_report
-    seed002 = _section(html, "seed-002")
-    assert "<code>cutin.sensor.delay.mean</code>" in seed002
+    reprocessing = _section(html, "seed-002")
+    assert "<code>cutin.sensor.delay.mean</code>" in reprocessing
     assert "simplecar_sweep: experiment = simplecar-sweep, runs = 40, seed = 0" in html
     assert "(40 values)" in html  # long lists abbreviated, full value in the title
     provenance = _section(html, "provenance")
@@ -241,9 +241,9 @@ def test_partial_directory_names_what_is_missing(tmp_path):
     for anchor in SECTIONS:
         assert f'<section id="{anchor}">' in html
     assert html.count("data:image/png;base64,") == len(list(root.rglob("*.png")))
-    seed003 = _section(html, "seed-003")
-    assert "not run: claims.json has no entry for seed 003" in seed003
-    assert "<code>paper003/</code> is missing" in seed003
+    validity_contracts = _section(html, "seed-003")
+    assert "not run: claims.json has no entry for seed 003" in validity_contracts
+    assert "<code>paper003/</code> is missing" in validity_contracts
     assert "Missing: <code>paper002/figures/fig6_traces.png</code>" in html
     assert "4 of 5 claims hold" not in html and "3 of 5 claims hold" in html
 

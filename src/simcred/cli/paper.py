@@ -39,13 +39,13 @@ def paper_000(
     resume: Resume = False,
 ) -> None:
     """Neurohr et al. sec. VI: SimpleCar λ sweep (Figs. 5-7) and T-junction (Table 3)."""
-    from simcred.paper import seed000
+    from simcred.paper import markov_chains
 
     if runs is not None:
         check_count(runs, "runs", "--runs", minimum=2)
     with writing(out, overwrite=overwrite, resume=resume) as target, \
             target.engine(workers, scheduler) as runner:
-        claims = seed000.run_all(target.path, runs=runs, seed=seed, runner=runner,
+        claims = markov_chains.run_all(target.path, runs=runs, seed=seed, runner=runner,
                                  progress_for=progress)
     if not State.quiet:
         out_console.print(claims_table(claims, "seed 000: the paper's claims"))
@@ -66,13 +66,13 @@ def paper_002(
     resume: Resume = False,
 ) -> None:
     """Wagner, Groh et al.: reprocessing the cut-in (Figs. 3-8, eqs. 2-7) and its claims."""
-    from simcred.paper import seed002
+    from simcred.paper import reprocessing
 
     check_count(variations, "variations", "--variations (for the 5th/95th percentiles)",
                 minimum=20)
     with writing(out, overwrite=overwrite, resume=resume) as target, \
             target.engine(workers, scheduler) as runner:
-        run = seed002.run_all(target.path, seed=seed, variations=variations, runner=runner,
+        run = reprocessing.run_all(target.path, seed=seed, variations=variations, runner=runner,
                               progress_for=progress)
     if not State.quiet:
         out_console.print(claims_table(run.claims, "seed 002: the paper's claims"))

@@ -109,7 +109,7 @@ def reprocess(
     as_json: Json = False,
 ) -> None:
     """Reprocess a drive: fit, resimulate, refit, assess; errors per step (Wagner, Groh et al.)."""
-    from simcred.report.seed002 import write_reprocessed
+    from simcred.report.reprocessing import write_reprocessed
     from simcred.reprocess.inputs import LongColumns, read_measurement
     from simcred.reprocess.pipeline import ReprocessConfig
     from simcred.reprocess.pipeline import reprocess as run_pipeline
@@ -181,7 +181,7 @@ def _reprocess_all(path: Path, ego: str | None, config, out: Path, as_json: bool
                    overwrite: bool, frame: str) -> None:
     """``--object all``: every CommonRoad obstacle; exit 1 if any could not be reprocessed."""
     from simcred._json import dumps, envelope
-    from simcred.report.seed002 import write_reprocessed
+    from simcred.report.reprocessing import write_reprocessed
     from simcred.reprocess.obstacles import reprocess_obstacles
 
     if path.suffix.lower() != ".xml" or ego is not None:
@@ -255,7 +255,7 @@ def vary(
     """Local variations of the TO's lane change (Wagner, Groh et al. sec. V): vary, resimulate,
     risk. The crossing is detected from the description (the first crossing of a boundary of
     the EGO's lane) unless given."""
-    from simcred.report.seed002 import write_variations
+    from simcred.report.reprocessing import write_variations
     from simcred.reprocess.vary import VaryConfig, run_campaign
     from simcred.scenario.description import ScenarioDescription
     from simcred.sim.vehicles import vehicle_model

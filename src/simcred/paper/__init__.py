@@ -1,8 +1,9 @@
 """Reproductions of the papers' experiments, with their qualitative claims checked.
 
-Modules: ``claims`` (a claim: value against bound), ``seed000`` (Neurohr et al. sec. VI),
-``seed002`` (Wagner, Groh et al.: reprocessing the cut-in, its variations), ``seed003`` (Braun et
-al. on the cut-in), ``all`` (all three and the combined claims). Names are imported on first use.
+Modules, one per paper, by topic: ``markov_chains`` (seed 000: Neurohr et al. sec. VI),
+``reprocessing`` (seed 002: Wagner, Groh et al.: reprocessing the cut-in, its variations),
+``validity_contracts`` (seed 003: Braun et al. on the cut-in); ``claims`` (a claim: value against
+bound), ``all`` (all three and the combined claims). Names are imported on first use.
 """
 
 from simcred._lazy import lazy_getattr

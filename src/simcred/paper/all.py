@@ -14,7 +14,7 @@ from typing import Any
 from simcred._json import dumps, envelope, file_sha256
 from simcred._version import versions as package_versions
 from simcred.engine import Engine
-from simcred.paper import seed000, seed002, seed003
+from simcred.paper import markov_chains, reprocessing, validity_contracts
 from simcred.paper.claims import Claim, write_claims
 from simcred.traces import concat
 
@@ -42,22 +42,25 @@ def run_all(out: Path, options: AllOptions, *, runner: Engine,
             progress_for=lambda _: None) -> dict[str, list[Claim]]:
     """Run every seed into ``out`` and write the combined ``claims.json``."""
     out.mkdir(parents=True, exist_ok=True)
-    claims = {"000": seed000.run_all(out / "paper000", runs=options.runs, seed=options.seed,
-                                     runner=runner, progress_for=progress_for)}
-    run002 = seed002.run_all(out / "paper002", seed=options.seed, variations=options.variations,
-                             runner=runner, progress_for=progress_for)
+    claims = {"000": markov_chains.run_all(out / "paper000", runs=options.runs,
+                                           seed=options.seed, runner=runner,
+                                           progress_for=progress_for)}
+    run002 = reprocessing.run_all(out / "paper002", seed=options.seed,
+                                  variations=options.variations, runner=runner,
+                                  progress_for=progress_for)
     claims["002"] = run002.claims
     monitored = {"resimulations": concat(list(run002.result.resimulations.values()),
                                          source="paper002 resimulations"),
                  "variations": run002.campaign.runs}
-    _, claims["003"] = seed003.run_contracts(out / "paper003", monitored)
+    _, claims["003"] = validity_contracts.run_contracts(out / "paper003", monitored)
+    contracts = validity_contracts
     write_claims(claims["003"], out / "paper003" / "claims.json", {
-        "library": seed003.LIBRARY.name, "test_case": seed003.TEST_CASE,
-        "removed_model": seed003.REMOVED, "monitored_models": list(seed003.MONITORED_MODELS),
+        "library": contracts.LIBRARY.name, "test_case": contracts.TEST_CASE,
+        "removed_model": contracts.REMOVED, "monitored_models": list(contracts.MONITORED_MODELS),
         "monitored_runs": {k: v.n_runs for k, v in monitored.items()},
-        "monitor_tolerance": seed003.TOLERANCE})
+        "monitor_tolerance": contracts.TOLERANCE})
     inputs = {
-        seed003.LIBRARY.name: file_sha256(seed003.LIBRARY),
+        validity_contracts.LIBRARY.name: file_sha256(validity_contracts.LIBRARY),
         "paper002/measurement/gt.parquet": file_sha256(out / "paper002/measurement/gt.parquet"),
         "paper002/measurement/sd.parquet": file_sha256(out / "paper002/measurement/sd.parquet"),
         "paper002/descriptions/fit_GT.json": file_sha256(out / "paper002/descriptions/fit_GT.json"),

@@ -1,7 +1,8 @@
 """Writing a reprocessing result to a directory (``simcred reprocess --out DIR``).
 
-The figures (``figures/``, Figs. 3-7) are drawn by :func:`simcred.report.seed002.write_reprocessed`,
-which calls :func:`write` and then draws them (reprocess does not import report).
+The figures (``figures/``, Figs. 3-7) are drawn by
+:func:`simcred.report.reprocessing.write_reprocessed`, which calls :func:`write` and then draws
+them (reprocess does not import report).
 
 Layout::
 

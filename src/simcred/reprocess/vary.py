@@ -253,7 +253,7 @@ def risk_percentile_claim_values(campaign: VariationCampaign) -> tuple[float, fl
 def write_campaign(campaign: VariationCampaign, directory) -> dict[str, Any]:
     """``variations.json`` (summary), ``variation_set.json`` (every variation: records and kept
     TO tracks), ``runs.parquet`` (resimulated runs), ``reference.parquet`` and
-    ``comparison.json``; :func:`simcred.report.seed002.write_variations` adds Fig. 8."""
+    ``comparison.json``; :func:`simcred.report.reprocessing.write_variations` adds Fig. 8."""
     from pathlib import Path
 
     from simcred._json import dumps, envelope

@@ -214,7 +214,7 @@ def run_all(out: Path, *, runs: int | None, seed: int, runner: Engine,
     """Regenerate Figs. 5-7 (and Table 3) into ``out`` and return the checked claims."""
     from simcred.paper.claims import write_claims
     from simcred.report.figures import distance_heatmap
-    from simcred.report.seed000 import fig5_inputs, fig_distance_curves
+    from simcred.report.markov_chains import fig5_inputs, fig_distance_curves
 
     out.mkdir(parents=True, exist_ok=True)
     config = SweepConfig(seed=seed) if runs is None else SweepConfig(runs=runs, seed=seed)

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simcred.paper import seed003
+from simcred.paper import validity_contracts
 from simcred.reprocess.pipeline import ReprocessConfig, reprocess
 from simcred.sim.experiments import cutin
 from simcred.traces import TraceSet, concat
@@ -25,7 +25,7 @@ def resimulations():
 @pytest.fixture(scope="module")
 def findings(resimulations, tmp_path_factory):
     out = tmp_path_factory.mktemp("paper003")
-    found, claims = seed003.run_contracts(out, {"resimulations": resimulations})
+    found, claims = validity_contracts.run_contracts(out, {"resimulations": resimulations})
     assert json.loads((out / "findings.json").read_text()) == json.loads(
         json.dumps(found, allow_nan=False))
     return found, {c.id: c for c in claims}
@@ -49,7 +49,7 @@ def test_monitors_find_the_braking_outside_ks_domain(findings, resimulations):
     found, claims = findings
     ks = [v for v in found["monitors"][0]["violations"] if v["contract"] == "KS"]
     assert ks and all(v["clause"] == "abs(ego.a_long) <= 4" for v in ks)
-    signals = seed003.monitored_signals(resimulations)
+    signals = validity_contracts.monitored_signals(resimulations)
     # oracle: the samples where |dv/dt| > 4 are exactly those inside KS's violation segments
     flagged = np.zeros(signals.n_rows, dtype=bool)
     for v in ks:
@@ -65,7 +65,7 @@ def test_monitored_signals_are_derived_from_the_run():
     t = np.linspace(0.0, 2.0, 201)
     run = {"t": t, "ego.x": 20 * t, "ego.y": 0 * t, "ego.v": 20 - 3 * t, "ego.heading": 0.1 * t,
            "to.x": 30 + 20 * t, "to.y": 0 * t + 4, "to.v": 0 * t + 20, "to.heading": 0 * t}
-    signals = seed003.monitored_signals(TraceSet.from_runs([run])).run(0)
+    signals = validity_contracts.monitored_signals(TraceSet.from_runs([run])).run(0)
     np.testing.assert_allclose(signals["ego.a_long"], -3.0, atol=1e-9)
     np.testing.assert_allclose(signals["ego.a_lat"], 0.1 * (20 - 3 * t), atol=1e-9)
     np.testing.assert_allclose(signals["obj.range"], np.hypot(30.0, 4.0), atol=1e-9)
@@ -74,8 +74,9 @@ def test_monitored_signals_are_derived_from_the_run():
 def test_the_library_ships_with_the_package_and_the_example_is_that_file():
     """`simcred paper 003|all` from a wheel: the library is package data, not a repository file
     (tests/test_wheel_install.py runs it from a real non-editable install)."""
-    package = Path(seed003.__file__).resolve().parents[1]
-    assert seed003.LIBRARY.is_file()
-    assert package in seed003.LIBRARY.parents, seed003.LIBRARY  # not examples/ beside src/
+    package = Path(validity_contracts.__file__).resolve().parents[1]
+    assert validity_contracts.LIBRARY.is_file()
+    library = validity_contracts.LIBRARY
+    assert package in library.parents, library  # not examples/ beside src/
     example = package.parents[1] / "examples" / "contracts" / "vehicle.yaml"
-    assert example.resolve() == seed003.LIBRARY.resolve()  # one file, linked: nothing can drift
+    assert example.resolve() == library.resolve()  # one file, linked: nothing can drift

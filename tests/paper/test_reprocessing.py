@@ -14,7 +14,7 @@ from dataclasses import replace
 
 import pytest
 
-from simcred.paper import seed002
+from simcred.paper import reprocessing
 from simcred.reprocess.pipeline import ReprocessConfig, reprocess
 from simcred.sim.experiments import cutin
 from simcred.sim.sensors import OffsetDelaySensor, TrackerSensor, estimate_sensor
@@ -27,7 +27,7 @@ REACTION = ("reaction_shift_eq4", "reaction_shift_eq6", "reaction_rgt_rsd_offset
 
 @pytest.fixture(scope="module")
 def checked():
-    return seed002.check_drive(cutin.simulate(0, UNIVERSE), seed=0, config=UNIVERSE)
+    return reprocessing.check_drive(cutin.simulate(0, UNIVERSE), seed=0, config=UNIVERSE)
 
 
 def by_id(claims):
@@ -38,7 +38,7 @@ def reaction_claims_of(universe: cutin.CutInConfig):
     """Eqs. (4)-(7) of a drive of ``universe``, resimulated with the same AD function."""
     result = reprocess(cutin.simulate(0, universe),
                        ReprocessConfig(driver=universe.driver, scenario_based=False))
-    return by_id(seed002.reaction_claims(result)), result
+    return by_id(reprocessing.reaction_claims(result)), result
 
 
 def test_no_claim_recovers_what_the_universe_planted(checked):
@@ -86,7 +86,7 @@ def noise_free(sensor):
 
 def test_a_model_predicts_the_sd_it_produced_and_the_ideal_sensor_misses_by_the_offset():
     model = OffsetDelaySensor(offset=1.4, delay=0.3)
-    errors = seed002.sensor_prediction_errors(cutin.simulate(3, noise_free(model)), model)
+    errors = reprocessing.sensor_prediction_errors(cutin.simulate(3, noise_free(model)), model)
     assert errors["model_position"] < 1e-9 and errors["model_velocity"] < 1e-9
     assert errors["ideal_position"] == pytest.approx(1.4, abs=1e-6)
     assert errors["ideal_velocity"] > 0.1
@@ -96,11 +96,11 @@ def test_a_model_carried_to_a_drive_with_another_sensor_can_be_worse_than_no_mod
     """Estimated on drive A (1 s regression window: ≈ 0.5 s delay), evaluated on a drive whose
     sensor has a 0.1 s window and no offset: the held-out velocity claim's test flips."""
     a = cutin.simulate(0, UNIVERSE)
-    gt, sd = (seed002.object_states(m, "to") for m in (a.gt, a.sd))
-    model = estimate_sensor(a.gt.time, seed002.object_states(a.gt, "ego")[:, :2], gt, sd)
+    gt, sd = (reprocessing.object_states(m, "to") for m in (a.gt, a.sd))
+    model = estimate_sensor(a.gt.time, reprocessing.object_states(a.gt, "ego")[:, :2], gt, sd)
     other = replace(UNIVERSE, script=cutin.HELD_OUT_SCRIPT,
                     sensor=TrackerSensor(offset=0.0, window=0.1))
-    errors = seed002.sensor_prediction_errors(cutin.simulate(1, other), model)
+    errors = reprocessing.sensor_prediction_errors(cutin.simulate(1, other), model)
     assert errors["model_velocity"] > errors["ideal_velocity"]
     assert errors["model_position"] > errors["ideal_position"]
 

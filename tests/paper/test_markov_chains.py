@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from simcred.compare.pairwise import DistanceMatrix
-from simcred.paper.seed000 import (
+from simcred.paper.markov_chains import (
     FEATURE_SETS,
     KERNELS,
     TESTS,

@@ -17,7 +17,7 @@ from simcred.errors import SimcredError
 from simcred.io.measurement import Measurement
 from simcred.kinematics import MOTION_SIGNALS
 from simcred.paper.claims import Claim, at_least, below, write_claims
-from simcred.report.seed002 import write_reprocessed, write_variations
+from simcred.report.reprocessing import write_reprocessed, write_variations
 from simcred.reprocess.decomposition import ErrorStats
 from simcred.reprocess.pipeline import (
     LOG_RISK_FLOOR,
