@@ -46,7 +46,7 @@ def paper_000(
     with writing(out, overwrite=overwrite, resume=resume) as target, \
             target.engine(workers, scheduler) as runner:
         claims = markov_chains.run_all(target.path, runs=runs, seed=seed, runner=runner,
-                                 progress_for=progress)
+                                       progress_for=progress)
     if not State.quiet:
         out_console.print(claims_table(claims, "seed 000: the paper's claims"))
         say(f"wrote figures, tables and claims.json to {out}")
@@ -72,8 +72,8 @@ def paper_002(
                 minimum=20)
     with writing(out, overwrite=overwrite, resume=resume) as target, \
             target.engine(workers, scheduler) as runner:
-        run = reprocessing.run_all(target.path, seed=seed, variations=variations, runner=runner,
-                              progress_for=progress)
+        run = reprocessing.run_all(target.path, seed=seed, variations=variations,
+                                   runner=runner, progress_for=progress)
     if not State.quiet:
         out_console.print(claims_table(run.claims, "seed 002: the paper's claims"))
         say(run.reaction_summary())
