@@ -239,7 +239,7 @@ def bench_temporal(samples: int) -> list[dict]:
 
 def bench_until(samples: int) -> list[dict]:
     """(e): module docs."""
-    from simcred.contracts.temporal import Timeline, _until_offsets, until, uniform_step
+    from simcred.contracts.temporal import Timeline, _until_offsets, uniform_step, until
 
     rng = np.random.default_rng(2)
     uniform = np.arange(samples) * 0.01

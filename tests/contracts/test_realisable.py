@@ -175,8 +175,8 @@ def test_refines_of_a_composition_is_no_certificate_when_it_contradicts(tmp_path
 # -- nonlinear receptivity: decided where z3's default solver says "unknown" (issue 28) --------
 #
 # Found by a search over random nonlinear ∀ inputs ∃ outputs queries (products of variables,
-# abs/min/max; 812 queries, 2 s each): z3 5.4.1's default solver answered "unknown" (timeout,
-# or "incomplete quantifiers") on 68; nlqsat or quantifier elimination then decided 22 of them
+# abs/min/max; 863 queries, 2 s each): z3 5.4.1's default solver answered "unknown" (timeout,
+# or "incomplete quantifiers") on 69; nlqsat or quantifier elimination then decided 19 of them
 # (each failing point checked to have no completion, the two tactics never disagreeing).
 # Each verdict below is derived by hand.
 
