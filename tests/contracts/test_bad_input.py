@@ -258,3 +258,28 @@ def test_monitor_setup_with_two_models_of_one_component(tmp_path, capsys):
     assert run(["monitor", str(FIGURE2), str(runs), "--setup", "I1=M1,I2=M2a,I2=M2b"]) == 2
     err = capsys.readouterr().err
     assert "component 'I2' has two models" in err and err.count("\n") == 1
+
+
+@pytest.mark.parametrize("special", ["fifo", "/dev/zero", "/dev/null"])
+def test_a_library_read_through_the_api_must_be_a_regular_file(special, tmp_path):
+    """Library.read (not only the CLI's argument check) refuses special files in one line,
+    before reading: a FIFO without a writer would block, /dev/zero never ends (issue 28)."""
+    import os
+
+    from simcred.contracts.library import Library
+    from simcred.errors import SimcredError
+
+    path = tmp_path / "lib.yaml"
+    if special == "fifo":
+        os.mkfifo(path)
+    else:
+        path = Path(special)
+    previous = signal.signal(signal.SIGALRM, _alarm)
+    signal.alarm(WATCHDOG_S)
+    try:
+        with pytest.raises(SimcredError, match="not a regular file") as caught:
+            Library.read(path)
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, previous)
+    assert len(str(caught.value).splitlines()) == 1 and str(path) in str(caught.value)

@@ -19,7 +19,7 @@ from simcred.contracts.algebra import Contract, refines
 from simcred.contracts.evaluate import evaluate, margin
 from simcred.contracts.expr import Compare, ExpressionError, Logic, Num, Temporal, Var, to_text
 from simcred.contracts.parse import parse
-from simcred.contracts.temporal import Timeline
+from simcred.contracts.temporal import Timeline, uniform_step
 
 rtamt = pytest.importorskip("rtamt")
 
@@ -277,3 +277,82 @@ def test_until_on_non_uniform_sampling_equals_the_definition(seed):
             expected.append(best)
         got = until(phi, psi, Timeline.single(time), lo, hi, past=past, boolean=False)
         np.testing.assert_array_equal(got, np.array(expected))
+
+
+# -- non-uniform sampling in O(n log w) (issue 28, item 5) ---------------------------------------
+#
+# rtamt's discrete-time monitor counts samples and ignores jittered time stamps (its semantics
+# assume a uniform period), so the oracle on non-uniform sampling is the literal definition in
+# seconds. Time stamps are multiples of 1/1024 s and windows multiples of 1/8 s: exact in
+# floating point, so no window edge depends on rounding.
+
+
+def jittered_time(rng, n: int) -> np.ndarray:
+    """n increasing time stamps, ~0.1 s apart with a random jitter, on the 1/1024 s grid."""
+    return np.cumsum(rng.integers(40, 160, size=n)) / 1024
+
+
+def literal_robustness(e, columns, time, i: int) -> float:
+    """Robustness of ``e`` at sample ``i`` of one run, straight from the definition (seconds)."""
+    if isinstance(e, Compare):
+        gap = float(columns[e.left.name][i]) - float(e.right.value)
+        return -gap if e.op in ("<=", "<") else gap
+    at = [lambda k, a=a: literal_robustness(a, columns, time, k) for a in e.args]
+    if isinstance(e, Logic):
+        values = [f(i) for f in at]
+        return {"not": lambda: -values[0], "and": lambda: min(values),
+                "or": lambda: max(values), "implies": lambda: max(-values[0], values[1])}[e.op]()
+    if e.op == "previous":
+        return at[0](i - 1) if i > 0 else np.inf
+    lo, hi = float(e.lo), float(e.hi)
+    past = e.op in ("historically", "once", "since")
+    window = [j for j in range(len(time)) if (time[i] - hi <= time[j] <= time[i] - lo if past
+                                              else time[i] + lo <= time[j] <= time[i] + hi)]
+    if e.op in ("always", "historically"):
+        return min((at[0](j) for j in window), default=np.inf)
+    if e.op in ("eventually", "once"):
+        return max((at[0](j) for j in window), default=-np.inf)
+    between = (lambda j: range(j + 1, i + 1)) if past else (lambda j: range(i, j))
+    return max((min([at[1](j), *(at[0](k) for k in between(j))]) for j in window
+                if (j <= i if past else j >= i)), default=-np.inf)
+
+
+def test_random_formulas_on_jittered_time_stamps_equal_the_definition():
+    """300 random formulas (until/since included, nested) on runs of 2–30 jittered samples,
+    windows in multiples of 1/8 s: robustness equal at every sample."""
+    rng = np.random.default_rng(2811)
+    for _ in range(300):
+        e = parse(to_text(random_formula(rng, step=Fraction(1, 8))))
+        n = int(rng.integers(2, 31))
+        time = jittered_time(rng, n)
+        assert n < 3 or uniform_step(time) is None  # the non-uniform path
+        columns = {"x": rng.normal(size=n).round(3), "y": rng.normal(size=n).round(3)}
+        expected = [literal_robustness(e, columns, time, i) for i in range(n)]
+        got = np.broadcast_to(margin(e, columns, Timeline.single(time)), (n,))
+        np.testing.assert_array_equal(got, expected, err_msg=to_text(e))
+
+
+@pytest.mark.parametrize("seed", range(30))
+def test_until_on_jittered_time_stamps_equals_the_offset_loop(seed):
+    """The O(n log w) clamp levels against the O(n·w) loop over window offsets (the path
+    before) on several runs of up to 3,000 jittered samples, windows up to 30 s (300
+    samples), until and since, robustness and Boolean."""
+    from simcred.contracts.temporal import _until_offsets, until
+
+    rng = np.random.default_rng(seed)
+    lengths = rng.integers(1, 3000, size=3)
+    offsets = np.concatenate([[0], np.cumsum(lengths)])
+    time = np.concatenate([jittered_time(rng, k) for k in lengths])
+    timeline = Timeline(time, offsets)
+    phi, psi = rng.normal(size=len(time)).round(2), rng.normal(size=len(time)).round(2)
+    lo = Fraction(int(rng.integers(0, 40)), 8)
+    hi = lo + Fraction(int(rng.integers(0, 240)), 8)
+    for past in (False, True):
+        start, stop = timeline.window(lo, hi, past=past)
+        expected = np.concatenate([
+            _until_offsets(phi[a:b], psi[a:b], start[a:b] - a, stop[a:b] - a, past=past)
+            for a, b in zip(offsets[:-1], offsets[1:], strict=True)])
+        np.testing.assert_array_equal(until(phi, psi, timeline, lo, hi, past=past,
+                                            boolean=False), expected)
+        np.testing.assert_array_equal(until(phi > 0, psi > 0, timeline, lo, hi, past=past,
+                                            boolean=True), expected > 0)

@@ -21,16 +21,20 @@ from simcred.contracts.parse import parse
 from simcred.contracts.units import _registry
 
 UNITS = {"d1": "m", "d2": "km", "t1": "s", "t2": "min", "v1": "m/s", "v2": "km/h",
-         "a1": "m/s^2", "lx": "lux"}
+         "a1": "m/s^2", "lx": "lux", "r1": "dimensionless", "r2": "%", "r3": "percent",
+         "dT1": "delta_degC", "dT2": "delta_degF", "dT3": "K"}
 VARIABLES = {"length": ["d1", "d2"], "time": ["t1", "t2"], "speed": ["v1", "v2"],
-             "acceleration": ["a1"], "illuminance": ["lx"]}
+             "acceleration": ["a1"], "illuminance": ["lx"], "ratio": ["r1", "r2", "r3"],
+             "temperature difference": ["dT1", "dT2", "dT3"]}
 LITERAL_UNITS = {"length": ["m", "km", "cm", "mile", "ft"], "time": ["s", "min", "h", "ms"],
                  "speed": ["m/s", "km/h", "mph", "knot"], "acceleration": ["m/s^2", "g0"],
-                 "illuminance": ["lux", "lm/m^2"]}
+                 "illuminance": ["lux", "lm/m^2"], "ratio": ["%", "percent", "permille"],
+                 "temperature difference": ["delta_degC", "delta_degF", "K", "Δ°C"]}
 PRODUCTS = {"length": [("*", "speed", "time")], "speed": [("/", "length", "time"),
                                                           ("*", "acceleration", "time")],
             "time": [("/", "length", "speed")], "acceleration": [("/", "speed", "time")],
-            "illuminance": []}
+            "illuminance": [], "ratio": [("*", "ratio", "ratio"), ("/", "length", "length")],
+            "temperature difference": [("*", "ratio", "temperature difference")]}
 SETTINGS = settings(derandomize=True, database=None, deadline=None, max_examples=300,
                     suppress_health_check=[HealthCheck.too_slow])
 
@@ -181,9 +185,14 @@ def test_a_bare_number_among_operands_of_different_units_is_refused(text):
         parse(text, units=UNITS)
 
 
-SPEED_TERMS = st.one_of(st.sampled_from([Var("v1"), Var("v2")]),
-                        st.builds(Quantity, positive, st.sampled_from(LITERAL_UNITS["speed"])),
-                        st.builds(Num, positive))
+def family_terms(dim: str):
+    """Operands of one dimension: its variables, literals in its units and bare numbers."""
+    return st.one_of(st.sampled_from([Var(v) for v in VARIABLES[dim]]),
+                     st.builds(Quantity, positive, st.sampled_from(LITERAL_UNITS[dim])),
+                     st.builds(Num, positive))
+
+
+SPEED_TERMS = family_terms("speed")
 
 
 def _sum(terms):
@@ -210,6 +219,23 @@ def _meaning(terms, op, right, points):
 def test_operand_order_never_changes_meaning(terms, right, op, rnd):
     """Every permutation of a sum's operands (and the mirrored comparison) is refused alike or
     true at the same points (exact rationals, no rounding)."""
+    _check_order(terms, right, op, rnd)
+
+
+@SETTINGS
+@given(st.sampled_from(["ratio", "temperature difference"]).flatmap(
+    lambda dim: st.tuples(st.lists(family_terms(dim), min_size=2, max_size=5),
+                          family_terms(dim))),
+    st.sampled_from(["<=", "<", ">=", ">"]), st.randoms(use_true_random=False))
+def test_operand_order_never_changes_meaning_with_percent_and_delta_units(sum_and_right, op,
+                                                                           rnd):
+    """The same with ratios (dimensionless, %, percent, permille) and temperature differences
+    (delta_degC, delta_degF, K, Δ°C)."""
+    terms, right = sum_and_right
+    _check_order(terms, right, op, rnd)
+
+
+def _check_order(terms, right, op, rnd):
     points = [{n: Fraction(rnd.randint(0, 300), rnd.randint(1, 7)) for n in UNITS}
               for _ in range(6)]
     mirror = {"<=": ">=", "<": ">", ">=": "<=", ">": "<"}
@@ -233,3 +259,54 @@ def test_the_order_test_sees_accepted_sums_with_bare_numbers():
     meaning = _meaning(terms, "<=", Num(Fraction(10)), points)
     assert meaning == (True, True, True, False, False, False)  # v1 + 3 + 5 <= 10 ⇔ v1 <= 2
     assert _meaning(terms[::-1], "<=", Num(Fraction(10)), points) == meaning
+
+
+# -- % and delta_degC (issue 28, item 6) ---------------------------------------------------------
+
+
+@pytest.mark.parametrize(("source", "target", "by_hand"), [
+    ("%", "dimensionless", Fraction(1, 100)), ("percent", "dimensionless", Fraction(1, 100)),
+    ("%", "permille", 10), ("delta_degC", "K", 1), ("delta_degC", "delta_degF", Fraction(9, 5)),
+    ("delta_degF", "K", Fraction(5, 9)), ("Δ°C", "kelvin", 1), ("%/s", "1/min", Fraction(6, 10)),
+    ("delta_degC/s", "delta_degF/min", 108)])
+def test_percent_and_delta_conversions_are_pints_own_numbers(source, target, by_hand):
+    from simcred.contracts.units import factor, unit
+
+    expected = Fraction(_registry().Quantity(Fraction(1), source).to(target).magnitude)
+    assert factor(unit(source), unit(target)) == expected == by_hand
+
+
+@pytest.mark.parametrize(("text", "expected"), [
+    ("r1 <= 5 %", "r1 <= 0.05"),  # % is a unit wherever a unit can be written
+    ("r1 <= 5%", "r1 <= 0.05"),
+    ("r2 <= 5 %", "r2 <= 5"),
+    ("r2 <= 5", "r2 <= 5"),  # a bare number next to a % variable is in %
+    ("r1 <= 5 [%]", "r1 <= 0.05"),
+    ("r2 <= r1", "r2 <= 100 * r1"),
+    ("r3 <= r2", "r3 <= r2"),  # percent and % are one unit
+    ("d1 <= 5 % * d2", "d1 <= 10 * (5 * d2)"),  # 5 % of d2 km in m: 50 d2
+    ("dT1 <= 9 delta_degF", "dT1 <= 5"),
+    ("dT1 <= 2 K", "dT1 <= 2"),
+    ("dT2 <= dT1", "dT2 <= 1.8 * dT1"),
+    ("dT1 <= 3 Δ°C", "dT1 <= 3"),
+])
+def test_percent_and_delta_units_in_assertions(text, expected):
+    assert to_text(parse(text, units=UNITS)) == expected
+
+
+@pytest.mark.parametrize("text", ["T <= 300 K", "T <= dT1", "T - T0 <= 1 delta_degC"])
+def test_degC_offsets_stay_refused_where_a_conversion_is_needed(text):
+    with pytest.raises(ExpressionError, match="offset: declare temperatures in kelvin"):
+        parse(text, units={**UNITS, "T": "degC", "T0": "degC"})
+
+
+def test_unit_texts_are_parsed_once():
+    from simcred.contracts.units import parsed_unit
+
+    parsed_unit.cache_clear()
+    for _ in range(200):
+        parse("v1 + 18 km/h <= 30 m/s and r2 <= 5 %", units=UNITS)
+    info = parsed_unit.cache_info()
+    distinct = len(UNITS) + 3  # the declared units and km/h, m/s, %
+    assert info.misses <= distinct, info
+    assert info.hits >= 199 * distinct, info

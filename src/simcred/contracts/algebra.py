@@ -29,6 +29,7 @@ from simcred.contracts.expr import (
     Expr,
     conjoin,
     conjuncts,
+    degree,
     disjoin,
     implies,
     negate,
@@ -36,7 +37,7 @@ from simcred.contracts.expr import (
     variables,
 )
 from simcred.contracts.parse import parse
-from simcred.contracts.smt import to_z3, z3_variables
+from simcred.contracts.smt import check_quantified, to_z3, z3_variables
 
 DEFAULT_TIMEOUT_MS = 10_000
 
@@ -244,16 +245,15 @@ def receptive(assertion: Expr, free: Iterable[str], *, types: Mapping[str, str] 
     body = to_z3(assertion, env)
     # ∃ free ∀ others: ¬assertion — a model gives the free values that admit no completion
     negation = z3.ForAll(others, z3.Not(body)) if others else z3.Not(body)
-    solver = z3.Solver()
-    solver.set("timeout", int(timeout_ms))
-    solver.add(negation)
-    result = solver.check()
+    # nonlinear and quantified: quantifier elimination where the default solver gives up
+    result, model, reason = check_quantified(negation, timeout_ms,
+                                             nonlinear=degree(assertion) > 1)
     if result == z3.unsat:
-        return Verdict(Status.HOLDS)
+        return Verdict(Status.HOLDS, reason=reason)
     if result == z3.sat:
-        example = _model_values(solver.model(), {n: env[n] for n in sorted(free)})
-        return Verdict(Status.FAILS, example, (to_text(assertion),))
-    return Verdict(Status.UNKNOWN, reason=solver.reason_unknown())
+        example = _model_values(model, {n: env[n] for n in sorted(free)})
+        return Verdict(Status.FAILS, example, (to_text(assertion),), reason)
+    return Verdict(Status.UNKNOWN, reason=reason)
 
 
 def compatible(contract: Contract, controlled: Iterable[str], **kwargs) -> Verdict:

@@ -15,6 +15,7 @@ import yaml
 from yaml.constructor import ConstructorError
 
 from simcred.errors import SimcredError
+from simcred.io._paths import check_regular
 
 MAX_BYTES = 1_000_000  # a library is kilobytes; beyond this is a mistake, not a library
 MAX_NESTING = 32
@@ -63,7 +64,9 @@ class StrictLoader(yaml.SafeLoader):
 
 def load_yaml(path: Path):
     """The data of the YAML file ``path``; a one-line :class:`LibraryError` naming the file and
-    the line and column of the problem otherwise."""
+    the line and column of the problem otherwise. Only a regular file is read (a FIFO or a
+    device such as /dev/zero could block or never end: one line instead)."""
+    check_regular(path)
     try:
         if path.stat().st_size > MAX_BYTES:
             raise LibraryError(f"{path}: {path.stat().st_size:,} bytes (a library has at most "

@@ -70,7 +70,7 @@ UNARY_TEMPORAL.2: /(always|eventually|historically|once)\b/
 BINARY_TEMPORAL.2: /(until|since)\b/
 NAME: /(?!(KEYWORDS)\b)[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*/
 UNIT: /\[[^\[\]]*\]/ | /(?!(KEYWORDS)\b)/ UNIT_FACTOR (/[\/*]/ UNIT_FACTOR)*
-UNIT_FACTOR: /[A-Za-z_°µΩ][A-Za-z0-9_]*(\^-?\d+)?/
+UNIT_FACTOR: /(%|[A-Za-z_°µΩΔ][A-Za-z0-9_°]*)(\^-?\d+)?/
 NUMBER: /\d+(\.\d*)?([eE][+-]?\d+)?|\.\d+([eE][+-]?\d+)?/
 %import common.WS
 %ignore WS

@@ -87,3 +87,65 @@ def _z3_arith(op: str, args, e: Arith):
 
 _Z3_BINARY: dict[str, Callable] = {"+": operator.add, "-": operator.sub, "*": operator.mul,
                                    "/": operator.truediv}
+
+
+# -- quantified queries ---------------------------------------------------------------------------
+
+# z3's default solver instantiates quantifiers incompletely on nonlinear real arithmetic
+# (∀ x ∃ y with products of variables) and answers "unknown" — often after its whole time
+# limit — where nlqsat (complete for quantified nonlinear real arithmetic, once min/max/abs are
+# lifted out of the terms) or quantifier elimination followed by a quantifier-free check decide
+# in milliseconds (issue 28). On a quantified nonlinear formula nlqsat goes first, with a short
+# budget (it answers or gives up at once on most formulas); then the default solver; then both
+# tactics again after an "unknown".
+NLQSAT = ("simplify", "elim-term-ite", "nlqsat")
+QE = ("qe", "smt")
+QUICK_SHARE = 10  # nlqsat's first try gets 1/10 of the time limit
+
+
+def check_quantified(formula, timeout_ms: int, *, nonlinear: bool = False):
+    """Satisfiability of the z3 formula ``formula`` (quantifiers allowed): ``(result, model,
+    reason)``, the model (None unless sat) in ``formula``'s context; ``reason`` names the
+    tactics that decided after the default solver gave up, or why all gave up. Time:
+    ``timeout_ms`` for the default solver, 1/10 of it before on a quantified ``nonlinear``
+    formula, half of it for each tactic after an unknown (at most 2.1 × ``timeout_ms``)."""
+    import z3
+
+    quantified = z3.is_quantifier(formula)
+    timeout_ms = int(timeout_ms)
+    if quantified and nonlinear:
+        answer, model = _tactic(NLQSAT, formula, max(1, timeout_ms // QUICK_SHARE))
+        if answer != z3.unknown:
+            return answer, model, "decided by " + " + ".join(NLQSAT)
+    solver = z3.Solver()
+    solver.set("timeout", timeout_ms)
+    solver.add(formula)
+    result = solver.check()
+    if result != z3.unknown:
+        return result, solver.model() if result == z3.sat else None, ""
+    reason = solver.reason_unknown()
+    if not quantified:
+        return result, None, reason
+    for names in (QE, NLQSAT):
+        answer, model = _tactic(names, formula, max(1, timeout_ms // 2))
+        if answer != z3.unknown:
+            return answer, model, f"default solver: {reason}; decided by {' + '.join(names)}"
+    return result, None, f"{reason}; quantifier elimination did not decide it either"
+
+
+def _tactic(names, formula, timeout_ms: int):
+    """(result, model or None) of the z3 tactics ``names`` in sequence on ``formula``, within
+    ``timeout_ms``; unknown if a tactic cannot take the formula. Run in a fresh z3 context:
+    what ``qe`` finds depends on the order of the terms, which in the shared context depends
+    on every formula built before in the process (the same query was decided in a fresh
+    process and not after 400 other tests); a fresh context makes the answer reproducible."""
+    import z3
+
+    context = z3.Context()
+    solver = z3.TryFor(z3.Then(*names, ctx=context), timeout_ms, ctx=context).solver()
+    solver.add(formula.translate(context))
+    try:
+        answer = solver.check()
+    except z3.Z3Exception:
+        return z3.unknown, None
+    return answer, solver.model().translate(formula.ctx) if answer == z3.sat else None

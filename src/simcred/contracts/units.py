@@ -12,7 +12,10 @@ Among operands of *different* units (``v_kmh + v_ms <= 100``) a bare number is a
 unit would be whichever operand came first, so operand order would change the meaning; give it
 a unit (``100 km/h``). A bare ``0`` is allowed everywhere (0 in every unit without an offset).
 Units with an offset (``degC``) cannot be converted inside a linear assertion and are refused
-where a conversion would be needed.
+where a conversion would be needed; a temperature *difference* is ``delta_degC`` (or
+``delta_degF``, ``K``), which converts by a factor (1 delta_degC = 9/5 delta_degF = 1 K).
+``%`` (pint's ``percent``) is dimensionless with the factor 1/100: ``ratio <= 5 %`` is
+``ratio <= 0.05``. Unit texts are parsed once each (:func:`parsed_unit`, cached).
 """
 
 from __future__ import annotations
@@ -20,7 +23,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 from fractions import Fraction
-from functools import cache
+from functools import cache, lru_cache
 from typing import Any
 
 from simcred.contracts.expr import (
@@ -48,10 +51,20 @@ def _registry():
 
 def unit(text: str, *, where: str = ""):
     """The pint unit of ``text``; a one-line error naming ``where`` if it is not a unit."""
+    parsed = parsed_unit(text)
+    if parsed is None:
+        raise SimcredError(f"{where}: '{text}' is not a physical unit")
+    return parsed
+
+
+@lru_cache(maxsize=4096)
+def parsed_unit(text: str):
+    """The pint unit of ``text``, or None if pint cannot read it; cached per text (a library
+    names the same few units thousands of times, and pint parses a unit in ~50 µs)."""
     try:
         return _registry().Unit(text)
     except Exception:  # pint raises several error types for unparsable units
-        raise SimcredError(f"{where}: '{text}' is not a physical unit") from None
+        return None
 
 
 def same_unit(a: str, b: str) -> bool:
@@ -73,7 +86,8 @@ def factor(source, target, *, where: str = "") -> Fraction:
         one, two = None, None
     if one is None or two != 2 * one:  # an offset (degF → degC): not a factor
         raise ExpressionError(f"{where}: cannot convert {_name(source)} to {_name(target)} "
-                              "inside an assertion (a unit with an offset)")
+                              "inside an assertion (a unit with an offset: declare temperatures "
+                              "in kelvin, or differences of temperatures in delta_degC)")
     return one
 
 
@@ -98,14 +112,9 @@ def resolve(e: Expr, units: Mapping[str, str], *, where: str = "") -> Expr:
 
     ``units`` maps each variable to its declared unit (missing: dimensionless).
     """
-    declared = {name: _unit(text, f"{where}: variable {name}") for name, text in units.items()}
+    declared = {name: unit(text, where=f"{where}: variable {name}")
+                for name, text in units.items()}
     return _resolve(e, declared, where).expr
-
-
-@cache
-def _unit(text: str, where: str):
-    """:func:`unit`, cached: a library names the same few units thousands of times."""
-    return unit(text, where=where)
 
 
 @dataclass(frozen=True, slots=True)
