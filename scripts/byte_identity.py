@@ -5,11 +5,13 @@ the runs and response tests, ``--json`` to stdout and a few refused options) wit
 each commit (``git worktree`` of the commit, ``PYTHONPATH=<tree>/src``) and compares the SHA-256
 of every output file, stdout and stderr included.
 
-Excluded from the hash: the elapsed time the commands print on stderr ("done in 1.3 s", replaced
-by "done in T") and the run's output folder in stdout/stderr (replaced by "OUT"). JSON files are hashed whole; if a file differs only
-in the provenance keys of the envelope (``simcred_version``, ``created_by``: version and commit),
-that is reported separately as a provenance difference, not a failure. PNG figures are hashed
-like every other file (same matplotlib on both sides).
+Excluded from the hash: the elapsed time the commands print on stderr ("done in 1.3 s",
+replaced by "done in T") and the run's output folder in stdout/stderr (replaced by "OUT"). Every
+other file is hashed whole; one that differs only in provenance — the envelope's version keys
+(``simcred_version``, ``created_by``, ``version``) or the commit a validation records
+(``git_commit`` in verdict.json and its copy in report.html) — is reported as a provenance
+difference, not a failure. PNG figures are hashed like every other file (same matplotlib on both
+sides). The help of the comparison commands is compared too.
 
 Usage: python scripts/byte_identity.py BEFORE_COMMIT AFTER_COMMIT [WORKDIR]
 (exit 0 iff every file is identical).
@@ -29,6 +31,8 @@ from pathlib import Path
 #: The one wall-clock value the commands print (stderr): replaced before hashing.
 ELAPSED = re.compile(rb"done in [^\n]*")
 PROVENANCE = {"simcred_version", "created_by", "version"}
+#: The commit a validation records (verdict.json ``provenance.git_commit``, and report.html).
+COMMIT = re.compile(rb"(git_commit(?:&#34;|\")?\s*:\s*(?:&#34;|\"))[0-9a-f]{40}")
 SIMCRED = [sys.executable, "-m", "simcred.cli"]
 
 #: (name, arguments of simcred); ``{o}`` is the output folder of the run, ``{d}`` the data.
@@ -60,6 +64,9 @@ COMMANDS = [
     ("bad-inputs", ["compare", "{d}/baseline", "{d}/variant", "--inputs", "y"]),
     ("bad-bins", ["matrix", "{d}/baseline", "{d}/variant", "--bins", "1"]),
     ("bad-feature", ["matrix", "{d}/baseline", "{d}/variant", "--features", "nope"]),
+    ("compare-help", ["compare", "--help"]),
+    ("matrix-help", ["matrix", "--help"]),
+    ("estimate-sensor-help", ["estimate-sensor", "--help"]),
     ("cutin-runs", ["python", "examples/validate/cutin/make_runs.py", "--out", "{o}/cutin"]),
     ("validate-cutin", ["validate", "{o}/cutin/validation.yaml", "--out", "{o}/validate-cutin"]),
 ]
@@ -90,17 +97,20 @@ def digest(path: Path) -> str:
     return hashlib.sha256(data).hexdigest()
 
 
-def without_provenance(path: Path) -> str | None:
-    if path.suffix != ".json":
-        return None
-    try:
-        document = json.loads(path.read_text())
-    except ValueError:
-        return None
-    if isinstance(document, dict):
-        for key in PROVENANCE:
-            document.pop(key, None)
-    return hashlib.sha256(json.dumps(document, sort_keys=True).encode()).hexdigest()
+def without_provenance(path: Path) -> str:
+    """The digest with the commit's hash replaced (``git_commit`` in verdict.json and its copy
+    in report.html) and, in JSON files, the envelope's version keys dropped."""
+    data = COMMIT.sub(rb"\1COMMIT", path.read_bytes())
+    if path.suffix == ".json":
+        try:
+            document = json.loads(data)
+        except ValueError:
+            document = None
+        if isinstance(document, dict):
+            for key in PROVENANCE:
+                document.pop(key, None)
+            data = json.dumps(document, sort_keys=True).encode()
+    return hashlib.sha256(data).hexdigest()
 
 
 def compare(before: Path, after: Path) -> int:
@@ -112,8 +122,7 @@ def compare(before: Path, after: Path) -> int:
     for name in sorted(names & names_after):
         if digest(before / name) == digest(after / name):
             continue
-        body = without_provenance(before / name)
-        if body is not None and body == without_provenance(after / name):
+        if without_provenance(before / name) == without_provenance(after / name):
             provenance.append(str(name))
         else:
             failures.append(f"differs: {name}")
@@ -122,7 +131,8 @@ def compare(before: Path, after: Path) -> int:
     for name in provenance:
         print("PROVENANCE ONLY", name)
     print(f"{len(names & names_after)} files compared by SHA-256: {len(failures)} differ, "
-          f"{len(provenance)} differ only in provenance keys {sorted(PROVENANCE)}")
+          f"{len(provenance)} differ only in provenance ({', '.join(sorted(PROVENANCE))}, "
+          "git_commit)")
     return 1 if failures else 0
 
 

@@ -88,33 +88,39 @@ def test_every_field_is_an_option_of_the_commands_that_offer_it():
             assert flag.split("/")[0] in text, (command, field.name)
 
 
-def test_a_new_field_becomes_an_option_of_both_commands():
+@dataclasses.dataclass(frozen=True)
+class Wider(Method):
+    window: int = option(3, help="Samples per smoothing window.")
+
+
+def _probe(command: str) -> tuple[typer.Typer, dict]:
+    """A one-command app whose command takes the option group of ``command`` over Wider."""
+    seen: dict = {}
+    probe = typer.Typer()
+
+    @probe.command()
+    @method_options(command, Wider)
+    def probe_command(method: dict | None = None) -> None:
+        seen.update(method)
+
+    @probe.command()
+    def other() -> None: ...
+
+    return probe, seen
+
+
+@pytest.mark.parametrize("command", ["compare", "matrix"])
+def test_a_new_field_becomes_an_option_of_both_commands(command):
     """Single source: a field added to the method (here on a subclass) is offered by compare and
-    matrix with its help, and reaches the method, without a line of CLI code."""
-
-    @dataclasses.dataclass(frozen=True)
-    class Wider(Method):
-        window: int = option(3, help="Samples per smoothing window.")
-
-    for command in ("compare", "matrix"):
-        names = [p.name for p in parameters(command, Wider)]
-        assert names[-1] == "window" and "features" in names
-        seen = {}
-        probe = typer.Typer()
-
-        @probe.command()
-        @method_options(command, Wider)
-        def probe_command(method: dict | None = None) -> None:
-            seen.update(method)
-
-        @probe.command()
-        def other() -> None: ...
-
-        help_text = CliRunner().invoke(probe, ["probe-command", "--help"],
-                                       env={"COLUMNS": "200"}).output
-        assert "--window" in help_text and "Samples per smoothing window." in help_text
-        assert CliRunner().invoke(probe, ["probe-command", "--window", "5"]).exit_code == 0
-        assert seen["window"] == 5
+    matrix with its help, and reaches the command, without a line of CLI code."""
+    names = [p.name for p in parameters(command, Wider)]
+    assert names[-1] == "window" and "features" in names
+    probe, seen = _probe(command)
+    help_text = CliRunner().invoke(probe, ["probe-command", "--help"],
+                                   env={"COLUMNS": "200"}).output
+    assert "--window" in help_text and "Samples per smoothing window." in help_text
+    assert CliRunner().invoke(probe, ["probe-command", "--window", "5"]).exit_code == 0
+    assert seen["window"] == 5
 
 
 def test_the_command_line_builds_the_method_of_the_library(sets, tmp_path, capsys):
