@@ -25,6 +25,7 @@ from simcred.cli._app import (
     progress,
 )
 from simcred.cli._method import (
+    CHECKS,
     build_method,
     check_alpha,
     method_options,
@@ -48,7 +49,6 @@ class Side(StrEnum):
     B = "b"
 
 
-_split = split
 #: ``--features`` as the method declares it (estimate-sensor offers it too).
 Features = parameter("features").annotation
 
@@ -102,6 +102,8 @@ def compare(
     (Neurohr et al.)."""
     given = tuple(p if "://" in p else Path(p) for p in (a, b))  # a URI is no local Path
     a, b = Path(a), Path(b)
+    for name in ("baseline", "bootstrap"):  # before any work: each repeats the whole test
+        CHECKS[name](method[name])
     if (observed is None) != (sensor is None and calibration is None) \
             or (sensor is not None and calibration is not None):
         raise OptionError("--observed goes with one of --sensor (observation model) or "
@@ -184,10 +186,10 @@ def _compare_hidden(a, b, observed, calibration, method, as_json) -> None:
     from simcred.compare.hidden import compare_hidden
     from simcred.traces import TraceSet
 
-    paths = _split(calibration) or []
+    paths = split(calibration) or []
     if len(paths) != 2:
         raise OptionError(f"--calibration must be GT,SD (two paths), got {calibration!r}")
-    names = _split(method["features"])
+    names = split(method["features"])
     if names is None:
         raise OptionError("--calibration needs --features (the hidden state's signals)")
     number = parse_bins(method["bins"])
@@ -234,7 +236,7 @@ def estimate_sensor(
 
     check_finite(max_delay, "--max-delay", minimum=0)
     check_output(out, truth, recorded, kind="file", overwrite=overwrite)
-    model = estimate(TraceSet.read(truth), TraceSet.read(recorded), signals=_split(features),
+    model = estimate(TraceSet.read(truth), TraceSet.read(recorded), signals=split(features),
                      max_delay=max_delay, bootstrap=bootstrap, seed=seed)
     write_atomic(out, json.dumps(model.to_dict(), indent=2) + "\n")
     if not State.quiet:
@@ -350,7 +352,7 @@ def matrix(
         raise OptionError("--resume continues an interrupted run with --out: give --out")
     settings = build_method(method)
     if out is None:
-        result = matrix_of_sets(sets, settings, names=_split(names), workers=workers,
+        result = matrix_of_sets(sets, settings, names=split(names), workers=workers,
                                 scheduler=scheduler, progress=progress("comparing pairs"))
     else:
         from simcred.report.figures import distance_heatmap
@@ -360,7 +362,7 @@ def matrix(
             if settings.seed is None:  # fresh entropy, kept for a resumed run
                 settings = replace(settings, seed=target.value("seed",
                                                                lambda: resolve_seed(None)))
-            result = matrix_of_sets(sets, settings, names=_split(names), runner=runner,
+            result = matrix_of_sets(sets, settings, names=split(names), runner=runner,
                                     progress=progress("comparing pairs"))
             (target.path / "matrix.json").write_text(result.to_json())
             (target.path / "matrix.csv").write_text(result.to_csv())
