@@ -55,11 +55,85 @@ def option(default: Any = None, *, help: str, tests: tuple[str, ...] | None = No
 
 @dataclass(frozen=True, slots=True)
 class Method:
-    """How to compare two sets of runs (Neurohr et al. 2023, sec. V-A, and its extensions).
+    """How to compare two sets of runs (Neurohr et al. 2023 [1], sec. V-A, and its extensions).
 
     Every field is checked on construction (one line, :class:`~simcred.errors.OptionError`);
     a field that does not apply to the chosen ``test`` is kept and ignored (the result's
     ``options`` record what was used). docs/comparison.md describes the tests.
+
+    Parameters
+    ----------
+    features : sequence of str or comma-separated str, default: all signals
+        The signals that span the state space. Default: every signal, which requires both sets to
+        have the same signal names.
+    bins : int or sequence of int, default: 10
+        Equal-frequency bins per feature (before duplicate edges are removed), at least 2.
+    kernel : {"gaussian", "laplace", "linear"}, default: "gaussian"
+        [1] eqs. (3)-(5); Gaussian and Laplace use the median heuristic for σ.
+    estimator : {"biased", "unbiased"}, default: "biased"
+        MMD_b (the paper's, reported not squared) or MMD²_u.
+    test : {"runs", "response", "bound", "permutation"}, default: "runs"
+        ``runs``: run-level permutation test (whole runs reassigned; valid under any dependence
+        within runs) with a chain-level verdict; ``response``: the conditional test of the
+        response law given the state (docs/comparison.md: run lengths, visit frequencies,
+        start states and declared inputs are not part of its H0; paired and grouped designs;
+        effect sizes with intervals; equivalence); ``bound``: the paper's Gretton-type bound;
+        ``permutation``: the paper's per-transition permutation test. The last two treat
+        transitions as independent samples.
+    alpha : float, default: 0.01
+        Level of every single test (and of the chain verdict), in (0, 1).
+    permutations : int, default: 999
+        Resamples of the permutation tests.
+    seed : int, Generator or None
+        Seed of the permutation tests. None draws fresh entropy, which is stored in the result.
+    multiplicity : {"fwer", "fdr", "none"}, default: "fwer" for ``runs``, else "none"
+        Control of the per-state verdicts: max-T family-wise, Benjamini–Hochberg, or none (the
+        paper's). Only ``runs`` supports "fwer" and "fdr".
+    chain : {"sum", "max"}, default: "sum"
+        Chain statistic of the run-level test: sum or maximum of standardised state statistics.
+    one_sided : {"evidence", "neutral"}, default: "evidence"
+        Run-level test: a state without transitions on one side counts as the largest possible
+        difference, or as no evidence.
+    history : int, default: 1
+        States are the last ``history`` binned feature vectors (1 = the paper's chain).
+    time_bins : int or None
+        Time since run start, binned into ``time_bins`` equal-frequency windows, becomes part
+        of the state (time-inhomogeneous chain). At least 2; None = time-homogeneous.
+    resample : float or None
+        Resample every run to this period (s) by linear interpolation. Without it, sets with
+        different sample periods are refused.
+    baseline : int, default: 0
+        Run-level test: number of random half-splits of set A compared against each other, the
+        distance's same-model baseline.
+    bootstrap : int, default: 0 (``response``: 500)
+        Run-level test: bootstrap replicates (runs resampled within each set) for a re-test
+        spread of the distance. Response test: cluster-bootstrap replicates of the effect
+        intervals (units resampled within each set, or whole pairs).
+    relevance : bool, default: False
+        Run-level test: chain statistics on each feature alone and with each feature left out.
+    continue_on_start_difference : bool, default: False
+        Bound/permutation tests: test the transitions even when the start distributions differ.
+    stop_early : bool, default: True
+        Permutation test: stop drawing once rejection is impossible (Besag & Clifford 1991).
+        Verdicts are those of the full test; p-values above ``alpha`` become sequential
+        estimates. False always draws all ``permutations``.
+    inputs : sequence of str or comma-separated str
+        Response test: features the model does not control (a recorded leader's speed):
+        they condition the state but their own evolution is not compared.
+    pair_by : str, optional
+        Response test: ``"run_id"`` or a per-run fact (``metadata["run_info"]``) that pairs run
+        *i* of B with the run of A whose scenario it replays; the null swaps within pairs.
+    group_by : str, optional
+        Response test: a per-run fact (driver, recording, parent run of a segment) whose runs
+        form one exchangeable unit; whole groups are permuted and resampled.
+    margin : float or mapping, optional
+        Response test: equivalence margin per response feature (its unit per second), or one
+        for all; the result says whether equivalence within the margin is shown.
+
+    References
+    ----------
+    [1] Neurohr et al., Determining the Validity of Simulation Models for the Verification of
+        ADSs, IEEE Access, 2023.
     """
 
     features: tuple[str, ...] | None = option(
