@@ -149,3 +149,9 @@ def test_validate_and_study_share_the_method(tmp_path):
     study = StudyOptions(seed=3).method
     assert study.test == "response" and study.seed == 3 and study.resample == 0.5
     assert np.isclose(study.alpha, 0.05)
+
+
+def test_the_validation_file_speaks_the_method_s_vocabulary():
+    from simcred.validate.spec import ComparisonSpec
+
+    assert set(ComparisonSpec.model_fields) <= {f.name for f in dataclasses.fields(Method)}

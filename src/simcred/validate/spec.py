@@ -190,7 +190,9 @@ class ConditionSpec(_Strict):
 class ComparisonSpec(_Strict):
     """Options of the response comparison (``compare(test="response")``) in every cell:
     ``bins`` per feature, the level ``alpha``, ``permutations`` of the difference test,
-    ``bootstrap`` replicates of the deviation's bounds, ``seed``, ``resample`` (s)."""
+    ``bootstrap`` replicates of the deviation's bounds, ``seed``, ``resample`` (s). Each key is
+    a field of :class:`~simcred.compare.Method` (the file's defaults and ranges here, the checks
+    every comparison shares there); :attr:`ValidationSpec.method` makes the method."""
 
     bins: int | list[int] = 3
     alpha: float = Field(default=0.05, gt=0, lt=1)
