@@ -8,7 +8,9 @@ Designs (tests/validate_designs.py): a human-like IDM behind recorded OpenACC le
 * ``clip`` — applied acceleration clipped to [-1.5, +0.5] m/s² (truth: not valid);
 
 and ``humans``: two random halves of the real OpenACC human episodes split by driver unit
-(grouped by unit; truth: valid); ``leaders_split``: one deterministic IDM (tests/
+(grouped by unit; truth: valid); ``acc_self``: one real ACC car (tests/validate_designs.py
+ACC_CAR) against itself, its recording files split into two random halves (grouped by file;
+truth: valid); ``leaders_split``: one deterministic IDM (tests/
 response_designs.py, 10 s runs at 0.5 s) behind leaders of two different halves of the
 recordings, unpaired (truth: valid — the same response law, other scenarios). Test case: the
 whole leader-speed range, cells 0-15-30 m/s
@@ -49,19 +51,20 @@ from power import rate  # noqa: E402  (verdict counts as in examples/validate/po
 from response_designs import leaders_split  # noqa: E402
 from simcred.validate.loop import Inputs, validate  # noqa: E402
 from simcred.validate.spec import parse_validation  # noqa: E402
-from validate_designs import closed_loop_pair, human_halves  # noqa: E402
+from validate_designs import acc_halves, closed_loop_pair, human_halves  # noqa: E402
 
 TOLERANCE = 0.012  # m/s²: the acceleration-response deviation of a 0.15 s reaction delay
 CANDIDATES = {"none": True, "delay_0.3": False, "delay_0.5": False, "delay_1.0": False,
-              "clip": False, "humans": True, "leaders_split": True}
+              "clip": False, "humans": True, "leaders_split": True, "acc_self": True}
 
 
 def spec(seed: int, *, design: str = "pairs", tolerance: float = TOLERANCE,
          bootstrap: int = 200, edges: tuple[float, ...] = (0, 15, 30)):
     """The study's validation (paths are placeholders: the sets go in through Inputs);
-    ``design``: "pairs" (by run), "groups" (by driver unit) or "runs" (unpaired runs)."""
+    ``design``: "pairs" (by run), "groups" (by driver unit), "files" (groups by recording
+    file) or "runs" (unpaired runs)."""
     keys = {"pairs": {"pairs": {"by": "run_id"}}, "groups": {"groups": {"by": "unit"}},
-            "runs": {}}
+            "files": {"groups": {"by": "file"}}, "runs": {}}
     return parse_validation({
         "test_case": {"conditions": f"{edges[0]} <= v_leader <= {edges[-1]}",
                       "tolerance": {"v": tolerance}},
@@ -74,13 +77,15 @@ def spec(seed: int, *, design: str = "pairs", tolerance: float = TOLERANCE,
         "min_data": {"runs": 4, "samples": 100}})
 
 
-DESIGNS = {"humans": "groups", "leaders_split": "runs"}
+DESIGNS = {"humans": "groups", "leaders_split": "runs", "acc_self": "files"}
 
 
 def draw(name: str, episodes: int, seed: int):
     rng = np.random.default_rng([seed, episodes, 22])
     if name == "humans":
         return human_halves(rng, episodes)
+    if name == "acc_self":  # one real ACC car against itself, split by recording file
+        return acc_halves(rng, episodes)
     if name == "leaders_split":  # one deterministic IDM behind leaders of different recordings
         found = leaders_split(rng, runs=episodes)
         return found.a, found.b
@@ -95,21 +100,25 @@ def verdict(name: str, episodes: int, seed: int, planned: bool = False, **option
 
 
 def plan_check(pilot: int, seeds: int, tolerance: float) -> dict:
-    """The planned size from one draw at ``pilot`` episodes, and VALID's rate at that size."""
+    """The planned size from one draw at ``pilot`` episodes (the candidate's own pairs, searched
+    by simulation), and VALID's rate at that size."""
     result = verdict("none", pilot, 10_000, planned=True, tolerance=tolerance)
     rows = [r for r in result.plan.rows if r.source == "cand"]
-    needed = [r.if_perfect for r in rows]
-    if not needed or None in needed:
-        return {"pilot": pilot, "rows": [r.to_dict() for r in rows], "planned": None}
+    searched = result.plan.candidates["cand"]
+    found = {"pilot": pilot, "rows": [r.to_dict() for r in rows], "searched": searched.to_dict()}
+    if not searched.sizes:
+        return {**found, "planned": None}
     # the plan is in pairs per cell; a cell holds a share of the episodes' pairs
-    size = max(math.ceil(r.if_perfect * pilot / r.units) for r in rows)
-    print(f"plan from {pilot} episodes: {needed} pairs in the cells (of {[r.units for r in rows]}"
-          f" now) -> {size} episodes", flush=True)
+    now = {r.cell: r.units for r in rows}
+    size = max(math.ceil(n * pilot / now[c]) for c, n in searched.sizes.items())
+    print(f"plan from {pilot} episodes: {list(searched.sizes.values())} pairs in the cells (of "
+          f"{list(now.values())} now; normal rule {[r.if_perfect for r in rows]}), simulated "
+          f"power {searched.simulated_power:.2f} -> {size} episodes", flush=True)
     counts = Counter(verdict("none", size, seed, tolerance=tolerance).verdict
                      for seed in range(seeds))
     print(f"at {size} episodes: VALID {counts['valid']} / NOT VALID {counts['not valid']} / "
           f"INCONCLUSIVE {counts['inconclusive']} of {seeds}", flush=True)
-    return {"pilot": pilot, "rows": [r.to_dict() for r in rows], "planned": size,
+    return {**found, "planned": size,
             "valid": rate(counts["valid"], seeds), "not_valid": rate(counts["not valid"], seeds),
             "inconclusive": rate(counts["inconclusive"], seeds)}
 

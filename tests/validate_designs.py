@@ -300,6 +300,43 @@ def human_halves(rng: np.random.Generator, episodes: int | None = None
     return sets[0], sets[1]
 
 
-__all__ = ["CLIP", "CLIP_SYMMETRIC", "DEFECTS", "DELAYS", "DIAGNOSTIC", "DT", "PHI", "WINDOW",
-           "closed_loop_pair", "crashed", "draw_windows", "human", "human_halves", "simulate",
-           "split_units"]
+#: The ACC car of the "against itself" design: the (vehicle, headway setting) with the most
+#: OpenACC ACC episodes (422 in 20 recording files), chosen by count before any verdict was seen.
+ACC_CAR = ("MERCEDES_GLE450", "short")
+
+
+@lru_cache(maxsize=1)
+def acc_episodes() -> TraceSet:
+    """The OpenACC episodes of :data:`ACC_CAR` on ACC."""
+    from simcred.io.openacc import read_openacc
+
+    eps = read_openacc(follower="acc")
+    ri = eps.metadata[RUN_INFO]
+    keep = [i for i, r in enumerate(eps.run_ids)
+            if (ri[r]["follower_vehicle"], ri[r]["setting"]) == ACC_CAR]
+    return take(eps, keep, source=f"openacc ACC {ACC_CAR[0]} ({ACC_CAR[1]} setting)")
+
+
+def acc_halves(rng: np.random.Generator, episodes: int | None = None
+               ) -> tuple[TraceSet, TraceSet]:
+    """One real ACC car against itself: its recording files split at random into two halves
+    (declare ``group_by="file"``: episodes of one recording share its day, leader and traffic),
+    ``episodes`` per half drawn at random (capped at what the half holds; None: all), in
+    recording order. Truth: valid — one vehicle, one controller, one headway setting."""
+    eps = acc_episodes()
+    ri = eps.metadata[RUN_INFO]
+    file = np.array([ri[r]["file"] for r in eps.run_ids])
+    names = sorted(set(file))
+    first = set(rng.permutation(names)[: len(names) // 2].tolist())
+    sets = []
+    for side, mine in zip("AB", (True, False), strict=True):
+        pool = np.flatnonzero(np.array([(f in first) == mine for f in file]))
+        n = len(pool) if episodes is None else min(episodes, len(pool))
+        pick = np.sort(rng.choice(pool, size=n, replace=False))
+        sets.append(take(eps, pick, source=f"openacc ACC car: half {side}"))
+    return sets[0], sets[1]
+
+
+__all__ = ["ACC_CAR", "CLIP", "CLIP_SYMMETRIC", "DEFECTS", "DELAYS", "DIAGNOSTIC", "DT", "PHI",
+           "WINDOW", "acc_episodes", "acc_halves", "closed_loop_pair", "crashed", "draw_windows",
+           "human", "human_halves", "simulate", "split_units"]

@@ -16,7 +16,7 @@ docs of simcred.validate.synthetic):
 Each candidate against a fresh reference per seed, ``--seeds`` seeds (default 200) at each size
 (runs per set). Rates with Clopper-Pearson 95 % intervals; JSON with ``--out``.
 
-Usage: python examples/validate/power.py [--seeds 200] [--runs 100 300] [--out power.json]
+Usage: python examples/validate/power.py [--seeds 200] [--runs 100 400] [--out power.json]
 """
 
 from __future__ import annotations
@@ -52,7 +52,7 @@ def rate(k: int, n: int) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--seeds", type=int, default=200)
-    parser.add_argument("--runs", type=int, nargs="+", default=[100, 300])
+    parser.add_argument("--runs", type=int, nargs="+", default=[100, 400])
     parser.add_argument("--out", default=None)
     args = parser.parse_args()
     rows = []

@@ -60,9 +60,14 @@ def envelope(kind: str, body: Mapping[str, Any], *, inputs: Mapping[str, str] | 
     return {**head, **body}
 
 
+def file_sha256(path: str | Path) -> str:
+    """The hex SHA-256 of a file's bytes."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
 def file_digest(path: str | Path) -> str:
     """``sha256:<hex>`` of a file's bytes (an input's content hash for :func:`envelope`)."""
-    return "sha256:" + hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    return "sha256:" + file_sha256(path)
 
 
 def dumps(document: Mapping[str, Any]) -> str:

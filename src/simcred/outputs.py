@@ -11,11 +11,12 @@ it is interrupted; :class:`Checkpoint` stores finished pieces there atomically.
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import tempfile
 from collections.abc import Callable, Iterator, Sequence
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from pathlib import Path
 
 from simcred.errors import OptionError
@@ -27,6 +28,10 @@ MANIFEST = "job.json"
 #: ``--overwrite`` replaces a directory only if it holds this file, never one simcred did not make.
 MARKER = ".simcred-output"
 MARKER_TEXT = b"written by simcred; --overwrite may replace this folder\n"
+#: Written into ``OUT.partial`` just before its file output is renamed to ``OUT``: the file's
+#: identity, so that a later run recognises a partial output whose work is already at ``OUT``
+#: (the job was killed between the rename and removing ``OUT.partial``) and removes it.
+MOVED = ".simcred-moved"
 
 
 def partial_path(out: Path) -> Path:
@@ -164,6 +169,7 @@ def output_path(out: Path, inputs: Sequence[Path] = (), *, kind: str = "director
         resume; a callable decides from the exception); otherwise it is removed, so nothing
         half-written remains.
     """
+    (_drop_moved if kind == "file" else _recover_replaced)(out, inputs)
     check_out(out, inputs, overwrite=overwrite, kind=kind)
     partial, out = partial_path(out), real(out)
     if partial.is_symlink() or (partial.exists() and not partial.is_dir()):
@@ -199,8 +205,49 @@ def output_path(out: Path, inputs: Sequence[Path] = (), *, kind: str = "director
             shutil.rmtree(partial / CHECKPOINTS, ignore_errors=True)
             _replace_dir(partial, out)
         else:
-            os.replace(partial / out.name, out)
-            shutil.rmtree(partial, ignore_errors=True)
+            _move_file(partial, out)
+    finally:
+        _unlock(lock)
+
+
+def _identity(path: Path) -> list[int]:
+    stat = os.stat(path, follow_symlinks=False)
+    return [stat.st_dev, stat.st_ino, stat.st_size, stat.st_mtime_ns]
+
+
+def _move_file(partial: Path, out: Path) -> None:
+    """Rename the finished ``partial/<name>`` to ``out`` and remove ``partial``, first recording
+    the file's identity in ``partial`` (:data:`MOVED`): a kill between the rename and the removal
+    leaves a partial output that :func:`_drop_moved` recognises as done."""
+    with suppress(OSError):  # e.g. a full disk: moved all the same, unrecorded
+        write_atomic(partial / MOVED, json.dumps(_identity(partial / out.name)))
+    os.replace(partial / out.name, out)
+    shutil.rmtree(partial, ignore_errors=True)
+
+
+def _drop_moved(out: Path, inputs: Sequence[Path]) -> None:
+    """Remove a stale ``OUT.partial`` whose file was already renamed to ``out``: only one that
+    holds simcred's :data:`MARKER` and a :data:`MOVED` record naming the very file at ``out``
+    (device, inode, size, modification time), no longer holds that file, is no input and is not
+    being written by a running command."""
+    try:
+        partial, target = partial_path(out), real(out)
+    except OptionError:
+        return
+    moved = partial / MOVED
+    if (out.is_symlink() or partial.is_symlink() or not moved.is_file() or not target.is_file()
+            or (partial / target.name).exists()
+            or any(contains(partial, item) or contains(item, partial) for item in inputs)):
+        return
+    try:
+        _refuse_foreign(partial, "the partial output")
+        if json.loads(moved.read_text(encoding="utf-8")) != _identity(target):
+            return
+    except (OptionError, OSError, ValueError):
+        return
+    lock = _lock(partial)  # a command finishing it now holds it: one line, nothing removed
+    try:
+        shutil.rmtree(partial)
     finally:
         _unlock(lock)
 
@@ -237,14 +284,52 @@ def output_dir(out: Path, inputs: Sequence[Path] = (), *, overwrite: bool = Fals
         yield partial
 
 
+def replaced_path(out: Path) -> Path:
+    """Where an existing directory output waits, hidden beside it, while its replacement is
+    renamed into place (:func:`_replace_dir`)."""
+    target = real(out)
+    return target.with_name(f".{target.name}.simcred-replaced")
+
+
 def _replace_dir(partial: Path, out: Path) -> None:
+    """Rename ``partial`` to ``out``; an existing ``out`` is first moved to
+    :func:`replaced_path`, removed afterwards. A kill between the steps leaves that folder,
+    which the next run resolves (:func:`_recover_replaced`)."""
     if out.exists():
-        trash = Path(tempfile.mkdtemp(prefix=f".{out.name}.old-", dir=out.parent))
-        os.replace(out, trash / out.name)
+        old = replaced_path(out)
+        os.replace(out, old)  # refused (one line) if something else is at that name
         os.replace(partial, out)
-        shutil.rmtree(trash, ignore_errors=True)
+        shutil.rmtree(old, ignore_errors=True)
     else:
         os.replace(partial, out)
+
+
+def _recover_replaced(out: Path, inputs: Sequence[Path]) -> None:
+    """Finish a replacement of the directory ``out`` that a kill interrupted: with no ``out``
+    (killed between the two renames) the previous output is put back, as it was; with ``out``
+    in place (killed before the old one was removed) the old one is removed. Only a folder that
+    is simcred's (its :data:`MARKER`, or empty), no input, and not while a running command
+    holds ``OUT.partial``."""
+    try:
+        old, target, partial = replaced_path(out), real(out), partial_path(out)
+    except OptionError:
+        return
+    if (old.is_symlink() or not old.is_dir()
+            or any(contains(old, item) or contains(item, old) for item in inputs)):
+        return
+    try:
+        _refuse_foreign(old, "the replaced output")
+    except OptionError:
+        if any(old.iterdir()):
+            return
+    lock = _lock(partial) if partial.is_dir() and not partial.is_symlink() else None
+    try:
+        if os.path.lexists(target):
+            shutil.rmtree(old)
+        else:
+            os.replace(old, target)
+    finally:
+        _unlock(lock)
 
 
 def write_atomic(path: Path, data: bytes | str) -> Path:

@@ -1,8 +1,8 @@
 """Kill tests of the resumable commands: each killed with SIGKILL once 0, 1, 2, half, all but
 one and all of its chunks are checkpointed (the last while the output is being written), then
 run again with ``--resume``: the same bytes as an uninterrupted run every time, and no output
-that looks complete meanwhile (issue 29; the shared loop: tests/killing.py; ``paper 000``:
-tests/paper/test_kill_resume.py)."""
+that looks complete meanwhile (issue 29; the shared loop: tests/killing.py; ``paper 000`` is
+also killed at 5 seeded moments: tests/paper/test_kill_resume.py)."""
 
 from __future__ import annotations
 
@@ -89,18 +89,19 @@ COMMANDS: dict[str, tuple[Callable[[Path], list[str]], int]] = {
         "--permutations", "99", "--tolerance", "v=0.1", "--min-runs", "5", "--seed", "2"], 6),
     # 6 candidate simulations; the verdict's exit code (0, 1 or 3) must be the same too
     "validate": (lambda root: [str(x) for x in ("validate", _validation(root))], 6),
-    # paper 000 (602 chunks at --runs 2), then paper 002 (3 chunks: the variations generated,
-    # the original and the variations resimulated), then seed 003 (no chunks)
+    # paper 000 at --runs 2: 602 chunks (campaigns and compared pairs)
+    "paper 000": (lambda root: ["paper", "000", "--runs", "2", "--seed", "3"], 602),
+    # paper 002: 4 reprocessings (the drive; delay only, offset only, the held-out drive), the
+    # 20 variations generated (1 chunk), the original and the variations resimulated (2)
+    "paper 002": (lambda root: ["paper", "002", "--variations", "20", "--seed", "3"], 7),
+    # paper 000 (602 chunks), then paper 002 (7 chunks: the kills at 608 and 609 land in it),
+    # then seed 003 (no chunks)
     "paper all": (lambda root: [
-        "paper", "all", "--runs", "2", "--variations", "20", "--seed", "3"], 605),
+        "paper", "all", "--runs", "2", "--variations", "20", "--seed", "3"], 609),
 }
 SUFFIX = {"simulate tjunction (Parquet)": ".parquet"}
 #: Exit codes of a complete run besides 0 (validate: 1 not valid, 3 inconclusive).
 CODES = {"validate": (0, 1, 3)}
-#: Resumable commands killed elsewhere.
-ELSEWHERE = {"paper 000": "tests/paper/test_kill_resume.py (5 kills at seeded moments)",
-             "paper 002": "inside paper all: killed at its 2nd chunk and while writing"}
-
 CASES = [(name, k) for name, (_, total) in COMMANDS.items() for k in kill_points(total)]
 
 
@@ -137,5 +138,5 @@ def test_every_resumable_command_has_a_kill_test():
     resumable = {" ".join(path) for path, command in leaf_commands(typer.main.get_command(app))
                  if any("--resume" in getattr(p, "opts", ()) for p in command.params)}
     names = {name.split(" (")[0] for name in COMMANDS}
-    missing = resumable - names - set(ELSEWHERE)
+    missing = resumable - names
     assert not missing, f"add a kill test for {sorted(missing)}"

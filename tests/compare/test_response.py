@@ -329,3 +329,47 @@ def _ar(rng, runs, steps, phi):
     for t in range(1, steps):
         x[:, t] = phi * x[:, t - 1] + rng.normal(size=runs)
     return x
+
+
+def _with_column(traces: TraceSet, name: str, per_run) -> TraceSet:
+    """``traces`` with a signal ``name`` holding ``per_run[i]`` on every row of run i."""
+    column = np.repeat(np.asarray(per_run, dtype=float), np.diff(traces.offsets))
+    return TraceSet((*traces.signals, name), traces.time,
+                    np.column_stack([traces.values, column]), traces.offsets, traces.run_ids,
+                    traces.metadata, traces.source)
+
+
+def test_a_column_constant_per_run_is_a_unit_key():
+    """Grouping (or pairing) by a signal constant within each run is the same design as by the
+    same values given as per-run facts."""
+    rng = np.random.default_rng(3)
+    sides = []
+    for n, shift in ((12, 0.0), (10, 0.2)):
+        driver = [i % 4 for i in range(n)]
+        traces = _set(rng, n, 8, shift=shift,
+                      info={f"r{i:03d}": {"driver": repr(float(d))} for i, d in enumerate(driver)})
+        sides.append(_with_column(traces, "driver_id", driver))
+    kwargs = dict(features=["x", "u"], test="response", permutations=19, seed=0, bootstrap=50)
+    by_fact = compare(*sides, group_by="driver", **kwargs)
+    by_column = compare(*sides, group_by="driver_id", **kwargs)
+    assert by_column.response.design.units_a == 4
+    assert by_column.response.effect == by_fact.response.effect
+    assert by_column.chain.pvalue == by_fact.chain.pvalue
+    paired = compare(_with_column(_set(rng, 12, 8), "pair", range(12)),
+                     _with_column(_set(rng, 12, 8), "pair", range(11, -1, -1)),
+                     pair_by="pair", features=["x", "u"], test="response",
+                     permutations=19, seed=0, bootstrap=50)
+    assert paired.response.design.kind == "pairs"
+
+
+def test_a_column_that_changes_within_a_run_is_refused():
+    rng = np.random.default_rng(0)
+    a = _set(rng, 5, 6)
+    column = np.zeros(a.n_rows)
+    column[a.offsets[2] + 3] = 1.0  # run r002 changes at its row 3
+    a = TraceSet((*a.signals, "g"), a.time, np.column_stack([a.values, column]), a.offsets,
+                 a.run_ids, a.metadata, a.source)
+    with pytest.raises(OptionError, match=r"run 'r002': the signal changes within the run "
+                                          r"\(row 3") as error:
+        compare(a, a, features=["x", "u"], test="response", group_by="g", permutations=19)
+    assert "\n" not in str(error.value)

@@ -18,7 +18,7 @@ from scipy.optimize import brentq
 
 from simcred.io.measurement import Measurement
 from simcred.kinematics import Track
-from simcred.reprocess.errors import STEPS, ErrorStats, decompose, state_errors, wrap
+from simcred.reprocess.decomposition import STEPS, ErrorStats, decompose, state_errors, wrap
 from simcred.reprocess.pipeline import reprocess
 from simcred.reprocess.reaction import Reaction, ReactionCriteria, reaction, reaction_analysis
 from simcred.scenario.frenet import path_coordinates

@@ -18,8 +18,8 @@ from simcred.scenario import (
     PlausibilityLimits,
     Reason,
     ScenarioDescription,
-    Status,
     VariationOptions,
+    VariationStatus,
     check_plausibility,
     fit_track,
     generate_variations,
@@ -320,7 +320,7 @@ def test_infeasible_variations_are_rejected_and_counted(description):
     big = np.zeros((4, 2))
     big[2] = [0.0, 3.0]
     variation = vary_one(description, 0, SEED, displacements=big)
-    assert not variation.kept and variation.record.status is Status.REJECTED
+    assert not variation.kept and variation.record.status is VariationStatus.REJECTED
     assert Reason.LATERAL_ACCELERATION in variation.record.reasons
     wild = generate_variations(description, 12, SEED,
                                options=VariationOptions(sigma_lon=2.0, sigma_lat=1.5))
@@ -329,7 +329,7 @@ def test_infeasible_variations_are_rejected_and_counted(description):
     assert all(v.kept and not v.record.reasons for v in wild.variations)
     for reason, count in wild.rejections.items():
         assert count == sum(Reason(reason) in r.reasons for r in wild.records) > 0
-    assert all(bool(r.reasons) == (r.status is Status.REJECTED) for r in wild.records)
+    assert all(bool(r.reasons) == (r.status is VariationStatus.REJECTED) for r in wild.records)
     assert sum(wild.rejections.values()) >= wild.rejected
     assert wild.original_reasons == ()
 
@@ -347,7 +347,7 @@ def test_json_is_deterministic_exact_and_loads_back(description, tmp_path):
     for record, entry in zip(result.records, document["records"], strict=True):
         assert np.array_equal(np.array(entry["displacements"]), record.displacements)
         assert entry["status"] == record.status.value
-        assert ("track" in entry) == (record.status is Status.KEPT)
+        assert ("track" in entry) == (record.status is VariationStatus.KEPT)
     loaded = load_variations(result.write(tmp_path / "variations.json"))
     assert sorted(loaded) == [v.index for v in result.variations]
     for variation in result.variations:

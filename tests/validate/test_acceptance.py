@@ -15,15 +15,32 @@ The family-wise rates over 200+ seeds are measured by examples/validate/power.py
 
 from __future__ import annotations
 
+import sys
 from collections import Counter
+from pathlib import Path
 
 import pytest
 
 from simcred.validate.loop import Inputs, validate
 from simcred.validate.synthetic import universe, validation_spec
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "examples" / "validate"))
+from power import verdict as power_verdict  # noqa: E402  (the power study's draw)
+
 SEEDS = 20
 EFFECT = 0.15
+
+
+@pytest.mark.slow
+def test_an_identical_candidate_is_not_valid_at_most_at_alpha_over_the_test_case():
+    """Family-wise: a candidate with the reference's law (deviation 0 in all K = 5 cells) makes
+    the whole test case NOT VALID in at most α = 0.05 of seeds; 6 or more of 40 has probability
+    0.014 under Binomial(40, 0.05). A candidate beyond the tolerance everywhere (examples/
+    validate/power.py ``beyond``) is never VALID."""
+    verdicts = {name: Counter(power_verdict(name, seed, 100) for seed in range(40))
+                for name in ("same", "beyond")}
+    assert verdicts["same"]["not valid"] <= 5, verdicts
+    assert verdicts["beyond"]["valid"] == 0, verdicts
 
 
 @pytest.mark.slow

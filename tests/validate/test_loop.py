@@ -385,3 +385,44 @@ def test_relative_tolerance_is_resolved_from_the_reference_halves(tmp_path):
                                                "tolerance": {"x": {"relative": 1.0}}},
                           min_data={"runs": 2, "samples": 10}, runs=2, steps=40)
     assert run(["-q", "validate", str(path), "--out", str(tmp_path / "few")]) == 2
+
+
+def test_an_inconclusive_cell_says_what_data_would_decide_it(tmp_path):
+    """Issue 22: INCONCLUSIVE comes with the data that would be needed — per undecided cell the
+    normal rule's units per side at the candidate's estimate (the plan's number)."""
+    from simcred.validate import read_inputs, read_validation, validate
+    from simcred.validate.plan import cell_rows
+
+    path = write_universe(tmp_path, test_case={"conditions": "5 <= v < 20",
+                                               "tolerance": {"x": 0.5}})
+    spec, base = read_validation(path)
+    result = validate(spec, read_inputs(spec, base))
+    power = 0.8 ** (1 / 3)
+    undecided = [c for c in result.domains["sim"].cells if c.status.value == "inconclusive"]
+    assert undecided, "the design should leave a cell undecided at tolerance 0.5"
+    reasons = result.candidates["sim"].reasons
+    for cell in undecided:
+        rows = cell_rows("sim", cell, spec, power)
+        needed = max(r.needed for r in rows)
+        line = next(r for r in reasons if r.startswith(f"inconclusive in {cell.label}"))
+        assert f"about {needed} units per side would show it within tolerance" in line
+    assert "--plan" in result.summary
+
+
+@pytest.mark.parametrize("lower, upper, pvalue, status", [
+    (0.05, 0.6, 0.5, "inconclusive"),   # bounds straddle the tolerance
+    (0.05, 0.09, 0.5, "valid"),         # upper bound below it
+    (0.2, 0.4, 0.01, "not valid"),      # lower bound above it, permutation test rejects at α/K
+    (0.2, 0.4, 0.02, "inconclusive"),   # lower bound above it, but p > α/K = 0.05 / 3
+])
+def test_the_cell_decision_rule(lower, upper, pvalue, status):
+    """Valid: every upper 1 − α bound below the tolerance; not valid: a lower 1 − α/K bound
+    above it AND the deviation's permutation p-value at most α/K; else inconclusive."""
+    from simcred.regions.engine import CellRule, FeatureBounds, _decide
+
+    bounds = (FeatureBounds("x", "1/s", 0.1, (lower + upper) / 2, lower, upper, lower, upper,
+                            0.1, pvalue),)
+    found, reason = _decide(bounds, CellRule(0.05, 3, None, "source_run"))
+    assert found.value == status, reason
+    if status == "inconclusive" and lower > 0.1:
+        assert "does not reject the same law at 0.0167 (p = 0.02)" in reason

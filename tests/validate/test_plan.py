@@ -6,12 +6,15 @@ from __future__ import annotations
 import json
 import math
 
+import numpy as np
 import pytest
 from scipy.stats import norm
 
 from simcred.cli import run
+from simcred.traces import TraceSet
 from simcred.validate import read_inputs, read_validation, validate
 from simcred.validate.plan import PILOT, needed_if_perfect, needed_units
+from simcred.validate.synthetic import universe
 
 from .conftest import write_universe
 
@@ -51,3 +54,28 @@ def test_plan_rows_and_simulated_size(tmp_path, capsys):
     assert document["plan"]["planned_units_per_side"] == {str(c): n
                                                           for c, n in plan.sizes.items()}
     assert 'id="plan"' in (out / "report.html").read_text()
+
+
+def test_paired_candidate_plan_is_searched_from_its_own_pairs(tmp_path):
+    """A twin with the reference's law that replays it run by run (same run ids): its plan is
+    searched by simulation from its own pairs (members swapped at random), starts at the
+    normal rule's size, reaches 80 % there or above, and is seeded."""
+    path = write_universe(tmp_path, runs=60, pairs={"by": "run_id"},
+                          candidates={"twin": {"runs": {"path": "twin.parquet"}}})
+    reference = TraceSet.read(tmp_path / "ref.parquet")
+    other = universe(60, 150, seed=3)  # the same law (x does not depend on v below v_switch)
+    x, v = reference.signals.index("x"), reference.signals.index("v")
+    values = reference.values.copy()
+    values[:, x] = other.values[:, other.signals.index("x")]
+    assert np.array_equal(values[:, v], reference.values[:, v])  # the same scenarios: a replay
+    TraceSet(reference.signals, reference.time, values, reference.offsets, reference.run_ids,
+             reference.metadata, "twin").write(tmp_path / "twin.parquet")
+    spec, base = read_validation(path)
+    plan = validate(spec, read_inputs(spec, base), planned=True).plan
+    searched = plan.candidates["twin"]
+    rows = {r.cell: r.if_perfect for r in plan.rows if r.source == "twin"}
+    assert searched.sizes and set(searched.sizes) == set(rows)
+    assert all(searched.sizes[c] >= rows[c] for c in rows)
+    assert searched.simulated_power >= 0.8 and searched.simulations == 20
+    again = validate(spec, read_inputs(spec, base), planned=True).plan
+    assert again.to_dict()["candidates"] == plan.to_dict()["candidates"]

@@ -36,6 +36,22 @@ def test_report_text(report):
     assert len(images) == 1 + 1 + 5  # ranking, domain map, one state map per compared cell
     assert 'id="configuration"' in html and 'id="provenance"' in html
     assert "sim on monitor[0]" in html
+    rules_out = " ".join(body[body.index('id="what-it-rules-out"'):
+                              body.index('id="ranking"')].split())
+    assert "tolerance" in rules_out and "≤ 1.0" in rules_out  # the test case's tolerance
+    assert "upper 95 % bound" in rules_out and "at most 0.05 per candidate" in rules_out
+    assert "permutation floor" in rules_out and "over the 3 cells" in rules_out
+
+
+def test_verdict_states_its_error_rates(report):
+    import json
+    document = json.loads((report.parent / "verdict.json").read_text())
+    assert "z3-solver" in document["provenance"]["versions"]  # its proofs are in the verdict
+    rates = document["error_rates"]
+    assert rates["alpha"] == 0.05 and rates["test_case_cells"] == 3
+    assert "upper 0.95 bound" in rates["false_valid"]
+    assert "lower 0.9833 bound" in rates["false_not_valid"]  # Bonferroni: 1 - 0.05 / 3
+    assert "rejecting the same law at 0.01667" in rates["false_not_valid"]
 
 
 @pytest.mark.slow

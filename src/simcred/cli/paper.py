@@ -11,7 +11,6 @@ from simcred.cli._app import (
     Scheduler,
     State,
     Workers,
-    _steps,
     app,
     check_output,
     one_line_errors,
@@ -74,7 +73,7 @@ def paper_002(
     with writing(out, overwrite=overwrite, resume=resume) as target, \
             target.engine(workers, scheduler) as runner:
         run = seed002.run_all(target.path, seed=seed, variations=variations, runner=runner,
-                              progress=_steps("paper 002"), progress_for=progress)
+                              progress_for=progress)
     if not State.quiet:
         out_console.print(claims_table(run.claims, "seed 002: the paper's claims"))
         say(run.reaction_summary())
@@ -105,7 +104,7 @@ def paper_all(
     with writing(out, overwrite=overwrite, resume=resume) as target, \
             target.engine(workers, scheduler) as runner:
         claims = run_all(target.path, AllOptions(runs=runs, variations=variations, seed=seed),
-                         runner=runner, progress=_steps("paper 002"), progress_for=progress)
+                         runner=runner, progress_for=progress)
     if not State.quiet:
         for key, found in claims.items():
             out_console.print(claims_table(found, f"seed {key}: claims"))

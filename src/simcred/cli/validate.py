@@ -84,6 +84,15 @@ def _print_plan(plan) -> None:
                           "simulations", highlight=False)
     if plan.note:
         out_console.print(f"  {plan.note}", highlight=False, soft_wrap=True)
+    for name, searched in plan.candidates.items():
+        if searched.sizes:
+            sizes = ", ".join(str(n) for n in searched.sizes.values())
+            out_console.print(f"  {name} as good as the reference, its own pairs resampled: "
+                              f"{sizes} pairs in the {len(searched.sizes)} cells, shown valid "
+                              f"in {100 * searched.simulated_power:.0f} % of "
+                              f"{searched.simulations} simulations", highlight=False)
+        if searched.note:
+            out_console.print(f"  {name}: {searched.note}", highlight=False, soft_wrap=True)
 
 
 def simulate_candidates(spec: ValidationSpec, base: Path, out: Path,

@@ -132,21 +132,39 @@ def runs_design(runs_a: int, runs_b: int) -> Design:
 
 
 def unit_keys(traces: TraceSet, key: str, option: str) -> list[str]:
-    """Per run, its value of ``key`` (``run_id`` or a ``run_info`` key), as text."""
+    """Per run, its value of ``key`` as text: ``run_id``, a ``run_info`` key, or a signal that
+    is constant within every run (a column naming the driver, the recording, the pair)."""
     if key == RUN_ID:
         return list(traces.run_ids)
     info = traces.metadata.get(RUN_INFO)
+    if isinstance(info, Mapping) and all(isinstance(info.get(r), Mapping) and key in info[r]
+                                         for r in traces.run_ids):
+        return [str(info[r][key]) for r in traces.run_ids]
+    if key in traces.signals:
+        return _column_keys(traces, key, option)
     if not isinstance(info, Mapping):
         raise OptionError(f"{option} {key!r}: {traces.source} has no per-run facts "
-                          f"(metadata '{RUN_INFO}'); use run_id or add the key per run")
-    values = []
-    for run in traces.run_ids:
-        facts = info.get(run)
-        if not isinstance(facts, Mapping) or key not in facts:
-            raise OptionError(f"{option} {key!r}: {traces.source}, run {run!r} has no {key!r} "
-                              f"in its per-run facts")
-        values.append(str(facts[key]))
-    return values
+                          f"(metadata '{RUN_INFO}') and no signal {key!r}; use run_id, a "
+                          "signal constant within each run, or add the key per run")
+    run = next(r for r in traces.run_ids if not isinstance(info.get(r), Mapping)
+               or key not in info[r])
+    raise OptionError(f"{option} {key!r}: {traces.source}, run {run!r} has no {key!r} "
+                      f"in its per-run facts (and {key!r} is not a signal)")
+
+
+def _column_keys(traces: TraceSet, key: str, option: str) -> list[str]:
+    """Per run, the value of the signal ``key``, which must not change within the run."""
+    column = traces.values[:, traces.signals.index(key)]
+    out = []
+    for i, run in enumerate(traces.run_ids):
+        part = column[traces.offsets[i]:traces.offsets[i + 1]]
+        if part.size and not np.all((part == part[0]) | (np.isnan(part) & np.isnan(part[0]))):
+            row = int(np.flatnonzero(part != part[0])[0])
+            raise OptionError(f"{option} {key!r}: {traces.source}, run {run!r}: the signal "
+                              f"changes within the run (row {row}: {part[row]!r} after "
+                              f"{part[0]!r}); a unit key must be constant per run")
+        out.append(repr(float(part[0])) if part.size else "")
+    return out
 
 
 def _grouped(a: TraceSet, b: TraceSet, key: str) -> Design:

@@ -251,7 +251,7 @@ def _permuted_plugin(entries: _Entries, keep: np.ndarray, assignments: np.ndarra
     j = entries.first.shape[1]
     values = np.hstack([entries.count[take, None], entries.first[take], entries.second[take]])
     width = values.shape[1]
-    matrix = unit_matrix(unit, state, values.T, width, n_units, n_states)
+    matrix = unit_matrix(unit, state, values.__getitem__, width, n_units, n_states)
     totals = np.bincount(entries.unit, weights=entries.count, minlength=n_units)
     pooled = np.asarray(matrix.sum(axis=1)).reshape(n_states, width, 1)
     side_a = assignments.T.astype(np.float64)  # (units, P + 1)
@@ -358,9 +358,9 @@ class _Sums:
         spec = _product_spec(j, entries.pairs)
         column = {name: i for i, (name, _, _) in enumerate(spec)}
         matrix = unit_matrix(key // n_states, key % n_states,
-                             (_product(x, one, two) for _, one, two in spec), len(spec),
-                             n_clusters, n_states)
-        del x
+                             lambda part: np.stack([_product(x[part], one, two)
+                                                    for _, one, two in spec], axis=1),
+                             len(spec), n_clusters, n_states)
         visits = sp.csr_matrix(
             (np.ones(int(take.sum())), (2 * state + side, cluster)),
             shape=(2 * n_states, n_clusters))

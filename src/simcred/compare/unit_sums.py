@@ -10,27 +10,32 @@ a 4-byte index besides its 8 bytes). Sparse sets (many states, short runs) stay 
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Callable
 
 import numpy as np
 import scipy.sparse as sp
 
 #: Fill share from which the matrix is dense: 8 bytes a position against 12 a stored value.
 DENSE_SHARE = 2 / 3
+#: Entries written at once into a dense matrix (their rows: a few MB).
+CHUNK = 1 << 16
 
 
-def unit_matrix(unit: np.ndarray, block: np.ndarray, columns: Iterable[np.ndarray], width: int,
-                n_units: int, n_blocks: int) -> np.ndarray | sp.csc_matrix:
-    """The (n_blocks · width) × n_units matrix with ``columns[c][i]`` at row ``block[i] · width
-    + c`` of column ``unit[i]``; each (unit, block) at most once, empty positions 0. A dense
-    array (a transposed C-ordered view) when at least :data:`DENSE_SHARE` of the positions hold
-    a value, else CSC. ``columns`` may be a generator: the dense path holds one at a time."""
-    if len(unit) >= DENSE_SHARE * n_units * n_blocks:
+def unit_matrix(unit: np.ndarray, block: np.ndarray, rows: Callable[[slice], np.ndarray],
+                width: int, n_units: int, n_blocks: int) -> np.ndarray | sp.csc_matrix:
+    """The (n_blocks · width) × n_units matrix with ``rows(part)[i, c]`` at row ``block[i] ·
+    width + c`` of column ``unit[i]`` for the entries ``i`` of ``part`` (a slice of them); each
+    (unit, block) at most once, empty positions 0. A dense array (a transposed C-ordered view)
+    when at least :data:`DENSE_SHARE` of the positions hold a value, built :data:`CHUNK`
+    entries at a time (their rows are written whole, not column by column), else CSC."""
+    n = len(unit)
+    if n >= DENSE_SHARE * n_units * n_blocks:
         out = np.zeros((n_units, n_blocks, width))
-        for c, column in enumerate(columns):
-            out[unit, block, c] = column
+        for lo in range(0, n, CHUNK):
+            part = slice(lo, lo + CHUNK)
+            out[unit[part], block[part]] = rows(part)
         return out.reshape(n_units, n_blocks * width).T
-    values = np.stack(list(columns), axis=1)
+    values = rows(slice(0, n))
     order = np.lexsort((block, unit))
     indptr = np.r_[0, np.cumsum(np.bincount(unit, minlength=n_units) * width)]
     indices = (block[order][:, None] * width + np.arange(width)).ravel()

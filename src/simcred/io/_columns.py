@@ -4,6 +4,7 @@ and the column limit every tabular format enforces."""
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 import pyarrow as pa
@@ -20,6 +21,25 @@ def check_width(count: int, where: str) -> None:
     if count > MAX_COLUMNS:
         raise TraceSetError(f"{where}: {count} columns, more than {MAX_COLUMNS} (the limit of "
                             "simcred.io._columns.MAX_COLUMNS)")
+
+
+def parquet_table(path: Path) -> pa.Table:
+    """The Parquet file at ``path`` as a table: its width checked on the schema before any value
+    is read, each column name once (:func:`check_table`). Arrow's errors are the caller's."""
+    import pyarrow.parquet as pq
+
+    from simcred.io._paths import local
+
+    check_width(len(pq.read_schema(local(path))), str(path))
+    return check_table(pq.read_table(local(path)), str(path))
+
+
+def check_signals(count: int, where: str) -> None:
+    """One line naming ``where`` if a trace set of ``count`` signals would be wider than
+    :data:`MAX_COLUMNS` as a table (its time column and the signals): the limit of the formats
+    whose signals are not a file's columns (objects turned into signals, MDF channels, ROS
+    fields), checked before the values are put together."""
+    check_width(count + 1, where)
 
 
 def check_csv_header(names: Sequence[str], where: str) -> None:

@@ -28,6 +28,7 @@ import pyarrow.fs as pafs
 import pyarrow.parquet as pq
 
 from simcred.errors import TraceSetError
+from simcred.io._columns import check_width
 from simcred.traces import TIME, TraceSet, concat
 
 GLOB_CHARACTERS = "*?["
@@ -81,6 +82,7 @@ class ParquetDataset:
                 metadata = pq.read_metadata(file, filesystem=filesystem)
             except (pa.ArrowException, OSError) as exc:
                 raise TraceSetError(f"{file}: unreadable Parquet ({_reason(exc)})") from None
+            check_width(metadata.num_columns, file)  # every partition, before a value is read
             rows.append(metadata.num_rows)
             if schema is None and metadata.num_rows:
                 schema = metadata.schema.to_arrow_schema()

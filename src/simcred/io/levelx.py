@@ -42,7 +42,7 @@ import pyarrow as pa
 import pyarrow.csv as pacsv
 
 from simcred.errors import OptionError, TraceSetError
-from simcred.io._columns import float_column
+from simcred.io._columns import check_table, float_column
 from simcred.io._paths import local
 from simcred.traces import RUN_INFO, TraceSet, handed_over
 
@@ -135,8 +135,8 @@ def _csv(path: Path, types: dict[str, pa.DataType] | None = None) -> pa.Table:
         raise TraceSetError(f"{path}: missing (a levelX recording needs NN_tracks.csv, "
                             "NN_tracksMeta.csv and NN_recordingMeta.csv)")
     try:
-        table = pacsv.read_csv(local(path), convert_options=pacsv.ConvertOptions(
-            null_values=[""], strings_can_be_null=True, column_types=types or {}))
+        table = check_table(pacsv.read_csv(local(path), convert_options=pacsv.ConvertOptions(
+            null_values=[""], strings_can_be_null=True, column_types=types or {})), str(path))
     except (pa.ArrowInvalid, OSError, UnicodeDecodeError) as exc:
         reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise TraceSetError(f"{path}: unreadable CSV ({reason})") from None

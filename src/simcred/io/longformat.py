@@ -44,7 +44,12 @@ import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 
 from simcred.errors import OptionError, TraceSetError
-from simcred.io._columns import check_csv_header, check_table, check_width, float_column
+from simcred.io._columns import (
+    check_csv_header,
+    check_table,
+    float_column,
+    parquet_table,
+)
 from simcred.io._paths import local
 from simcred.io.longformat_records import (
     MISSING,
@@ -84,8 +89,7 @@ METADATA_KEY = b"simcred"
 def _read_table(path: Path, keys: Sequence[str]) -> pa.Table:
     if path.suffix.lower() in PARQUET_SUFFIXES:
         try:
-            check_width(len(pq.read_schema(local(path))), str(path))
-            return check_table(pq.read_table(local(path)), str(path))
+            return parquet_table(path)
         except (pa.ArrowException, OSError) as exc:
             raise TraceSetError(f"{path}: unreadable Parquet ({_first_line(exc)})") from None
     text = {k: pa.string() for k in keys}

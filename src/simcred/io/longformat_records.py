@@ -18,6 +18,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 
 from simcred.errors import OptionError, TraceSetError
+from simcred.io._columns import check_signals
 from simcred.traces import TIME, TraceSet, handed_over
 
 OBJECTS_AS = ("signals", "runs")
@@ -180,8 +181,15 @@ def _check_duplicates(records, order, run_code, obj_code, run_names, obj_names) 
                             f"({records.row_name}s {a + 1} and {b + 1})")
 
 
+def _width(records: Records, rows: np.ndarray, codes: np.ndarray) -> int:
+    """The signals :func:`_run_block` makes of a run: its (object, field) pairs with a value,
+    counted in linear time (a run of 100,000 objects is refused before its columns are made)."""
+    return sum(np.unique(codes[present[rows]]).size for _, present in records.fields.values())
+
+
 def _run_block(records, rows, codes, obj_names, where, missing):
     """Time steps, signal names and the (steps, signals) block of one run; rows dropped."""
+    check_signals(_width(records, rows, codes), where)  # before its columns are made
     groups = [rows[codes == c] for c in np.unique(codes)]  # objects by first appearance
     group_times = [records.time[g] for g in groups]
     if missing == "error":

@@ -42,6 +42,7 @@ from pathlib import Path
 import numpy as np
 
 from simcred.errors import OptionError, TraceSetError
+from simcred.io._columns import check_signals
 from simcred.traces import TraceSet, concat, handed_over
 
 SUFFIXES = (".mf4", ".mdf")
@@ -129,6 +130,7 @@ def _read_file(path: Path, wanted: Sequence[str] | None, resample: str | None,
     with _quiet():
         found, skipped = _channels(path, wanted, run_channel)
     run = found.pop(run_channel, None)
+    check_signals(len(found), str(path))  # before the channels are put on one time base
     if not found:
         raise TraceSetError(f"{path}: no numeric channel to read besides the time and run "
                             "channels")

@@ -45,6 +45,7 @@ import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 
 from simcred.errors import OptionError, TraceSetError
+from simcred.io._columns import check_table, parquet_table
 from simcred.io._paths import local
 from simcred.limits import check_count, check_finite
 from simcred.traces import RUN_INFO, TIME, TraceSet
@@ -129,8 +130,8 @@ def _read_csv(path: Path) -> tuple[dict[str, list[str]], pa.Table]:
         header[key] = cells[1:]
     body = "".join(text[len(META_ROWS):]).encode()
     try:
-        table = pacsv.read_csv(io.BytesIO(body), convert_options=pacsv.ConvertOptions(
-            null_values=[""], strings_can_be_null=True))
+        table = check_table(pacsv.read_csv(io.BytesIO(body), convert_options=pacsv.ConvertOptions(
+            null_values=[""], strings_can_be_null=True)), str(path))
     except (pa.ArrowInvalid, UnicodeDecodeError) as exc:
         raise TraceSetError(f"{path}: unreadable CSV body ({str(exc).splitlines()[0]})") from None
     return header, table
@@ -138,7 +139,7 @@ def _read_csv(path: Path) -> tuple[dict[str, list[str]], pa.Table]:
 
 def _read_parquet(path: Path) -> tuple[dict[str, list[str]], pa.Table]:
     try:
-        table = pq.read_table(local(path))
+        table = parquet_table(path)
     except (pa.ArrowException, OSError) as exc:
         raise TraceSetError(f"{path}: unreadable Parquet ({str(exc).splitlines()[0]})") from None
     raw = (table.schema.metadata or {}).get(PARQUET_KEY)

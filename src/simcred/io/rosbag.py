@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 
 from simcred.errors import OptionError, TraceSetError
+from simcred.io._columns import check_signals
 from simcred.traces import RUN_INFO, TraceSet, concat, handed_over
 
 METADATA = "metadata.yaml"
@@ -239,6 +240,7 @@ def _run(run_id: str, members: dict[str, tuple], where: str) -> TraceSet:
                                 f"'{leaf}' ({len(other)}) of run '{run_id}' have different "
                                 "time stamps; read them as separate trace sets (topics=)")
     several = len(members) > 1
+    check_signals(sum(len(values) for _, values, _ in members.values()), where)
     signals, columns = [], []
     for leaf, (_, values, _) in members.items():
         for name, column in values.items():

@@ -6,15 +6,13 @@ Layout: ``paper000/``, ``paper002/`` (with ``variations/``), ``paper003/``, ``cl
 
 from __future__ import annotations
 
-import hashlib
-import importlib.metadata
 import json
-import platform
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from simcred._json import dumps, envelope
+from simcred._json import dumps, envelope, file_sha256
+from simcred._version import versions as package_versions
 from simcred.engine import Engine
 from simcred.paper import seed000, seed002, seed003
 from simcred.paper.claims import Claim, write_claims
@@ -37,27 +35,17 @@ class AllOptions:
 
 
 def versions() -> dict[str, str]:
-    found = {"python": platform.python_version()}
-    for name in ("simcred", *PACKAGES):
-        try:
-            found[name] = importlib.metadata.version(name)
-        except importlib.metadata.PackageNotFoundError:
-            found[name] = "not installed"
-    return found
+    return package_versions(*PACKAGES)
 
 
-def _sha256(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()
-
-
-def run_all(out: Path, options: AllOptions, *, runner: Engine, progress=None,
+def run_all(out: Path, options: AllOptions, *, runner: Engine,
             progress_for=lambda _: None) -> dict[str, list[Claim]]:
     """Run every seed into ``out`` and write the combined ``claims.json``."""
     out.mkdir(parents=True, exist_ok=True)
     claims = {"000": seed000.run_all(out / "paper000", runs=options.runs, seed=options.seed,
                                      runner=runner, progress_for=progress_for)}
     run002 = seed002.run_all(out / "paper002", seed=options.seed, variations=options.variations,
-                             runner=runner, progress=progress, progress_for=progress_for)
+                             runner=runner, progress_for=progress_for)
     claims["002"] = run002.claims
     monitored = {"resimulations": concat(list(run002.result.resimulations.values()),
                                          source="paper002 resimulations"),
@@ -69,10 +57,10 @@ def run_all(out: Path, options: AllOptions, *, runner: Engine, progress=None,
         "monitored_runs": {k: v.n_runs for k, v in monitored.items()},
         "monitor_tolerance": seed003.TOLERANCE})
     inputs = {
-        seed003.LIBRARY.name: _sha256(seed003.LIBRARY),
-        "paper002/measurement/gt.parquet": _sha256(out / "paper002/measurement/gt.parquet"),
-        "paper002/measurement/sd.parquet": _sha256(out / "paper002/measurement/sd.parquet"),
-        "paper002/descriptions/fit_GT.json": _sha256(out / "paper002/descriptions/fit_GT.json"),
+        seed003.LIBRARY.name: file_sha256(seed003.LIBRARY),
+        "paper002/measurement/gt.parquet": file_sha256(out / "paper002/measurement/gt.parquet"),
+        "paper002/measurement/sd.parquet": file_sha256(out / "paper002/measurement/sd.parquet"),
+        "paper002/descriptions/fit_GT.json": file_sha256(out / "paper002/descriptions/fit_GT.json"),
     }
     _write_combined(out, options, inputs)
     return claims

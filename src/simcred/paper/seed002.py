@@ -12,13 +12,13 @@ from pathlib import Path
 import numpy as np
 
 from simcred._json import dumps, envelope
-from simcred.engine import Engine
+from simcred.engine import Engine, shared
 from simcred.errors import SimcredError
 from simcred.io.measurement import Measurement
 from simcred.kinematics import MOTION_SIGNALS
 from simcred.paper.claims import Claim, at_least, below, write_claims
 from simcred.report.seed002 import write_reprocessed, write_variations
-from simcred.reprocess.errors import ErrorStats
+from simcred.reprocess.decomposition import ErrorStats
 from simcred.reprocess.pipeline import (
     LOG_RISK_FLOOR,
     ReprocessConfig,
@@ -235,20 +235,43 @@ class SensorStudy:
 
 
 def run_sensor_study(measurement: Measurement, result: Reprocessed, *, seed: int,
-                     config: cutin.CutInConfig, progress=None) -> SensorStudy:
+                     config: cutin.CutInConfig, runner: Engine | None = None,
+                     progress_for=lambda _: None) -> SensorStudy:
     """Reprocess drive A (``measurement``, reprocessed as ``result``) with each part of its
     sensor model, and drive B (:data:`~simcred.sim.experiments.cutin.HELD_OUT_SCRIPT`, seed
-    ``seed + 1``) with A's model."""
+    ``seed + 1``) with A's model: three tasks of ``runner`` (each a checkpointed chunk)."""
     model = result.sensor_model
     if model is None:
         raise SimcredError("the sensor study needs a measurement with GT (no sensor model)")
     base = result.config
-    dynamic = reprocess(measurement, replace(base, sensor_model=model.dynamic_only()), progress)
-    static = reprocess(measurement, replace(base, sensor_model=replace(model, delay=0.0)),
-                       progress)
-    drive_b = cutin.simulate(seed + 1, replace(config, script=cutin.HELD_OUT_SCRIPT))
-    held_out = reprocess(drive_b, replace(base, sensor_model=model), progress)
-    return SensorStudy(dynamic, static, held_out, sensor_prediction_errors(drive_b, model))
+    jobs = [(replace(base, sensor_model=model.dynamic_only()), None),
+            (replace(base, sensor_model=replace(model, delay=0.0)), None),
+            (replace(base, sensor_model=model), seed + 1)]
+    (dynamic, _), (static, _), (held_out, errors) = _reprocessings(
+        jobs, measurement, config, runner, progress_for("sensor study (delay only, offset "
+                                                        "only, held-out drive)"))
+    return SensorStudy(dynamic, static, held_out, errors)
+
+
+def _reprocessings(jobs: list[tuple[ReprocessConfig, int | None]], measurement: Measurement,
+                   universe: cutin.CutInConfig, runner: Engine | None, progress=None
+                   ) -> list[tuple[Reprocessed, dict[str, float] | None]]:
+    """:func:`_reprocess_job` of each job on ``runner`` (in-process without one)."""
+    return (runner or Engine()).map(_reprocess_job, jobs, progress=progress, shared_values={
+        "measurement": measurement, "universe": universe})
+
+
+def _reprocess_job(job: tuple[ReprocessConfig, int | None]
+                   ) -> tuple[Reprocessed, dict[str, float] | None]:
+    """One reprocessing of paper 002 (a task, so a killed run resumes after it): the shared
+    measurement reprocessed with the job's config or, given a seed, the held-out drive of the
+    shared universe simulated with that seed, reprocessed, with its sensor prediction errors."""
+    config, held_out_seed = job
+    if held_out_seed is None:
+        return reprocess(shared("measurement"), config), None
+    drive = cutin.simulate(held_out_seed, replace(shared("universe"),
+                                                  script=cutin.HELD_OUT_SCRIPT))
+    return reprocess(drive, config), sensor_prediction_errors(drive, config.sensor_model)
 
 
 def reaction_shift(result: Reprocessed, study: SensorStudy) -> dict[str, object]:
@@ -286,24 +309,30 @@ class Reprocessing:
 
 
 def check_drive(measurement: Measurement, *, seed: int = 0,
-                config: cutin.CutInConfig | None = None, progress=None) -> Reprocessing:
+                config: cutin.CutInConfig | None = None, runner: Engine | None = None,
+                progress_for=lambda _: None) -> Reprocessing:
     """Reprocess one drive of the universe ``config`` (resimulating with the same AD function),
-    run its sensor study and check the claims of §§III-IV; writes nothing."""
+    run its sensor study and check the claims of §§III-IV; writes nothing. The four
+    reprocessings are tasks of ``runner``: checkpointed one by one when it resumes."""
     universe = cutin.CutInConfig() if config is None else config
-    result = reprocess(measurement, ReprocessConfig(seed=seed, driver=universe.driver),
-                       progress)
-    study = run_sensor_study(measurement, result, seed=seed, config=universe, progress=progress)
+    [(result, _)] = _reprocessings([(ReprocessConfig(seed=seed, driver=universe.driver), None)],
+                                   measurement, universe, runner,
+                                   progress_for("reprocessing the drive"))
+    study = run_sensor_study(measurement, result, seed=seed, config=universe, runner=runner,
+                             progress_for=progress_for)
     return Reprocessing(result, study, reprocess_claims(result, study))
 
 
 def run_reprocessing(out: Path, *, seed: int = 0, config: cutin.CutInConfig | None = None,
-                     progress=None) -> Reprocessing:
+                     runner: Engine | None = None, progress_for=lambda _: None
+                     ) -> Reprocessing:
     """Simulate the cut-in measurement, reprocess and check it (:func:`check_drive`), write
     the measurement, the results, figures and ``reaction_shift.json`` into ``out``."""
     universe = cutin.CutInConfig() if config is None else config
     measurement = cutin.simulate(seed, universe)
     measurement.write(out / "measurement")
-    done = check_drive(measurement, seed=seed, config=universe, progress=progress)
+    done = check_drive(measurement, seed=seed, config=universe, runner=runner,
+                       progress_for=progress_for)
     write_reprocessed(done.result, out)
     (out / "reaction_shift.json").write_text(dumps(envelope(
         "reaction_shift", reaction_shift(done.result, done.study), inputs=done.result.inputs)))
@@ -358,11 +387,14 @@ class Seed002Run:
 
 
 def run_all(out: Path, *, seed: int = 0, variations: int = 300, runner: Engine | None = None,
-            progress=None, progress_for=lambda _: None) -> Seed002Run:
-    """``simcred paper 002``: reprocessing and variations, plus ``claims.json``."""
+            progress_for=lambda _: None) -> Seed002Run:
+    """``simcred paper 002``: reprocessing and variations, plus ``claims.json``. Its work is
+    ``runner``'s tasks: four reprocessings, then the variations generated and resimulated in
+    chunks (at least 7 chunks, each checkpointed when the command resumes)."""
     out.mkdir(parents=True, exist_ok=True)
     universe = cutin.CutInConfig()
-    done = run_reprocessing(out, seed=seed, config=universe, progress=progress)
+    done = run_reprocessing(out, seed=seed, config=universe, runner=runner,
+                            progress_for=progress_for)
     campaign, more = run_variations(out / "variations", done.result, n=variations,
                                     seed=seed + 1, runner=runner, progress_for=progress_for)
     claims = done.claims + more

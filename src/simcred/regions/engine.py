@@ -264,7 +264,7 @@ def compare_cell(settings: CellComparison, grid: Grid, cell: int, name: str, rul
                   count_units(candidate, rule), _samples(candidate))
         return CellResult(*head, CellStatus.UNKNOWN, settings.min_data.short(counts), *counts,
                           rule.design)
-    ref, cand, dropped = _matched(reference, candidate, rule)
+    ref, cand, dropped = matched(reference, candidate, rule)
     counts = (count_units(ref, rule), _samples(ref), count_units(cand, rule), _samples(cand))
     short = settings.min_data.short(counts)
     if short:
@@ -342,7 +342,7 @@ def _undecided(b: FeatureBounds, level: float) -> str:
             f"straddle the tolerance {b.tolerance:g}")
 
 
-def _matched(reference: TraceSet, candidate: TraceSet, rule: CellRule
+def matched(reference: TraceSet, candidate: TraceSet, rule: CellRule
              ) -> tuple[TraceSet | None, TraceSet | None, str]:
     """A paired cell keeps the runs whose key has segments on both sides (None: no pair)."""
     if rule.pair_by is None:

@@ -11,7 +11,7 @@ import numpy as np
 
 from simcred.report.figures import plt, save_figure
 from simcred.reprocess import output
-from simcred.reprocess.errors import QUANTITIES, STEPS
+from simcred.reprocess.decomposition import QUANTITIES, STEPS
 from simcred.reprocess.pipeline import LOG_RISK_FLOOR, Reprocessed, log_risk
 from simcred.reprocess.representation import GT, SD, Rep, Sensor
 from simcred.reprocess.vary import Campaign, write_campaign

@@ -8,7 +8,7 @@ reprocess`` reads), ``timebase`` (a drive's recordings, gaps and common time bas
 ``vary`` (sec. V campaign).
 """
 
-from simcred.reprocess.errors import ErrorStats, decompose
+from simcred.reprocess.decomposition import ErrorStats, decompose
 from simcred.reprocess.inputs import LongColumns, read_measurement
 from simcred.reprocess.obstacles import reprocess_obstacles
 from simcred.reprocess.output import write

@@ -33,7 +33,6 @@ eqs. (4)-(7).
 
 from __future__ import annotations
 
-import hashlib
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -44,6 +43,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from simcred._json import file_digest
 from simcred.errors import OptionError, TraceSetError
 from simcred.io import commonroad, longformat
 from simcred.io.a9 import read_a9
@@ -216,7 +216,7 @@ def commonroad_drive(path: str | Path, obstacle: int | str, ego: int | str | Non
                 "scenario_id": traces.metadata.get("scenario_id"), "object": int(to_run[3:]),
                 "ego": int(ego_run[3:]), "ego_choice": rule, "frame": placed,
                 "objects": objects}
-    digest = tracks_digest(tracks, _file_sha256(path), selection)
+    digest = tracks_digest(tracks, file_digest(path), selection)
     return Drive(Recording(str(path), tracks, digest), None, metadata)
 
 
@@ -270,10 +270,6 @@ def _rotate(tracks: Mapping[str, Track], origin: Sequence[float], angle: float
     (x0, y0), c, s = origin, math.cos(angle), math.sin(angle)
     return {k: Track(t.t, c * (t.x - x0) + s * (t.y - y0), -s * (t.x - x0) + c * (t.y - y0),
                      t.v, t.heading - angle) for k, t in tracks.items()}
-
-
-def _file_sha256(path: Path) -> str:
-    return "sha256:" + hashlib.sha256(path.read_bytes()).hexdigest()
 
 
 # -- long format ---------------------------------------------------------------------------------
@@ -375,7 +371,7 @@ def _long_recording(path: Path, columns: LongColumns, names: tuple[str, str]
             key = _run_label(run_id) if columns.run_column is not None else path.stem
         tracks[role] = _with_derived(run, role, str(path))
         dropouts[role] = int(dropped.get(key, 0))
-    return Recording(str(path), tracks, tracks_digest(tracks, _file_sha256(path)),
+    return Recording(str(path), tracks, tracks_digest(tracks, file_digest(path)),
                      dropouts), derived
 
 

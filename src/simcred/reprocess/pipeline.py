@@ -32,7 +32,7 @@ from simcred._json import JsonResult
 from simcred.errors import OptionError, SimcredError
 from simcred.io.measurement import Measurement
 from simcred.kinematics import MOTION_SIGNALS, Track
-from simcred.reprocess.errors import ErrorStats, decompose
+from simcred.reprocess.decomposition import ErrorStats, decompose
 from simcred.reprocess.reaction import Reaction, ReactionCriteria, reaction, reaction_analysis
 from simcred.reprocess.representation import GT, SD, Rep, Source
 from simcred.reprocess.representation import Sensor as SensorKind

@@ -30,7 +30,7 @@ import numpy as np
 
 from simcred.errors import SimcredError
 from simcred.kinematics import Track
-from simcred.reprocess.errors import wrap
+from simcred.reprocess.decomposition import wrap
 from simcred.reprocess.timebase import Drive, Recording
 
 MIN_STEP = 1e-3  # s

@@ -33,11 +33,11 @@ from simcred.scenario.plausibility import (
 from simcred.scenario.spline import Spline
 from simcred.scenario.variation import draw_displacements, generate_variations, vary_one
 from simcred.scenario.variation_set import (
-    Status,
     Variation,
     VariationOptions,
     VariationRecord,
     VariationSet,
+    VariationStatus,
     load_variations,
 )
 
@@ -50,7 +50,7 @@ __all__ = [
     "ScenarioDescription",
     "ScenarioFit",
     "Spline",
-    "Status",
+    "VariationStatus",
     "StopReason",
     "TrackFit",
     "Variation",

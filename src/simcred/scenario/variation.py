@@ -57,11 +57,11 @@ from simcred.scenario.plausibility import (
     check_plausibility,
 )
 from simcred.scenario.variation_set import (
-    Status,
     Variation,
     VariationOptions,
     VariationRecord,
     VariationSet,
+    VariationStatus,
     is_real,
     variation_provenance,
 )
@@ -295,12 +295,12 @@ def _vary(plan: _Plan, index: int, seed: int, displacements: ArrayLike | None) -
                         initial_sections=original.sections if plan.options.warm_sections
                         else None, length=original.length, width=original.width, name=plan.to)
     except SimcredError:
-        record = VariationRecord(index, offsets, math.nan, 0, Status.REJECTED,
+        record = VariationRecord(index, offsets, math.nan, 0, VariationStatus.REJECTED,
                                  (Reason.REFIT_FAILED,))
         return Variation(record, plan.description, path)
     reasons = tuple(check_plausibility(fit.track, plan.limits, rmse=fit.rmse))
     record = VariationRecord(index, offsets, fit.rmse, fit.sections,
-                             Status.REJECTED if reasons else Status.KEPT, reasons)
+                             VariationStatus.REJECTED if reasons else VariationStatus.KEPT, reasons)
     metadata = {**plan.description.metadata,
                 "variation": variation_provenance(record, seed, plan.to)}
     varied = ScenarioDescription({**plan.description.objects, plan.to: fit.track},

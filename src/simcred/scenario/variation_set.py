@@ -34,7 +34,7 @@ METHOD = ("clamped C2 cubic Bezier path through equitemporal fix points, displac
           "lane crossing and refitted by fit_track; [1] sec. V")
 
 
-class Status(StrEnum):
+class VariationStatus(StrEnum):
     KEPT = "kept"
     REJECTED = "rejected"
 
@@ -54,7 +54,7 @@ class VariationRecord(JsonResult):
         Position RMSE (m) of the refit against the sampled varied path (nan if it failed).
     sections : int
         Sections of the refitted TO track (0 if the refit failed).
-    status : Status
+    status : VariationStatus
         ``kept`` or ``rejected``.
     reasons : tuple of Reason
         Violated limits; empty for a kept variation.
@@ -64,7 +64,7 @@ class VariationRecord(JsonResult):
     displacements: np.ndarray
     rmse: float
     sections: int
-    status: Status
+    status: VariationStatus
     reasons: tuple[Reason, ...]
 
     def __repr__(self) -> str:
@@ -106,7 +106,7 @@ class Variation:
 
     @property
     def kept(self) -> bool:
-        return self.record.status is Status.KEPT
+        return self.record.status is VariationStatus.KEPT
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -169,7 +169,7 @@ class VariationSet(JsonResult):
 
     @property
     def kept(self) -> int:
-        return sum(r.status is Status.KEPT for r in self.records)
+        return sum(r.status is VariationStatus.KEPT for r in self.records)
 
     @property
     def rejected(self) -> int:
@@ -243,14 +243,14 @@ def load_variations(source: Mapping[str, Any] | str | Path) -> dict[int, Scenari
     for i, record in enumerate(source["records"]):
         if not isinstance(record, Mapping):
             raise SimcredError(f"{where}: records[{i}] must be an object")
-        if record.get("status") != Status.KEPT.value:
+        if record.get("status") != VariationStatus.KEPT.value:
             continue
         if "track" not in record or not isinstance(record.get("index"), int):
             raise SimcredError(f"{where}: records[{i}]: a kept record needs 'index' and 'track'")
         try:
             provenance = variation_provenance(VariationRecord(
                 record["index"], np.array(record["displacements"], dtype=np.float64),
-                float(record["rmse"]), int(record["sections"]), Status.KEPT, ()),
+                float(record["rmse"]), int(record["sections"]), VariationStatus.KEPT, ()),
                 source["seed"], to)
         except (KeyError, TypeError, ValueError):
             raise SimcredError(f"{where}: records[{i}]: malformed displacements, rmse or "

@@ -425,13 +425,10 @@ def write_replays(results: Mapping[str, TraceSet], out: str | Path, *,
                        "runs": traces.n_runs, "model": meta["model"],
                        "negative_gap_runs": meta["negative_gap_runs"]})
     first = next(iter(results.values())).metadata
-    import platform
-
-    from simcred._version import __version__
+    from simcred._version import versions
 
     body = {"simulator": "SUMO", "sumo_version": first["sumo_version"],
-            "versions": {"simcred": __version__, "sumo": first["sumo_version"],
-                         "numpy": np.__version__, "python": platform.python_version()},
+            "versions": versions("numpy", sumo=first["sumo_version"]),
             "input": first["input"], "options": dict(options), "road": first["road"],
             "units": first["units"], "models": models}
     (out / "sumo-following.json").write_text(dumps(envelope("sumo_following", body)))

@@ -31,7 +31,6 @@ the test case. Procedure (choices fixed before looking at results):
 from __future__ import annotations
 
 import hashlib
-import platform
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
@@ -40,7 +39,7 @@ from typing import Any
 import numpy as np
 
 from simcred._json import dumps, envelope
-from simcred._version import __version__
+from simcred._version import versions
 from simcred.compare import Method
 from simcred.compare.effect import check_margins
 from simcred.engine import Engine, Progress, engine
@@ -309,8 +308,7 @@ def _provenance(source: Path | None, options: StudyOptions, human: TraceSet, acc
         "sumo": {name: {"digest": s.digest(), "model": s.metadata["model"],
                         "negative_gap_runs": s.metadata["negative_gap_runs"]}
                  for name, s in sims.items()},
-        "versions": {"simcred": __version__, "sumo": sumo_version(),
-                     "numpy": np.__version__, "python": platform.python_version()},
+        "versions": versions("numpy", sumo=sumo_version()),
         "seeds": {"study": options.seed, "sumo": options.seed,
                   "cells": "SeedSequence(seed, spawn_key=(crc32(row), cell)) "
                            "(simcred.regions.cell_seed); halves: row + ':halves'"},

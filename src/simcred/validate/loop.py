@@ -35,11 +35,27 @@ from simcred.contracts.monitor import MonitorReport, monitor
 from simcred.errors import SimcredError
 from simcred.regions.tables import domains_frame
 from simcred.traces import TraceSet
-from simcred.validate.cells import Grid, grid_of, segments
-from simcred.validate.domain import CellStatus, Domain, cell_rule, learn_domain
+from simcred.validate.cells import Grid, Segments, grid_of, segments
+from simcred.validate.domain import (
+    CellResult,
+    CellRule,
+    CellStatus,
+    Domain,
+    cell_rule,
+    cell_settings,
+    learn_domain,
+)
 from simcred.validate.learned import COMPONENT, TEST_CASE, library_dict
 from simcred.validate.learned import number as _exact_text
-from simcred.validate.plan import Plan, pilot, plan
+from simcred.validate.plan import (
+    POWER,
+    PairedInput,
+    Plan,
+    cell_rows,
+    needed_text,
+    pilot,
+    plan,
+)
 from simcred.validate.ranking import Ranked, rank
 from simcred.validate.spec import RunsSpec, ValidationFileError, ValidationSpec
 from simcred.validate.tolerance import Resolution, placeholder, resolve
@@ -151,24 +167,33 @@ def validate(spec: ValidationSpec, inputs: Inputs, *, source: str = "<memory>",
     relevant = _relevant_cells(grid, empty.test_case(TEST_CASE), empty)
     reference = segments(inputs.reference, grid, spec.segments.min_length)
     spec, resolution = resolve(spec, reference, relevant)
-    domains = {n: learn_domain(spec, grid, reference, runs, n,
-                               cell_rule(spec, len(relevant), n in inputs.replays))
+    rules = {n: cell_rule(spec, len(relevant), n in inputs.replays) for n in inputs.candidates}
+    domains = {n: learn_domain(spec, grid, reference, runs, n, rules[n])
                for n, runs in inputs.candidates.items()}
     data = library_dict(spec, domains, units)
     library = Library.from_dict(data, source="learned contracts")
     target = library.test_case(TEST_CASE)
     beyond_text = _beyond_grid(grid, target, library)
-    verdicts = {n: _candidate_verdict(n, d, relevant, library, target, beyond_text)
+    verdicts = {n: _candidate_verdict(spec, n, d, relevant, library, target, beyond_text)
                 for n, d in domains.items()}
     configuration = _configuration(library)
     uncovered = {n: _uncovered(d, relevant, beyond_text) for n, d in domains.items()}
     monitors = _monitors(library, inputs)
-    verdict, summary = _overall(spec, verdicts, configuration)
+    verdict, summary = _overall(spec, verdicts, configuration, planned)
     halves = pilot(spec, reference, relevant)
-    needs = plan(spec, grid, halves, relevant, domains) if planned else None
+    needs = plan(spec, grid, halves, relevant, domains,
+                 _paired(spec, grid, reference, inputs, rules)) if planned else None
     ranking = rank(domains, relevant, spec, tuple(halves.comparisons.values()))
     return Validation(spec, grid, domains, verdicts, verdict, summary, data, configuration,
                       uncovered, monitors, ranking, needs, resolution)
+
+
+def _paired(spec: ValidationSpec, grid: Grid, reference: Segments, inputs: Inputs,
+            rules: dict[str, CellRule]) -> dict[str, PairedInput]:
+    """The candidates whose runs pair with the reference's, for the plan."""
+    settings = cell_settings(spec)
+    return {n: PairedInput(rules[n], reference, settings.segments(inputs.candidates[n], grid))
+            for n in inputs.candidates if rules[n].pair_by is not None}
 
 
 def _check_signals(spec: ValidationSpec, inputs: Inputs) -> None:
@@ -239,8 +264,8 @@ def _uncovered(domain: Domain, relevant: tuple[int, ...], beyond: str) -> list[s
     return out + ([beyond] if beyond else [])
 
 
-def _candidate_verdict(name: str, domain: Domain, relevant: tuple[int, ...], library: Library,
-                       target: Contract, beyond: str) -> CandidateVerdict:
+def _candidate_verdict(spec: ValidationSpec, name: str, domain: Domain, relevant: tuple[int, ...],
+                       library: Library, target: Contract, beyond: str) -> CandidateVerdict:
     cells = [domain.cells[c] for c in relevant]
     bad = [c for c in cells if c.status is CellStatus.NOT_VALID]
     proof = None
@@ -253,13 +278,20 @@ def _candidate_verdict(name: str, domain: Domain, relevant: tuple[int, ...], lib
         return CandidateVerdict(name, VALID, (f"valid in all {len(cells)} cells of the test "
                                               "case; its learned contract refines the test "
                                               "case (z3)",), relevant, proof)
-    reasons = [f"{c.status.value} in {c.label}: {c.reason}" for c in cells
-               if c.status is not CellStatus.VALID]
+    power = POWER ** (1 / max(len(relevant), 1))
+    reasons = [_undecided(name, c, spec, power) for c in cells if c.status is not CellStatus.VALID]
     if beyond:
         reasons.append(beyond)
     if not cells:
         reasons.append("no cell of the grid meets the test case's conditions")
     return CandidateVerdict(name, INCONCLUSIVE, tuple(reasons), relevant, proof)
+
+
+def _undecided(name: str, cell: CellResult, spec: ValidationSpec, power: float) -> str:
+    """An undecided cell's reason, with the data that would decide it when it was compared."""
+    need = needed_text(cell_rows(name, cell, spec, power)) \
+        if cell.status is CellStatus.INCONCLUSIVE else ""
+    return f"{cell.status.value} in {cell.label}: {cell.reason}" + (f"; {need}" if need else "")
 
 
 def _monitors(library: Library, inputs: Inputs) -> dict[str, MonitorReport]:
@@ -275,7 +307,7 @@ def _monitors(library: Library, inputs: Inputs) -> dict[str, MonitorReport]:
 
 
 def _overall(spec: ValidationSpec, verdicts: dict[str, CandidateVerdict],
-             configuration: dict[str, Any] | None) -> tuple[str, str]:
+             configuration: dict[str, Any] | None, planned: bool) -> tuple[str, str]:
     question = f"'{spec.test_case.conditions}'"
     if configuration is not None and configuration["status"] == "holds":
         chosen = configuration["setup"][COMPONENT]
@@ -285,6 +317,8 @@ def _overall(spec: ValidationSpec, verdicts: dict[str, CandidateVerdict],
         names = ", ".join(verdicts)
         return NOT_VALID, f"NOT VALID: no candidate ({names}) is valid for {question}"
     open_ = ", ".join(n for n, v in verdicts.items() if v.verdict == INCONCLUSIVE)
+    where = ("the plan says how much data would decide" if planned else
+             "`simcred validate --plan` says how much data would decide")
     return INCONCLUSIVE, (f"INCONCLUSIVE: the data do not decide for {question} ({open_}: "
                           "deviations not placed on either side of the tolerance, cells "
-                          "without enough data or outside the grid)")
+                          f"without enough data or outside the grid); {where}")

@@ -8,17 +8,12 @@ checkout, its commit.
 
 from __future__ import annotations
 
-import hashlib
-import platform
 import subprocess
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-import scipy
-
-from simcred._json import dumps, envelope
-from simcred._version import __version__
+from simcred._json import dumps, envelope, file_sha256
+from simcred._version import versions
 from simcred.validate.loop import MAX_VIOLATIONS, Inputs, Validation
 
 
@@ -55,9 +50,10 @@ def error_rates(result: Validation) -> dict[str, Any]:
                        f"test case, each deviation's upper {1 - alpha:.4g} bound below its "
                        "tolerance (intersection-union test)",
         "false_not_valid": f"at most {alpha:g} per candidate within tolerance in every cell: "
-                           f"NOT VALID needs a deviation's lower {1 - alpha / max(cells, 1):.4g} "
-                           f"bound above its tolerance in some cell (Bonferroni over the "
-                           f"{cells} cells)",
+                           f"NOT VALID needs, in some cell, a deviation's lower "
+                           f"{1 - alpha / max(cells, 1):.4g} bound above its tolerance and its "
+                           f"permutation test rejecting the same law at "
+                           f"{alpha / max(cells, 1):.4g} (Bonferroni over the {cells} cells)",
         "overall": f"the chosen candidate is wrongly valid with probability at most {alpha:g} "
                    "times the number of candidates that are not within tolerance",
         "bounds": "cluster-bootstrap (basic) bounds over the design's units: approximate; their "
@@ -84,14 +80,13 @@ def provenance(result: Validation, inputs: Inputs, validation_file: Path | None,
     return {
         "validation_file": None if validation_file is None else {
             "path": validation_file.name,
-            "sha256": hashlib.sha256(validation_file.read_bytes()).hexdigest()},
+            "sha256": file_sha256(validation_file)},
         "inputs": {"reference": _set(inputs.reference),
                    "candidates": {n: _set(t) for n, t in inputs.candidates.items()},
                    "monitor": [_set(t) for t in inputs.monitored]},
         "options": result.spec.model_dump(mode="json"),
         "seed": result.spec.comparison.seed,
-        "versions": {"simcred": __version__, "numpy": np.__version__,
-                     "scipy": scipy.__version__, "python": platform.python_version()},
+        "versions": versions("numpy", "scipy", "z3-solver"),
         "git_commit": git_commit(),
         "date": date,
     }
