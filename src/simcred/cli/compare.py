@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import sys
+from dataclasses import replace
 from enum import StrEnum
 from pathlib import Path
 from typing import Annotated
@@ -23,12 +24,19 @@ from simcred.cli._app import (
     out_console,
     progress,
 )
+from simcred.cli._method import (
+    CHECKS,
+    build_method,
+    check_alpha,
+    method_options,
+    parameter,
+    parse_bins,
+    split,
+)
 from simcred.cli._writing import Overwrite, Resume, writing
 from simcred.compare import compare as compare_sets
 from simcred.compare import matrix as matrix_of_sets
-from simcred.compare.kernels import Kernel
-from simcred.compare.mmd import Estimator, Test
-from simcred.compare.runs import ChainStatistic, Multiplicity, OneSided
+from simcred.compare.mmd import Test
 from simcred.errors import OptionError
 from simcred.limits import check_count, check_finite
 from simcred.seeds import resolve_seed
@@ -41,65 +49,8 @@ class Side(StrEnum):
     B = "b"
 
 
-def _split(text: str | None) -> list[str] | None:
-    return None if text is None else [part.strip() for part in text.split(",")]
-
-
-#: Below this, 1/alpha and log(1/alpha) lose the precision the bound and the p-values need.
-MIN_ALPHA = 1e-15
-
-
-def _bins(text: str) -> int | list[int]:
-    try:
-        values = [int(part) for part in text.split(",")]
-    except ValueError:
-        raise OptionError(f"--bins must be an integer or a comma-separated list, got {text!r}"
-                          ) from None
-    for value in values:
-        check_count(value, "bins", "--bins", minimum=2)
-    return values[0] if len(values) == 1 else values
-
-
-Features = Annotated[str | None, typer.Option(
-    "--features", "-f", help="Comma-separated signals spanning the state space "
-    "(default: all signals, which both sets must share).")]
-Bins = Annotated[str, typer.Option(help="Equal-frequency bins per feature (≥ 2), or one per "
-                                        "feature: 10,8.")]
-KernelOpt = Annotated[Kernel, typer.Option(help="MMD kernel.")]
-EstimatorOpt = Annotated[Estimator, typer.Option(help="MMD estimator: the paper's biased "
-                                                      "MMD_b or the unbiased MMD²_u.")]
-TestOpt = Annotated[Test, typer.Option(
-    help="runs: run-level permutation test with a chain verdict (whole runs reassigned, valid "
-         "when transitions within a run are dependent); response: the law of the response "
-         "given the state (run lengths, visit frequencies and declared inputs are not part of "
-         "it; paired/grouped designs, effect with interval, equivalence); bound / permutation: "
-         "the paper's per-transition tests.")]
-MultiplicityOpt = Annotated[Multiplicity | None, typer.Option(
-    help="Per-state verdicts of the runs test: family-wise (max-T), FDR (Benjamini-Hochberg) or "
-         "uncorrected. Default: fwer for --test runs, none otherwise.")]
-ChainOpt = Annotated[ChainStatistic, typer.Option(
-    "--chain", help="Chain statistic of the runs test: sum or max of standardised state "
-                    "statistics.")]
-OneSidedOpt = Annotated[OneSided, typer.Option(
-    "--one-sided", help="Runs test: a state reached by one set only counts as evidence of a "
-                        "difference, or as neutral.")]
-History = Annotated[int, typer.Option(help="States are the last K binned feature vectors "
-                                           "(1 = the paper's first-order chain).")]
-TimeBins = Annotated[int | None, typer.Option(
-    "--time-bins", help="Split time since run start into N equal-frequency windows that become "
-                        "part of the state (N >= 2).")]
-Resample = Annotated[float | None, typer.Option(
-    help="Resample every run to this period in seconds (linear interpolation); needed when the "
-         "sets have different sample periods.")]
-Alpha = Annotated[float, typer.Option(help="Level of each test, in (0, 1).")]
-Permutations = Annotated[int, typer.Option(help="Resamples of the permutation test.")]
-Continue = Annotated[bool, typer.Option("--continue-on-start-difference",
-                                        help="Test transitions even if the start "
-                                             "distributions differ.")]
-StopEarly = Annotated[bool, typer.Option(
-    "--stop-early/--all-permutations",
-    help="Permutation test: stop once rejection is impossible (same verdicts; p-values above "
-         "alpha are then sequential estimates), or always draw all permutations.")]
+#: ``--features`` as the method declares it (estimate-sensor offers it too).
+Features = parameter("features").annotation
 
 
 def _reader_options(items: list[str] | None) -> dict:
@@ -118,78 +69,16 @@ def _reader_options(items: list[str] | None) -> dict:
     return options
 
 
-def _margin(text: str | None) -> float | dict[str, float] | None:
-    """``0.2`` (every response feature) or ``v=0.1,gap=0.3``."""
-    if text is None:
-        return None
-    try:
-        if "=" not in text:
-            return float(text)
-        pairs = [part.split("=") for part in text.split(",")]
-        return {name.strip(): float(value) for name, value in pairs}
-    except ValueError:
-        raise OptionError(f"--margin must be a number or FEATURE=NUMBER,...; got {text!r}"
-                          ) from None
-
-
-def _options(features, bins, kernel, estimator, test, alpha, permutations, seed,
-             continue_on_start_difference, stop_early, multiplicity=None, chain=ChainStatistic.SUM,
-             one_sided=OneSided.EVIDENCE, history=1, time_bins=None, resample=None) -> dict:
-    check_finite(alpha, "--alpha", minimum=MIN_ALPHA, maximum=1, open_maximum=True)
-    check_count(permutations, "permutations", "--permutations")
-    return dict(features=_split(features), bins=_bins(bins), kernel=kernel.value,
-                estimator=estimator.value, test=test.value, alpha=alpha,
-                permutations=permutations, seed=seed,
-                continue_on_start_difference=continue_on_start_difference,
-                stop_early=stop_early, multiplicity=None if multiplicity is None
-                else multiplicity.value, chain=chain.value, one_sided=one_sided.value,
-                history=history, time_bins=time_bins, resample=resample)
-
-
 @app.command()
 @one_line_errors
+@method_options("compare")
 def compare(
     a: Annotated[str, typer.Argument(metavar="A", help="Trace set A: a CSV directory, a "
                                                         "Parquet file, or a Parquet data set "
                                                         "(folder, glob or URI; read out of "
                                                         "core).")],
     b: Annotated[str, typer.Argument(metavar="B", help="Trace set B, as A.")],
-    features: Features = None,
-    bins: Bins = "10",
-    kernel: KernelOpt = Kernel.GAUSSIAN,
-    estimator: EstimatorOpt = Estimator.BIASED,
-    test: TestOpt = Test.RUNS,
-    alpha: Alpha = 0.01,
-    permutations: Permutations = 999,
-    seed: Seed = None,
-    multiplicity: MultiplicityOpt = None,
-    chain: ChainOpt = ChainStatistic.SUM,
-    one_sided: OneSidedOpt = OneSided.EVIDENCE,
-    history: History = 1,
-    time_bins: TimeBins = None,
-    resample: Resample = None,
-    baseline: Annotated[int, typer.Option(
-        help="Runs test: random half-splits of A compared with each other (the distance's "
-             "same-model baseline); 0 = none.")] = 10,
-    bootstrap: Annotated[int, typer.Option(
-        help="Runs test: bootstrap replicates for the distance's 95 % re-test spread "
-             "(biased upward, not a confidence interval); 0 = none.")] = 0,
-    relevance: Annotated[bool, typer.Option(
-        help="Runs test: chain test per feature alone and per feature left out.")] = False,
-    inputs: Annotated[str | None, typer.Option(
-        help="Response test: comma-separated features the model does not control (a recorded "
-             "leader's speed); they condition the state and are not compared.")] = None,
-    pair_by: Annotated[str | None, typer.Option(
-        "--pair-by", help="Response test: run_id or a per-run fact pairing each run of B with "
-                          "the run of A it replays (the null swaps within pairs).")] = None,
-    group_by: Annotated[str | None, typer.Option(
-        "--group-by", help="Response test: a per-run fact (driver, recording, parent run) whose "
-                           "runs form one unit, permuted and resampled whole.")] = None,
-    margin: Annotated[str | None, typer.Option(
-        help="Response test: equivalence margin of the response deviation, per second: one "
-             "number for every response feature, or FEATURE=NUMBER,...")] = None,
-    continue_on_start_difference: Continue = False,
-    stop_early: StopEarly = True,
+    method: dict | None = None,  # the method options (method_options)
     read: Annotated[list[str] | None, typer.Option(
         "--read", help="A reader option KEY=VALUE for both inputs, repeatable (the format's own, "
                        "as in `simcred convert`: e.g. runs=namespace for ROS 2 bags, "
@@ -213,44 +102,36 @@ def compare(
     (Neurohr et al.)."""
     given = tuple(p if "://" in p else Path(p) for p in (a, b))  # a URI is no local Path
     a, b = Path(a), Path(b)
-    check_count(baseline, "permutations", "--baseline", minimum=0)  # before any work: each
-    check_count(bootstrap, "permutations", "--bootstrap", minimum=0)  # repeats the whole test
+    for name in ("baseline", "bootstrap"):  # before any work: each repeats the whole test
+        CHECKS[name](method[name])
     if (observed is None) != (sensor is None and calibration is None) \
             or (sensor is not None and calibration is not None):
         raise OptionError("--observed goes with one of --sensor (observation model) or "
                           "--calibration (path b, HMM): name the recorded side and how it is seen")
     if calibration is not None:
-        _compare_hidden(a, b, observed.value, calibration, features, bins, alpha, permutations,
-                        seed, as_json)
+        _compare_hidden(a, b, observed.value, calibration, method, as_json)
         return
-    extra = dict(baseline=baseline, bootstrap=bootstrap, relevance=relevance) \
-        if test is Test.RUNS else {}
-    if test is Test.RESPONSE:
-        extra = dict(bootstrap=bootstrap, inputs=_split(inputs) or (), pair_by=pair_by,
-                     group_by=group_by, margin=_margin(margin))
-    elif inputs or pair_by or group_by or margin:
+    if method["test"] is not Test.RESPONSE and any(
+            method[name] for name in ("inputs", "pair_by", "group_by", "margin")):
         raise OptionError("--inputs, --pair-by, --group-by and --margin need --test response")
-    options = _options(features, bins, kernel, estimator, test, alpha, permutations, seed,
-                       continue_on_start_difference, stop_early, multiplicity, chain, one_sided,
-                       history, time_bins, resample)
+    settings = build_method(method)
     if observed is not None:
         if read:
             raise OptionError("--read does not combine with --observed yet: convert the inputs "
                               "first (simcred convert)")
-        _compare_observed(a, b, observed.value, sensor, out, overwrite, as_json,
-                          **extra, **options)
+        _compare_observed(a, b, observed.value, sensor, out, overwrite, as_json, settings)
         return
     sets = _read_sets(*given, _reader_options(read))
     from simcred.io.dataset import is_dataset
 
     steps = progress("partitions (3 passes)" if any(map(is_dataset, sets)) else "testing states")
     if out is None:
-        result = compare_sets(*sets, progress=steps, **extra, **options)
+        result = compare_sets(*sets, settings, progress=steps)
     else:
         from simcred.report.figures import state_map
 
         with writing(out, a, b, overwrite=overwrite) as target:
-            result = compare_sets(*sets, progress=steps, **extra, **options)
+            result = compare_sets(*sets, settings, progress=steps)
             (target.path / "comparison.json").write_text(result.to_json())
             state_map(result, target.path / "state_map.png")
     if as_json:
@@ -268,13 +149,14 @@ def _read_sets(a: Path, b: Path, reader: dict) -> tuple:
     return read_set(a, **reader), read_set(b, **reader)
 
 
-def _compare_observed(a, b, observed, sensor, out, overwrite, as_json, **options) -> None:
+def _compare_observed(a, b, observed, sensor, out, overwrite, as_json, method) -> None:
     """``compare --observed``: the observation-model route (issue 23)."""
     from simcred.compare.observed import compare_observed
 
     def run():
         return compare_observed(a, b, observed=observed, sensor=sensor, sensor_effect=True,
-                                progress=progress("testing states"), **options)
+                                progress=progress("testing states"), seed=method.seed,
+                                method=method)
 
     if out is None:
         result = run()
@@ -298,26 +180,26 @@ def _compare_observed(a, b, observed, sensor, out, overwrite, as_json, **options
                               f"{100 * (effect.distance or 0):.2f} %")
 
 
-def _compare_hidden(a, b, observed, calibration, features, bins, alpha, resamples, seed,
-                    as_json) -> None:
-    """``compare --observed --calibration``: path b (issue 23)."""
+def _compare_hidden(a, b, observed, calibration, method, as_json) -> None:
+    """``compare --observed --calibration``: path b (issue 23); of the method's options it
+    takes features, bins, alpha, permutations (its resamples) and seed."""
     from simcred.compare.hidden import compare_hidden
     from simcred.traces import TraceSet
 
-    paths = _split(calibration) or []
+    paths = split(calibration) or []
     if len(paths) != 2:
         raise OptionError(f"--calibration must be GT,SD (two paths), got {calibration!r}")
-    names = _split(features)
+    names = split(method["features"])
     if names is None:
         raise OptionError("--calibration needs --features (the hidden state's signals)")
-    number = _bins(bins)
+    number = parse_bins(method["bins"])
     if not isinstance(number, int):
         raise OptionError("--calibration takes one --bins for every feature")
-    check_finite(alpha, "--alpha", minimum=MIN_ALPHA, maximum=1, open_maximum=True)
+    alpha, resamples = check_alpha(method["alpha"]), method["permutations"]
     check_count(resamples, "permutations", "--permutations")
     result = compare_hidden(a, b, observed=observed, features=names, bins=number, alpha=alpha,
                             calibration=(TraceSet.read(paths[0]), TraceSet.read(paths[1])),
-                            n_resamples=resamples, seed=seed)
+                            n_resamples=resamples, seed=method["seed"])
     if as_json:
         sys.stdout.write(json.dumps(result.to_dict(), indent=2))
     elif not State.quiet:
@@ -354,7 +236,7 @@ def estimate_sensor(
 
     check_finite(max_delay, "--max-delay", minimum=0)
     check_output(out, truth, recorded, kind="file", overwrite=overwrite)
-    model = estimate(TraceSet.read(truth), TraceSet.read(recorded), signals=_split(features),
+    model = estimate(TraceSet.read(truth), TraceSet.read(recorded), signals=split(features),
                      max_delay=max_delay, bootstrap=bootstrap, seed=seed)
     write_atomic(out, json.dumps(model.to_dict(), indent=2) + "\n")
     if not State.quiet:
@@ -449,27 +331,13 @@ def _print_relevance(result) -> None:
 
 @app.command()
 @one_line_errors
+@method_options("matrix")
 def matrix(
     sets: Annotated[list[Path], typer.Argument(metavar="SETS...", help="Two or more trace "
                                                                       "sets.")],
     names: Annotated[str | None, typer.Option(help="Comma-separated labels (default: file "
                                                    "names).")] = None,
-    features: Features = None,
-    bins: Bins = "10",
-    kernel: KernelOpt = Kernel.GAUSSIAN,
-    estimator: EstimatorOpt = Estimator.BIASED,
-    test: TestOpt = Test.RUNS,
-    alpha: Alpha = 0.01,
-    permutations: Permutations = 999,
-    seed: Seed = None,
-    multiplicity: MultiplicityOpt = None,
-    chain: ChainOpt = ChainStatistic.SUM,
-    one_sided: OneSidedOpt = OneSided.EVIDENCE,
-    history: History = 1,
-    time_bins: TimeBins = None,
-    resample: Resample = None,
-    continue_on_start_difference: Continue = False,
-    stop_early: StopEarly = True,
+    method: dict | None = None,  # the method options (method_options)
     workers: Workers = None,
     scheduler: Scheduler = None,
     out: Annotated[Path | None, typer.Option(help="Directory for matrix.json, matrix.csv and "
@@ -482,22 +350,20 @@ def matrix(
     pairs are checkpointed and --resume continues an interrupted run."""
     if resume and out is None:
         raise OptionError("--resume continues an interrupted run with --out: give --out")
-    options = _options(features, bins, kernel, estimator, test, alpha, permutations, seed,
-                       continue_on_start_difference, stop_early, multiplicity, chain, one_sided,
-                       history, time_bins, resample)
+    settings = build_method(method)
     if out is None:
-        result = matrix_of_sets(sets, names=_split(names), workers=workers,
-                                scheduler=scheduler, progress=progress("comparing pairs"),
-                                **options)
+        result = matrix_of_sets(sets, settings, names=split(names), workers=workers,
+                                scheduler=scheduler, progress=progress("comparing pairs"))
     else:
         from simcred.report.figures import distance_heatmap
 
         with writing(out, *sets, overwrite=overwrite, resume=resume) as target, \
                 target.engine(workers, scheduler) as runner:
-            if options["seed"] is None:  # fresh entropy, kept for a resumed run
-                options["seed"] = target.value("seed", lambda: resolve_seed(None))
-            result = matrix_of_sets(sets, names=_split(names), runner=runner,
-                                    progress=progress("comparing pairs"), **options)
+            if settings.seed is None:  # fresh entropy, kept for a resumed run
+                settings = replace(settings, seed=target.value("seed",
+                                                               lambda: resolve_seed(None)))
+            result = matrix_of_sets(sets, settings, names=split(names), runner=runner,
+                                    progress=progress("comparing pairs"))
             (target.path / "matrix.json").write_text(result.to_json())
             (target.path / "matrix.csv").write_text(result.to_csv())
             distance_heatmap(result, target.path / "matrix.png")

@@ -6,6 +6,7 @@ tests remain available (``test="bound"`` / ``"permutation"``).
 """
 
 from simcred.compare.hidden import HiddenComparison, compare_hidden
+from simcred.compare.method import Method
 from simcred.compare.observed import (
     ObservedComparison,
     SensorModel,
@@ -24,7 +25,7 @@ from simcred.compare.result import (
     FeatureRelevance,
 )
 
-__all__ = ["compare", "matrix", "Comparison", "DistanceMatrix", "ChainVerdict", "Baseline",
-           "DistanceInterval", "FeatureRelevance", "compare_observed", "estimate_sensor",
-           "observe", "ObservedComparison", "SensorModel", "SignalSensor", "compare_hidden",
-           "HiddenComparison"]
+__all__ = ["compare", "matrix", "Method", "Comparison", "DistanceMatrix", "ChainVerdict",
+           "Baseline", "DistanceInterval", "FeatureRelevance", "compare_observed",
+           "estimate_sensor", "observe", "ObservedComparison", "SensorModel", "SignalSensor",
+           "compare_hidden", "HiddenComparison"]

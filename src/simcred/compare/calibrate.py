@@ -27,7 +27,6 @@ import numpy as np
 
 from simcred.compare.discretize import StateSpace
 from simcred.compare.encoding import EncodedRuns
-from simcred.compare.kernels import Kernel
 from simcred.compare.mmd import Estimator, MMDTestResult
 from simcred.compare.result import (
     Baseline,
@@ -42,9 +41,6 @@ from simcred.compare.result import (
 )
 from simcred.compare.runs import (
     START,
-    ChainStatistic,
-    Multiplicity,
-    OneSided,
     RunCounts,
     RunLevelOutcome,
     RunTestSpec,
@@ -59,10 +55,7 @@ INTERVAL_LEVEL = 0.95
 
 
 def run_spec(options: ComparisonOptions, permutations: int | None = None) -> RunTestSpec:
-    return RunTestSpec(Kernel(options.kernel), Estimator(options.estimator),
-                       permutations or options.permutations, options.alpha,
-                       Multiplicity(options.multiplicity), ChainStatistic(options.chain),
-                       OneSided(options.one_sided))
+    return options.run_spec(permutations)
 
 
 def stream(seed: int, *key: int) -> np.random.Generator:

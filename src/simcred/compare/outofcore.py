@@ -47,6 +47,7 @@ import scipy.sparse as sp
 from simcred.compare.calibrate import counts_comparison
 from simcred.compare.discretize import StateSpace, _check_size
 from simcred.compare.facts import SetFacts
+from simcred.compare.method import Method
 from simcred.compare.quantiles import EdgePlan, Sketch, Tally
 from simcred.compare.resample import within_run_steps
 from simcred.compare.result import Comparison, InputInfo
@@ -65,9 +66,9 @@ MAX_CANDIDATE_STATES = 2**31
 def compare_datasets(
     a: TraceSet | str | os.PathLike,
     b: TraceSet | str | os.PathLike,
+    method: Method | None = None,
     *,
     progress: Progress | None = None,
-    relevance: bool = False,
     **options: Any,
 ) -> Comparison:
     """:func:`simcred.compare.compare` on data sets read partition by partition.
@@ -77,12 +78,12 @@ def compare_datasets(
     a, b : TraceSet or path
         A Parquet data set (folder, glob or URI; :mod:`simcred.io.dataset`), or a trace set in
         memory or any other path (read with :meth:`TraceSet.read`: one partition).
+    method : Method, optional
+        How to compare (:class:`~simcred.compare.method.Method`); see :data:`SUPPORTED`.
     progress : callable, optional
         Wraps the partitions (three passes over both sets), e.g. a progress bar.
-    relevance : bool
-        Not supported out of core (refused when True).
     **options
-        The options of :func:`simcred.compare.compare`; see :data:`SUPPORTED`.
+        Fields of the method as keywords, as :func:`simcred.compare.compare` takes them.
 
     Returns
     -------
@@ -96,33 +97,33 @@ def compare_datasets(
         with_units,
     )
 
-    _refuse(options, relevance)
+    method = Method.of(method, **options)
+    _refuse(method)
     sources = [_Source.open(x) for x in (a, b)]
     provisional = [s.provisional() for s in sources]
-    comparison_options(provisional, **options)  # before any pass
-    names = resolve_features(provisional, options.get("features"))
-    bins = resolve_bins(options.get("bins", 10), len(names))
+    comparison_options(provisional, method)  # before any pass
+    names = resolve_features(provisional, method.features)
+    bins = resolve_bins(method.bins, len(names))
     work = _Passes(sources, names, bins)
     steps = work.run()
     for _ in progress(steps, work.total) if progress else steps:
         pass
     facts = [s.facts() for s in sources]
-    validated = comparison_options(facts, **options)
+    validated = comparison_options(facts, method)
     space, counts = work.result()
     inputs = tuple(s.input_info() for s in sources)
     return with_units(counts_comparison(counts, facts[0].n_runs, space, validated, inputs),
                       *facts)
 
 
-def _refuse(options: Mapping[str, Any], relevance: bool) -> None:
-    test = options.get("test", "runs")
+def _refuse(method: Method) -> None:
     given = [name for name, bad in (
-        ("test", test != "runs"), ("history", options.get("history", 1) != 1),
-        ("time_bins", options.get("time_bins") is not None),
-        ("resample", options.get("resample") is not None), ("relevance", bool(relevance)),
-        ("inputs", bool(options.get("inputs"))), ("pair_by", options.get("pair_by") is not None),
-        ("group_by", options.get("group_by") is not None),
-        ("margin", options.get("margin") is not None)) if bad]
+        ("test", method.test != "runs"), ("history", method.history != 1),
+        ("time_bins", method.time_bins is not None),
+        ("resample", method.resample is not None), ("relevance", method.relevance),
+        ("inputs", bool(method.inputs)), ("pair_by", method.pair_by is not None),
+        ("group_by", method.group_by is not None),
+        ("margin", method.margin is not None)) if bad]
     if given:
         raise OptionError(f"{SUPPORTED}; got {', '.join(given)}")
 

@@ -15,6 +15,7 @@ import numpy as np
 import simcred._display as _display
 from simcred._json import dumps, envelope
 from simcred.compare.facts import SetFacts
+from simcred.compare.method import Method
 from simcred.compare.process import Prepared, compare_prepared, comparison_options, load
 from simcred.compare.result import Comparison, ComparisonOptions
 from simcred.compare.tables import matrix_frame
@@ -87,6 +88,7 @@ def _pair_summary(names, ij, c: Comparison) -> dict[str, Any]:
 
 def matrix(
     sets: Sequence[TraceSet | str | Path],
+    method: Method | None = None,
     *,
     names: Sequence[str] | None = None,
     workers: int | None = None,
@@ -95,7 +97,8 @@ def matrix(
     progress: Progress | None = None,
     **options: Any,
 ) -> DistanceMatrix:
-    """Compare every pair of ``sets`` with :func:`simcred.compare.compare` and ``options``.
+    """Compare every pair of ``sets`` with :func:`simcred.compare.compare` and ``method`` (or
+    the :class:`~simcred.compare.method.Method` that ``options`` build or replace fields of).
 
     Pairs run in-process, on a local Dask cluster of ``workers`` processes, on the Dask
     ``scheduler`` at an address, or on an already started ``runner``. ``seed`` is resolved once,
@@ -113,6 +116,7 @@ def matrix(
     >>> m.distances.shape, float(m.distances[0, 2])
     ((3, 3), 0.0)
     """
+    method = Method.of(method, **options)
     for given in sets:  # a stat, not a read: the workers read the files
         if not isinstance(given, TraceSet) and not Path(given).exists():
             raise TraceSetError(f"{given}: no such file or directory")
@@ -120,13 +124,13 @@ def matrix(
         raise OptionError(f"a distance matrix needs at least 2 trace sets, got {len(sets)}")
     if runner is None:
         with engine(workers, scheduler) as started:
-            return matrix(sets, names=names, runner=started, progress=progress, **options)
+            return matrix(sets, method, names=names, runner=started, progress=progress)
     loaded = runner.keep(load, runner.put(sets))  # a path is read where it is used
     facts = runner.fetch(runner.keep(SetFacts.of, loaded))
     labels = tuple(names) if names is not None else tuple(_default_names(facts))
     if len(labels) != len(facts) or len(set(labels)) != len(labels):
         raise OptionError(f"names must be {len(facts)} unique labels, got {list(labels)}")
-    settings = comparison_options(facts, **options)
+    settings = comparison_options(facts, method)
     prepared = runner.keep(_prepare, [(traces, settings) for traces in loaded])
     del loaded  # on Dask: the workers drop the raw sets
     pairs = list(combinations(range(len(facts)), 2))

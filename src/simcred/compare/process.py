@@ -9,11 +9,11 @@ rejected states over the whole state space ([1] eq. (6)).
 from __future__ import annotations
 
 import dataclasses
-import math
 import numbers
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -21,17 +21,11 @@ from simcred.compare.chains import ChainCounts, aligned, successor_counts
 from simcred.compare.design import Design, build_design, runs_design
 from simcred.compare.discretize import StateSpace
 from simcred.compare.effect import check_margins
-from simcred.compare.encoding import (
-    EncodedRuns,
-    check_history,
-    check_time_bins,
-    encode,
-    state_space,
-)
+from simcred.compare.encoding import EncodedRuns, encode, state_space
 from simcred.compare.facts import SetFacts
-from simcred.compare.kernels import Kernel
-from simcred.compare.mmd import Estimator, Test, mmd_test
-from simcred.compare.resample import check_periods, check_resample
+from simcred.compare.method import Method, feature_names
+from simcred.compare.mmd import Test, mmd_test
+from simcred.compare.resample import check_periods
 from simcred.compare.resample import resample as resample_runs
 from simcred.compare.result import (
     Comparison,
@@ -40,7 +34,6 @@ from simcred.compare.result import (
     StateTest,
     UntestableState,
 )
-from simcred.compare.runs import ChainStatistic, Multiplicity, OneSided
 from simcred.compare.transitions import response_features
 from simcred.engine import Progress
 from simcred.errors import OptionError
@@ -51,111 +44,32 @@ START_KEY = 0  # seed stream of the start test; state s uses 1 + s
 DEFAULT_REPLICATES = 500  # response test: cluster-bootstrap replicates of the effect intervals
 
 
-# compare() is long only in its signature and docstring (21 documented options, the public face
-# of the package); its body is four steps, each a function below.
 def compare(
     a: TraceSet | str | Path,
     b: TraceSet | str | Path,
+    method: Method | None = None,
     *,
-    features: Sequence[str] | str | None = None,
-    bins: int | Sequence[int] = 10,
-    kernel: str = "gaussian",
-    estimator: str = "biased",
-    test: str = "runs",
-    alpha: float = 0.01,
-    permutations: int = 999,
-    seed: int | np.random.Generator | None = None,
-    multiplicity: str | None = None,
-    chain: str = "sum",
-    one_sided: str = "evidence",
-    history: int = 1,
-    time_bins: int | None = None,
-    resample: float | None = None,
-    baseline: int = 0,
-    bootstrap: int = 0,
-    relevance: bool = False,
-    continue_on_start_difference: bool = False,
-    stop_early: bool = True,
-    inputs: Sequence[str] | str = (),
-    pair_by: str | None = None,
-    group_by: str | None = None,
-    margin: float | Mapping[str, float] | None = None,
     progress: Progress | None = None,
+    **options: Any,
 ) -> Comparison:
     """Compare two trace sets as Markov chains with MMD tests ([1] sec. V-A).
 
     Parameters
     ----------
     a, b : TraceSet or path
-        The two sets of runs (a path is read with :meth:`TraceSet.read`).
-    features : sequence of str or comma-separated str, default: all signals
-        The signals that span the state space. Default: every signal, which requires both sets to
-        have the same signal names.
-    bins : int or sequence of int, default: 10
-        Equal-frequency bins per feature (before duplicate edges are removed), at least 2.
-    kernel : {"gaussian", "laplace", "linear"}, default: "gaussian"
-        [1] eqs. (3)-(5); Gaussian and Laplace use the median heuristic for σ.
-    estimator : {"biased", "unbiased"}, default: "biased"
-        MMD_b (the paper's, reported not squared) or MMD²_u.
-    test : {"runs", "response", "bound", "permutation"}, default: "runs"
-        ``runs``: run-level permutation test (whole runs reassigned; valid under any dependence
-        within runs) with a chain-level verdict; ``response``: the conditional test of the
-        response law given the state (docs/comparison.md: run lengths, visit frequencies,
-        start states and declared inputs are not part of its H0; paired and grouped designs;
-        effect sizes with intervals; equivalence); ``bound``: the paper's Gretton-type bound;
-        ``permutation``: the paper's per-transition permutation test. The last two treat
-        transitions as independent samples.
-    alpha : float, default: 0.01
-        Level of every single test (and of the chain verdict), in (0, 1).
-    permutations : int, default: 999
-        Resamples of the permutation tests.
-    seed : int, Generator or None
-        Seed of the permutation tests. None draws fresh entropy, which is stored in the result.
-    multiplicity : {"fwer", "fdr", "none"}, default: "fwer" for ``runs``, else "none"
-        Control of the per-state verdicts: max-T family-wise, Benjamini–Hochberg, or none (the
-        paper's). Only ``runs`` supports "fwer" and "fdr".
-    chain : {"sum", "max"}, default: "sum"
-        Chain statistic of the run-level test: sum or maximum of standardised state statistics.
-    one_sided : {"evidence", "neutral"}, default: "evidence"
-        Run-level test: a state without transitions on one side counts as the largest possible
-        difference, or as no evidence.
-    history : int, default: 1
-        States are the last ``history`` binned feature vectors (1 = the paper's chain).
-    time_bins : int or None
-        Time since run start, binned into ``time_bins`` equal-frequency windows, becomes part
-        of the state (time-inhomogeneous chain). At least 2; None = time-homogeneous.
-    resample : float or None
-        Resample every run to this period (s) by linear interpolation. Without it, sets with
-        different sample periods are refused.
-    baseline : int, default: 0
-        Run-level test: number of random half-splits of set A compared against each other, the
-        distance's same-model baseline.
-    bootstrap : int, default: 0 (``response``: 500)
-        Run-level test: bootstrap replicates (runs resampled within each set) for a re-test
-        spread of the distance. Response test: cluster-bootstrap replicates of the effect
-        intervals (units resampled within each set, or whole pairs).
-    relevance : bool, default: False
-        Run-level test: chain statistics on each feature alone and with each feature left out.
-    continue_on_start_difference : bool, default: False
-        Bound/permutation tests: test the transitions even when the start distributions differ.
-    stop_early : bool, default: True
-        Permutation test: stop drawing once rejection is impossible (Besag & Clifford 1991).
-        Verdicts are those of the full test; p-values above ``alpha`` become sequential
-        estimates. False always draws all ``permutations``.
-    inputs : sequence of str or comma-separated str
-        Response test: features the model does not control (a recorded leader's speed):
-        they condition the state but their own evolution is not compared.
-    pair_by : str, optional
-        Response test: ``"run_id"`` or a per-run fact (``metadata["run_info"]``) that pairs run
-        *i* of B with the run of A whose scenario it replays; the null swaps within pairs.
-    group_by : str, optional
-        Response test: a per-run fact (driver, recording, parent run of a segment) whose runs
-        form one exchangeable unit; whole groups are permuted and resampled.
-    margin : float or mapping, optional
-        Response test: equivalence margin per response feature (its unit per second), or one
-        for all; the result says whether equivalence within the margin is shown.
+        The two sets of runs (a path is read with :meth:`TraceSet.read`; a Parquet data set is
+        read out of core, :func:`~simcred.compare.outofcore.compare_datasets`).
+    method : Method, optional
+        How to compare (:class:`~simcred.compare.method.Method`: features, bins, kernel,
+        estimator, test, alpha, permutations, seed, multiplicity, chain, one_sided, history,
+        time_bins, resample, baseline, bootstrap, relevance, inputs, pair_by, group_by, margin,
+        continue_on_start_difference, stop_early; each documented there). Default:
+        ``Method()``.
     progress : callable, optional
         Wraps the sequence of start states (e.g. a progress bar).
+    **options
+        Fields of :class:`Method` as keywords: they build the method, or replace fields of
+        ``method`` (``compare(a, b, test="bound", bins=5)``).
 
     Returns
     -------
@@ -176,37 +90,25 @@ def compare(
     >>> result.n_states, result.stopped
     (25, False)
     >>> a, b = lane_change_sets(runs=150, steps=40, seed=1)
-    >>> result = compare(a, b, features=["y"], bins=5, permutations=199, seed=3)
+    >>> result = compare(a, b, Method(features=["y"], bins=5, permutations=199, seed=3))
     >>> result.chain.pvalue <= 0.01, result.distance > 0
     (True, True)
     """
     from simcred.io.dataset import is_dataset
 
+    method = Method.of(method, **options)
     if is_dataset(a) or is_dataset(b):  # Parquet data sets: read out of core
         from simcred.compare.outofcore import compare_datasets
 
-        return compare_datasets(
-            a, b, progress=progress, relevance=relevance, features=features, bins=bins,
-            kernel=kernel, estimator=estimator, test=test, alpha=alpha, permutations=permutations,
-            seed=seed, multiplicity=multiplicity, chain=chain, one_sided=one_sided,
-            history=history, time_bins=time_bins, resample=resample, baseline=baseline,
-            bootstrap=bootstrap, continue_on_start_difference=continue_on_start_difference,
-            stop_early=stop_early, inputs=inputs, pair_by=pair_by, group_by=group_by,
-            margin=margin)
+        return compare_datasets(a, b, method, progress=progress)
     a, b = load(a), load(b)
-    options = comparison_options(
-        [a, b], features=features, bins=bins, kernel=kernel, estimator=estimator, test=test,
-        alpha=alpha, permutations=permutations, seed=seed, multiplicity=multiplicity,
-        chain=chain, one_sided=one_sided, history=history, time_bins=time_bins,
-        resample=resample, baseline=baseline, bootstrap=bootstrap,
-        continue_on_start_difference=continue_on_start_difference, stop_early=stop_early,
-        inputs=inputs, pair_by=pair_by, group_by=group_by, margin=margin)
-    prepared = [Prepared.for_options(traces, options) for traces in (a, b)]
-    design = build_design(a, b, pair_by=options.pair_by, group_by=options.group_by) \
-        if Test(options.test) is Test.RESPONSE else None
-    units = dict(zip(options.features, feature_units(a, b, options.features), strict=True))
-    result = with_units(compare_prepared(*prepared, options, progress, design, units), a, b)
-    if relevance:
+    settings = comparison_options([a, b], method)
+    prepared = [Prepared.for_options(traces, settings) for traces in (a, b)]
+    design = build_design(a, b, pair_by=settings.pair_by, group_by=settings.group_by) \
+        if Test(settings.test) is Test.RESPONSE else None
+    units = dict(zip(settings.features, feature_units(a, b, settings.features), strict=True))
+    result = with_units(compare_prepared(*prepared, settings, progress, design, units), a, b)
+    if method.relevance:
         from simcred.compare.calibrate import feature_relevance
 
         result = feature_relevance(result, *prepared)
@@ -338,12 +240,7 @@ def resolve_features(sets: Sequence[SetFacts], features: Sequence[str] | str | N
                     "choose the features to compare"
                 )
         return tuple(sets[0].signals)
-    names = tuple(f.strip() for f in features.split(",")) if isinstance(features, str) \
-        else tuple(features)
-    if not names or any(not n for n in names):
-        raise OptionError(f"features must be non-empty signal names, got {features!r}")
-    if len(set(names)) != len(names):
-        raise OptionError(f"features repeat a name: {list(names)}")
+    names = feature_names(features)
     for facts in sets:
         facts.check_signals(names)  # raises, naming the set and the unknown signal
     return names
@@ -359,115 +256,42 @@ def resolve_bins(bins: int | Sequence[int], n_features: int) -> tuple[int, ...]:
     return tuple(int(v) for v in per_feature)
 
 
-def _choice(enum: type, value: str, name: str):
-    try:
-        return enum(value)
-    except ValueError:
-        choices = ", ".join(e.value for e in enum)
-        raise OptionError(f"{name} must be one of {choices}; got {value!r}") from None
-
-
-def comparison_options(
-    sets: Sequence[TraceSet | SetFacts], *, features=None, bins=10, kernel="gaussian",
-    estimator="biased", test="runs", alpha=0.01, permutations=999, seed=None, multiplicity=None,
-    chain="sum", one_sided="evidence", history=1, time_bins=None, resample=None, baseline=0,
-    bootstrap=0, continue_on_start_difference=False, stop_early=True, inputs=(), pair_by=None,
-    group_by=None, margin=None,
-) -> ComparisonOptions:
-    """Validate every option of :func:`compare` against the trace sets they will be used on
-    (or against their :class:`SetFacts`, all these checks need)."""
+def comparison_options(sets: Sequence[TraceSet | SetFacts], method: Method | None = None,
+                       **options: Any) -> ComparisonOptions:
+    """``method`` (or :class:`Method` ``(**options)``) checked against the trace sets it will be
+    used on (or their :class:`SetFacts`, all these checks need), resolved into the options a
+    result records: the features, bins per feature, the seed's entropy and what the test
+    uses."""
+    method = Method.of(method, **options)
     sets = [s if isinstance(s, SetFacts) else SetFacts.of(s) for s in sets]
-    names = resolve_features(sets, features)
-    estimator = _choice(Estimator, estimator, "estimator")
-    test = _choice(Test, test, "test")
-    runs = test is Test.RUNS
-    response = test is Test.RESPONSE
-    inputs = _names(inputs, "inputs")
-    if not response and (inputs or pair_by or group_by or margin is not None):
-        raise OptionError("inputs, pair-by, group-by and margin belong to the response test "
-                          "(--test response)")
+    names = resolve_features(sets, method.features)
+    test, estimator = method.test, method.estimator
+    runs, response = test is Test.RUNS, test is Test.RESPONSE
     if response:
-        response_features(names, inputs)
-        if baseline:
-            raise OptionError("the response test has no random-halves baseline (it cannot see "
-                              "heterogeneity of the reference); use --baseline 0")
-    multiplicity = _choice(Multiplicity, multiplicity or ("fwer" if runs or response else "none"),
-                           "multiplicity")
-    if response and multiplicity is not Multiplicity.FWER:
-        raise OptionError("the response test's per-state verdicts are family-wise (max-T, "
-                          "after the chain verdict); multiplicity must be fwer")
-    if not runs and not response and multiplicity is not Multiplicity.NONE:
-        raise OptionError(f"multiplicity {multiplicity.value} needs the run-level test "
-                          "(--test runs); the paper's tests are per state only")
+        response_features(names, method.inputs)
     small = [s for s in sets if s.n_runs < estimator.min_samples]
     if small:
         raise OptionError(f"the {estimator.value} estimator needs at least "
                           f"{estimator.min_samples} runs per trace set ({small[0].source}: "
                           f"{small[0].n_runs})")
-    if runs and baseline and sets[0].n_runs < 4:
+    if runs and method.baseline and sets[0].n_runs < 4:
         raise OptionError(f"a same-model baseline splits set A into halves and needs at least 4 "
                           f"runs ({sets[0].source}: {sets[0].n_runs}); use --baseline 0")
-    resample = check_resample(resample)
-    if resample is None:
+    if method.resample is None:
         check_periods([s.source for s in sets], [s.period for s in sets])
     return ComparisonOptions(
-        features=names,
-        bins=resolve_bins(bins, len(names)),
-        kernel=_choice(Kernel, kernel, "kernel").value,
-        estimator=estimator.value,
-        test=test.value,
-        alpha=_check_alpha(alpha),
-        permutations=_check_permutations(permutations) if test is not Test.BOUND else None,
-        seed=resolve_seed(seed),
-        continue_on_start_difference=bool(continue_on_start_difference),
-        stop_early=bool(stop_early) and test is Test.PERMUTATION,
-        multiplicity=multiplicity.value,
-        chain=_choice(ChainStatistic, chain, "chain").value,
-        one_sided=_choice(OneSided, one_sided, "one-sided").value,
-        history=check_history(history),
-        time_bins=check_time_bins(time_bins),
-        resample=resample,
-        baseline=_check_count(baseline, "baseline") if runs else 0,
-        bootstrap=(_check_count(bootstrap, "bootstrap") or DEFAULT_REPLICATES) if response
-        else _check_count(bootstrap, "bootstrap") if runs else 0,
-        inputs=inputs,
-        pair_by=_key(pair_by, "pair-by"),
-        group_by=_key(group_by, "group-by"),
-        margin=check_margins(margin, response_features(names, inputs)) if response else (),
+        features=names, bins=resolve_bins(method.bins, len(names)),
+        kernel=method.kernel.value, estimator=estimator.value, test=test.value,
+        alpha=method.alpha, permutations=method.permutations if test is not Test.BOUND else None,
+        seed=resolve_seed(method.seed),
+        continue_on_start_difference=method.continue_on_start_difference,
+        stop_early=method.stop_early and test is Test.PERMUTATION,
+        multiplicity=method.multiplicity_used.value, chain=method.chain.value,
+        one_sided=method.one_sided.value, history=method.history, time_bins=method.time_bins,
+        resample=method.resample, baseline=method.baseline if runs else 0,
+        bootstrap=(method.bootstrap or DEFAULT_REPLICATES) if response
+        else method.bootstrap if runs else 0,
+        inputs=method.inputs, pair_by=method.pair_by, group_by=method.group_by,
+        margin=check_margins(method.margins, response_features(names, method.inputs))
+        if response else (),
     )
-
-
-def _names(value: Sequence[str] | str, option: str) -> tuple[str, ...]:
-    names = tuple(v.strip() for v in value.split(",")) if isinstance(value, str) \
-        else tuple(value)
-    if any(not isinstance(n, str) or not n for n in names) or len(set(names)) != len(names):
-        raise OptionError(f"{option} must be distinct signal names, got {value!r}")
-    return names
-
-
-def _key(value: str | None, option: str) -> str | None:
-    if value is None:
-        return None
-    if not isinstance(value, str) or not value.strip():
-        raise OptionError(f"{option} must be 'run_id' or a per-run fact's name, got {value!r}")
-    return value.strip()
-
-
-def _check_count(value: int, name: str) -> int:
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 0:
-        raise OptionError(f"{name} must be a non-negative integer, got {value!r}")
-    return int(value)
-
-
-def _check_alpha(alpha: float) -> float:
-    if isinstance(alpha, bool) or not isinstance(alpha, numbers.Real) \
-            or not math.isfinite(alpha) or not 0 < alpha < 1:
-        raise OptionError(f"alpha must be a number in (0, 1), got {alpha!r}")
-    return float(alpha)
-
-
-def _check_permutations(permutations: int) -> int:
-    if isinstance(permutations, bool) or not isinstance(permutations, numbers.Integral) \
-            or permutations < 1:
-        raise OptionError(f"permutations must be a positive integer, got {permutations!r}")
-    return int(permutations)

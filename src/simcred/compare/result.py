@@ -12,6 +12,7 @@ from simcred._json import dumps, envelope
 from simcred.compare.discretize import StateSpace
 from simcred.compare.kernels import Kernel
 from simcred.compare.mmd import Estimator, MMDTestResult, MMDTestSpec, Test
+from simcred.compare.runs import ChainStatistic, Multiplicity, OneSided, RunTestSpec
 from simcred.compare.tables import states_frame
 
 
@@ -45,6 +46,13 @@ class ComparisonOptions:
         """The per-test settings, as the MMD module takes them."""
         return MMDTestSpec(Kernel(self.kernel), Estimator(self.estimator), Test(self.test),
                            self.alpha, self.permutations or 0, self.stop_early)
+
+    def run_spec(self, permutations: int | None = None) -> RunTestSpec:
+        """The run-level test's settings (``permutations``: fewer, for its companions)."""
+        return RunTestSpec(Kernel(self.kernel), Estimator(self.estimator),
+                           permutations or self.permutations, self.alpha,
+                           Multiplicity(self.multiplicity), ChainStatistic(self.chain),
+                           OneSided(self.one_sided))
 
 
 @dataclass(frozen=True, slots=True)

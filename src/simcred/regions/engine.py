@@ -38,9 +38,11 @@ from typing import Any
 
 import numpy as np
 
-from simcred.compare import Comparison, compare
+from simcred.compare import Comparison, Method, compare
 from simcred.compare.design import RUN_ID, unit_keys
 from simcred.compare.effect import FeatureEffect
+from simcred.compare.mmd import Test
+from simcred.errors import OptionError
 from simcred.regions.cells import SOURCE_RUN, Grid, Segments, segments
 from simcred.traces import TraceSet, take
 
@@ -203,23 +205,32 @@ class MinData:
 
 @dataclass(frozen=True, slots=True, eq=False)
 class CellComparison:
-    """What every cell's comparison shares: the response comparison's options, the tolerance per
-    response feature (empty: nothing judged), the features whose deviations are reported
-    (default: those with a tolerance, else every response feature), the too-little-data rule and
-    the shortest segment kept."""
+    """What every cell's comparison shares: the response comparison's ``method``
+    (:class:`~simcred.compare.Method` with ``test="response"``; its seed is the user's, each
+    cell's is derived from it by :func:`cell_seed`, and the cell's design and the tolerance as
+    margin are added per cell), the tolerance per response feature (empty: nothing judged), the
+    features whose deviations are reported (default: those with a tolerance, else every
+    response feature), the too-little-data rule and the shortest segment kept."""
 
-    features: tuple[str, ...]
-    inputs: tuple[str, ...] = ()
-    bins: int | tuple[int, ...] = 3
-    alpha: float = 0.05
-    permutations: int = 199
-    bootstrap: int = 500
-    seed: int = 0
-    resample: float | None = None
+    method: Method
     tolerance: Mapping[str, float] = field(default_factory=dict)
     reported: tuple[str, ...] = ()
     min_data: MinData = field(default_factory=MinData)
     min_length: int = 10
+
+    def __post_init__(self) -> None:
+        if self.method.test is not Test.RESPONSE or self.method.features is None \
+                or not isinstance(self.method.seed, int):
+            raise OptionError("the per-cell comparison is the response test on named features "
+                              f"with an integer seed, got {self.method!r}")
+
+    @property
+    def features(self) -> tuple[str, ...]:
+        return self.method.features
+
+    @property
+    def inputs(self) -> tuple[str, ...]:
+        return self.method.inputs
 
     @property
     def response(self) -> tuple[str, ...]:
@@ -258,12 +269,9 @@ def compare_cell(settings: CellComparison, grid: Grid, cell: int, name: str, rul
     short = settings.min_data.short(counts)
     if short:
         return CellResult(*head, CellStatus.UNKNOWN, short + dropped, *counts, rule.design)
-    seed = cell_seed(settings.seed, name, cell)
-    result = compare(ref, cand, features=list(settings.features), inputs=list(settings.inputs),
-                     test="response", bins=settings.bins, alpha=settings.alpha,
-                     permutations=settings.permutations, bootstrap=settings.bootstrap, seed=seed,
-                     resample=settings.resample, pair_by=rule.pair_by, group_by=rule.group_by,
-                     margin=dict(settings.tolerance) or None)
+    seed = cell_seed(settings.method.seed, name, cell)
+    result = compare(ref, cand, settings.method, seed=seed, pair_by=rule.pair_by,
+                     group_by=rule.group_by, margin=dict(settings.tolerance) or None)
     effects = {f.feature: f for f in result.response.effect.features}
     bounds = tuple(_feature_bounds(effects[n], settings.tolerance.get(n), rule)
                    for n in settings.shown)

@@ -40,6 +40,7 @@ import numpy as np
 
 from simcred._json import dumps, envelope
 from simcred._version import versions
+from simcred.compare import Method
 from simcred.compare.effect import check_margins
 from simcred.engine import Engine, Progress, engine
 from simcred.errors import OptionError
@@ -154,10 +155,16 @@ class StudyOptions:
 
     def settings(self) -> CellComparison:
         """The engine's per-cell settings (those of a validation file with the same values)."""
-        return CellComparison(self.features, self.inputs, self.bins, self.alpha,
-                              self.permutations, self.bootstrap, self.seed, self.sample_step,
-                              dict(self.tolerance), self.response,
+        return CellComparison(self.method, dict(self.tolerance), self.response,
                               MinData(self.min_runs, self.min_samples), self.min_length)
+
+    @property
+    def method(self) -> Method:
+        """The response comparison of every band (the study's seed; each cell derives its
+        own)."""
+        return Method(test="response", features=self.features, inputs=self.inputs,
+                      bins=self.bins, alpha=self.alpha, permutations=self.permutations,
+                      bootstrap=self.bootstrap, seed=self.seed, resample=self.sample_step)
 
     def to_dict(self) -> dict[str, Any]:
         out = asdict(self)

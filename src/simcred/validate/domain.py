@@ -55,19 +55,14 @@ def unpaired_comparison(spec: ValidationSpec, a: TraceSet, b: TraceSet, group_by
     comparison options, grouped by ``group_by``: the pilot of the plan and the spread of a
     relative tolerance. Only the deviation is used, so the difference test is cut to 19
     permutations and no margin is given."""
-    options = spec.comparison
-    return compare(a, b, features=spec.features, inputs=spec.inputs, test="response",
-                   bins=options.bins, alpha=options.alpha, permutations=19, bootstrap=bootstrap,
-                   seed=seed, resample=options.resample, group_by=group_by)
+    return compare(a, b, spec.method, permutations=19, bootstrap=bootstrap, seed=seed,
+                   group_by=group_by)
 
 
 def cell_settings(spec: ValidationSpec) -> CellComparison:
     """The engine's per-cell settings of a validation file: the comparison's options, the
     test case's tolerance (its features are the ones reported), ``min_data`` and ``segments``."""
-    options = spec.comparison
-    return CellComparison(tuple(spec.features), tuple(spec.inputs), options.bins, options.alpha,
-                          options.permutations, options.bootstrap, options.seed,
-                          options.resample, dict(spec.test_case.tolerance),
+    return CellComparison(spec.method, dict(spec.test_case.tolerance),
                           tuple(spec.test_case.tolerance),
                           MinData(spec.min_data.runs, spec.min_data.samples),
                           spec.segments.min_length)

@@ -31,6 +31,7 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
+from simcred.compare.method import Method
 from simcred.contracts.loader import load_yaml
 from simcred.errors import SimcredError
 
@@ -189,7 +190,9 @@ class ConditionSpec(_Strict):
 class ComparisonSpec(_Strict):
     """Options of the response comparison (``compare(test="response")``) in every cell:
     ``bins`` per feature, the level ``alpha``, ``permutations`` of the difference test,
-    ``bootstrap`` replicates of the deviation's bounds, ``seed``, ``resample`` (s)."""
+    ``bootstrap`` replicates of the deviation's bounds, ``seed``, ``resample`` (s). Each key is
+    a field of :class:`~simcred.compare.Method` (the file's defaults and ranges here, the checks
+    every comparison shares there); :attr:`ValidationSpec.method` makes the method."""
 
     bins: int | list[int] = 3
     alpha: float = Field(default=0.05, gt=0, lt=1)
@@ -272,6 +275,15 @@ class ValidationSpec(_Strict):
         """This spec with absolute tolerances (relative ones resolved)."""
         return self.model_copy(update={"test_case": self.test_case.model_copy(
             update={"tolerance": dict(tolerance)})})
+
+    @property
+    def method(self) -> Method:
+        """The comparison of every cell: the response test on the file's features and inputs
+        with the ``comparison`` section's options (:class:`~simcred.compare.Method` makes the
+        checks every comparison shares; the section adds the file's own ranges and
+        defaults)."""
+        return Method(test="response", features=tuple(self.features), inputs=tuple(self.inputs),
+                      **self.comparison.model_dump())
 
     @property
     def response(self) -> tuple[str, ...]:
