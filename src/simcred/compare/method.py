@@ -121,11 +121,13 @@ class Method:
         Response test: features the model does not control (a recorded leader's speed):
         they condition the state but their own evolution is not compared.
     pair_by : str, optional
-        Response test: ``"run_id"`` or a per-run fact (``metadata["run_info"]``) that pairs run
-        *i* of B with the run of A whose scenario it replays; the null swaps within pairs.
+        Response test: ``"run_id"``, a per-run fact (``metadata["run_info"]``) or a signal
+        constant within each run that pairs run *i* of B with the run of A whose scenario it
+        replays; the null swaps within pairs.
     group_by : str, optional
-        Response test: a per-run fact (driver, recording, parent run of a segment) whose runs
-        form one exchangeable unit; whole groups are permuted and resampled.
+        Response test: a per-run fact (driver, recording, parent run of a segment) or a signal
+        constant within each run whose runs form one exchangeable unit; whole groups are
+        permuted and resampled.
     margin : float or mapping, optional
         Response test: equivalence margin per response feature (its unit per second), or one
         for all; the result says whether equivalence within the margin is shown.
@@ -188,12 +190,14 @@ class Method:
                  "recorded leader's speed); they condition the state and are not compared.",
         tests=("response",), commands=("compare",))
     pair_by: str | None = option(
-        help="Response test: run_id or a per-run fact pairing each run of B with the run of A "
-             "it replays (the null swaps within pairs).", tests=("response",),
+        help="Response test: run_id, a per-run fact or a signal constant within each run, "
+             "pairing each run of B with the run of A it replays (the null swaps within "
+             "pairs).", tests=("response",),
         commands=("compare",))
     group_by: str | None = option(
-        help="Response test: a per-run fact (driver, recording, parent run) whose runs form "
-             "one unit, permuted and resampled whole.", tests=("response",),
+        help="Response test: a per-run fact (driver, recording, parent run) or a signal "
+             "constant within each run, whose runs form one unit, permuted and resampled "
+             "whole.", tests=("response",),
         commands=("compare",))
     margin: float | tuple[tuple[str, float], ...] | None = option(
         help="Response test: equivalence margin of the response deviation, per second: one "
