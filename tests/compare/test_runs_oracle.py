@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from helpers import ar_set, random_walk_set
-from simcred.compare import compare, kernels, runs
+from simcred.compare import compare, kernels, run_counts, runs, side_counts
 from simcred.compare.calibrate import pooled_counts, run_spec
 from simcred.compare.kernels import Kernel, KernelOperator, pooled_bandwidth
 from simcred.compare.mmd import Estimator
@@ -57,7 +57,7 @@ def literal_statistics(run_states: list[np.ndarray], in_a: np.ndarray, space, ke
     ``√(mn/(m+n))·MMD_b`` or ``mn/(m+n)·MMD²_u``."""
     samples: dict = {}
     for r, states in enumerate(run_states):
-        samples.setdefault(runs.START, []).append((in_a[r], states[0]))
+        samples.setdefault(run_counts.START, []).append((in_a[r], states[0]))
         for s, u in zip(states[:-1], states[1:], strict=True):
             samples.setdefault(int(s), []).append((in_a[r], u))
     scale = float(sum((b - 1) ** 2 for b in space.shape))
@@ -247,8 +247,8 @@ def test_dense_sparse_and_chunked_products_agree(chunk, sparse_ratio, monkeypatc
     a = random_walk_set(rng, runs=25, drift=0.0)
     b = random_walk_set(rng, runs=20, drift=0.4)
     reference = compare(a, b, features=FEATURES, bins=5, permutations=49, seed=3)
-    monkeypatch.setattr(runs, "CHUNK_BUDGET", chunk)
-    monkeypatch.setattr(runs, "SPARSE_RATIO", sparse_ratio)
+    monkeypatch.setattr(side_counts, "CHUNK_BUDGET", chunk)
+    monkeypatch.setattr(side_counts, "SPARSE_RATIO", sparse_ratio)
     other = compare(a, b, features=FEATURES, bins=5, permutations=49, seed=3)
     assert other.to_json() == reference.to_json()
 
@@ -351,10 +351,10 @@ def test_run_counts_by_table_equal_the_sorted_counts(n_states, lengths, seed):
     parts = [(codes[:offsets[cut]], offsets[:cut + 1]),
              (codes[offsets[cut]:], offsets[cut:] - offsets[cut])] if cut else [(codes, offsets)]
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(runs, "BLOCK_ROWS", int(rng.integers(1, 40)))
-        table = runs.RunCounts.from_parts(parts, n_states)
-        patch.setattr(runs, "DIRECT_KEYS", 0)
-        sorted_ = runs.RunCounts.from_codes(codes, offsets, n_states)
+        patch.setattr(run_counts, "BLOCK_ROWS", int(rng.integers(1, 40)))
+        table = run_counts.RunCounts.from_parts(parts, n_states)
+        patch.setattr(run_counts, "DIRECT_KEYS", 0)
+        sorted_ = run_counts.RunCounts.from_codes(codes, offsets, n_states)
     for name in ("indptr", "indices", "data"):
         got, want = getattr(table.matrix, name), getattr(sorted_.matrix, name)
         assert got.dtype == want.dtype and np.array_equal(got, want)

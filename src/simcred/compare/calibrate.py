@@ -39,13 +39,8 @@ from simcred.compare.result import (
     StateTest,
     UntestableState,
 )
-from simcred.compare.runs import (
-    START,
-    RunCounts,
-    RunLevelOutcome,
-    RunTestSpec,
-    run_level_test,
-)
+from simcred.compare.run_counts import START, RunCounts
+from simcred.compare.runs import RunLevelOutcome, RunTestSpec, run_level_test
 
 #: Seed-stream keys of the run-level test and its companions (spawn keys of the seed).
 RUNS_KEY, BASELINE_KEY, BOOTSTRAP_KEY, RELEVANCE_KEY = 2**40, 2**40 + 1, 2**40 + 2, 2**40 + 3

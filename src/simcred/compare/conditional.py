@@ -41,12 +41,11 @@ from simcred.compare.result import (
     StateTest,
     UntestableState,
 )
+from simcred.compare.run_counts import START, RunCounts
 from simcred.compare.runs import (
-    START,
     ChainStatistic,
     Multiplicity,
     OneSided,
-    RunCounts,
     RunTestSpec,
     exceedance_pvalues,
     run_level_test,

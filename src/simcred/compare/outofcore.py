@@ -51,7 +51,7 @@ from simcred.compare.method import Method
 from simcred.compare.quantiles import EdgePlan, Sketch, Tally
 from simcred.compare.resample import within_run_steps
 from simcred.compare.result import Comparison, InputInfo
-from simcred.compare.runs import RunCounts
+from simcred.compare.run_counts import RunCounts
 from simcred.engine import Progress
 from simcred.errors import OptionError
 from simcred.io.dataset import ParquetDataset, is_dataset

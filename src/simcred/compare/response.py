@@ -52,15 +52,9 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from simcred.compare.runs import (
-    OneSided,
-    RunCounts,
-    SideCounts,
-    exceedance_pvalues,
-    is_paired,
-    row_max,
-    standardise,
-)
+from simcred.compare.run_counts import RunCounts
+from simcred.compare.runs import OneSided, exceedance_pvalues, row_max, standardise
+from simcred.compare.side_counts import SideCounts, is_paired
 from simcred.compare.transitions import Transitions
 
 #: The comparison's resolution: residuals get N(0, (RESOLUTION · spread)²) noise, spread = the

@@ -51,28 +51,23 @@ References
 from __future__ import annotations
 
 import warnings
-from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import StrEnum
 
 import numpy as np
-import scipy.sparse as sp
 
 from simcred.compare.kernels import Kernel, KernelOperator, pooled_bandwidth
 from simcred.compare.mmd import Estimator, kernel_statistics
+from simcred.compare.run_counts import RunCounts
+from simcred.compare.side_counts import SideCounts
 
 #: Elements of one dense (columns × batch) or (runs × batch) array of a permutation batch.
 BATCH_BUDGET = 2**22
-#: Elements of one dense chunk of the count matrix (float32: 128 MB).
-CHUNK_BUDGET = 2**25
-#: Columns of R shown by fewer than 1/SPARSE_RATIO of the runs go through the sparse product.
-SPARSE_RATIO = 64
 #: Absolute/relative tolerance when counting permuted statistics ≥ the observed one.
 TIE_TOL = 1e-9
 #: ``dᵀKd`` below this is rounding noise of an exact 0 (|error| ≲ 4·eps) and is set to 0 before
 #: the square root, so that permutations with proportional counts tie with each other exactly.
 QUADRATIC_FLOOR = 1e-13
-START = -1  # state code of the start-distribution block
 
 
 class Multiplicity(StrEnum):
@@ -91,151 +86,6 @@ class OneSided(StrEnum):
 
     EVIDENCE = "evidence"  # the state's largest two-sided value: a one-sided state differs
     NEUTRAL = "neutral"  # its permutation mean: no evidence either way
-
-
-#: Largest key space ``(|S| + 1)·|S|`` counted through a lookup table rather than a sort.
-DIRECT_KEYS = 2**22
-#: Rows per block of runs when counting through the lookup table.
-BLOCK_ROWS = 2**20
-
-
-@dataclass(frozen=True, slots=True, eq=False)
-class RunCounts:
-    """Per run, the counts of (state, successor) pairs: a sparse (columns × runs) matrix.
-
-    ``blocks[b]`` is the state of column block ``b`` (``START`` for the start distribution),
-    ``bounds[b]:bounds[b + 1]`` its columns, ``successors[c]`` the successor state of column
-    ``c``. Columns are sorted by (state, successor), the start block first.
-    """
-
-    matrix: sp.csr_matrix
-    blocks: np.ndarray
-    bounds: np.ndarray
-    successors: np.ndarray
-
-    @classmethod
-    def from_codes(cls, codes: np.ndarray, offsets: np.ndarray, n_states: int) -> RunCounts:
-        """Count start states and within-run transitions of state ``codes`` split by ``offsets``."""
-        return cls.from_parts([(codes, offsets)], n_states)
-
-    @classmethod
-    def from_parts(cls, parts: Sequence[tuple[np.ndarray, np.ndarray]], n_states: int
-                   ) -> RunCounts:
-        """:meth:`from_codes` of the parts' runs one after the other (set A's, then B's),
-        without joining them: small state spaces are counted block by block of runs
-        (:data:`BLOCK_ROWS` rows), so the working memory does not grow with the data."""
-        size = np.int64(n_states)
-        if (size + 1) * size > DIRECT_KEYS:
-            codes = np.concatenate([c for c, _ in parts])
-            starts = np.cumsum([0] + [len(c) for c, _ in parts[:-1]])
-            offsets = np.concatenate([[0]] + [o[1:] + s for (_, o), s in zip(parts, starts,
-                                                                             strict=True)])
-            keys, runs = _pair_keys(codes, offsets, size)
-            columns, column_of, run_of, count = _pair_counts(keys, runs, len(offsets) - 1)
-            indptr = np.r_[0, np.cumsum(np.bincount(column_of, minlength=len(columns)))]
-            matrix = sp.csr_matrix((count.astype(np.float64), run_of, indptr),
-                                   shape=(len(columns), len(offsets) - 1))  # (column, run)
-            return cls.from_matrix(matrix, columns, n_states)
-        blocks = [(codes, offsets, lo, hi) for codes, offsets in parts
-                  for lo, hi in _run_blocks(offsets)]
-        # two passes over the blocks (their keys computed twice) rather than keeping every
-        # block's keys: the columns must be known before any block's counts are placed
-        present = np.zeros(int((size + 1) * size), dtype=bool)
-        for block in blocks:
-            present[_pair_keys(*_block(*block), size)[0]] = True
-        columns = np.flatnonzero(present)
-        column_index = np.cumsum(present) - 1
-        del present
-        matrix = sp.hstack([_block_counts(*_block(*block), size, column_index, len(columns))
-                            for block in blocks], format="csr")
-        return cls.from_matrix(matrix, columns, n_states)
-
-    @classmethod
-    def from_matrix(cls, matrix: sp.csr_matrix, columns: np.ndarray, n_states: int
-                    ) -> RunCounts:
-        """The counts ``matrix`` (columns × runs, entries sorted by (column, run)) whose column
-        ``c`` is the pair key ``columns[c] = (state + 1) · n_states + successor`` (sorted)."""
-        size = np.int64(n_states)
-        origin = columns // size - 1
-        bounds = np.r_[0, np.flatnonzero(np.diff(origin)) + 1, len(columns)]
-        return cls(matrix, origin[bounds[:-1]], bounds, columns % size)
-
-    @property
-    def n_runs(self) -> int:
-        return self.matrix.shape[1]
-
-    def subset(self, runs: np.ndarray) -> RunCounts:
-        """The counts of the runs ``runs`` (repeats allowed: a bootstrap sample), unused columns
-        dropped."""
-        matrix = self.matrix[:, runs].tocsr()
-        used = np.flatnonzero(matrix.getnnz(axis=1) > 0)
-        block = np.repeat(np.arange(len(self.blocks)), np.diff(self.bounds))[used]
-        bounds = np.r_[0, np.flatnonzero(np.diff(block)) + 1, len(used)]
-        return RunCounts(matrix[used], self.blocks[block[bounds[:-1]]], bounds,
-                         self.successors[used])
-
-
-def _run_blocks(offsets: np.ndarray) -> list[tuple[int, int]]:
-    """Consecutive ranges of runs of about :data:`BLOCK_ROWS` rows each (at least one run)."""
-    n_runs = len(offsets) - 1
-    cuts = np.searchsorted(offsets, np.arange(BLOCK_ROWS, offsets[-1], BLOCK_ROWS))
-    bounds = np.unique(np.r_[0, np.clip(cuts, 1, n_runs), n_runs])
-    return list(zip(bounds[:-1].tolist(), bounds[1:].tolist(), strict=True))
-
-
-def _block(codes: np.ndarray, offsets: np.ndarray, lo: int, hi: int
-           ) -> tuple[np.ndarray, np.ndarray]:
-    """The codes and offsets of runs ``lo .. hi - 1`` (views, offsets from 0)."""
-    return codes[offsets[lo]:offsets[hi]], offsets[lo:hi + 1] - offsets[lo]
-
-
-def _pair_keys(codes: np.ndarray, offsets: np.ndarray, size: np.int64
-               ) -> tuple[np.ndarray, np.ndarray]:
-    """Per start state and per transition: its key ``(from + 1) · |S| + to`` (a start: its
-    state, block START = origin START + 1 = 0) and its run; starts first, run by run."""
-    n_runs = len(offsets) - 1
-    starts = codes[offsets[:-1]]
-    keys = (codes[:-1] + 1) * size + codes[1:]
-    keys[offsets[1:-1] - 1] = -1  # a run's last row starts no transition
-    keys = np.concatenate([starts, keys[keys >= 0]])
-    runs = np.concatenate([np.arange(n_runs, dtype=np.int64),
-                           np.repeat(np.arange(n_runs, dtype=np.int64), np.diff(offsets) - 1)])
-    return keys, runs
-
-
-def _block_counts(codes: np.ndarray, offsets: np.ndarray, size: np.int64,
-                  column_index: np.ndarray, n_columns: int) -> sp.csr_matrix:
-    """The (column × run) counts of one block of runs, without sorting.
-
-    Runs never decrease within one key (starts and transitions are listed run by run), so the
-    COO → CSR conversion leaves each row's runs sorted and adding up duplicates is one linear
-    pass.
-    """
-    keys, runs = _pair_keys(codes, offsets, size)
-    matrix = sp.csr_matrix((np.ones(len(keys)), (column_index[keys], runs)),
-                           shape=(n_columns, len(offsets) - 1))
-    matrix.sum_duplicates()
-    return matrix
-
-
-def _pair_counts(keys: np.ndarray, runs: np.ndarray, n_runs: int):
-    """Distinct keys (sorted), and per distinct (key, run), sorted by (key, run): key index, run,
-    count.
-
-    One sort of ``key · runs + run`` when that fits into int64, else two.
-    """
-    if len(keys) and (int(keys.max()) + 1) * n_runs < 2**62:
-        combined = keys * np.int64(n_runs)
-        combined += runs
-        combined, count = np.unique(combined, return_counts=True)
-        key, run_of = np.divmod(combined, np.int64(n_runs))
-        del combined
-        new = np.r_[True, key[1:] != key[:-1]]
-        return key[new], np.cumsum(new) - 1, run_of, count
-    columns, inverse = np.unique(keys, return_inverse=True)
-    combined, count = np.unique(inverse.ravel() * np.int64(n_runs) + runs, return_counts=True)
-    column_of, run_of = np.divmod(combined, np.int64(n_runs))
-    return columns, column_of, run_of, count
 
 
 @dataclass(frozen=True, slots=True)
@@ -408,131 +258,6 @@ def random_assignments(in_a: np.ndarray, permutations: int, n_cols: int,
                                                        axis=1)
     assignments[0] = in_a
     return assignments
-
-
-class SideCounts:
-    """``R @ Z``: the A-side counts of assignments ``Z`` (runs × batch, 0/1), chunk by chunk.
-
-    Columns of R that at least 1/``SPARSE_RATIO`` of the runs show go through dense BLAS,
-    in chunks of at most ``CHUNK_BUDGET`` dense elements aligned to state blocks; rarer columns
-    through the sparse product, which is faster for them. R holds integers (counts, or integer
-    feature sums), so every product is an exact integer: float32 is used wherever every partial
-    sum stays within 2**24 (where it is exact), the dense product split into slices of runs
-    that each keep within it (the slices' results added in float64, exactly); float64 else.
-
-    ``paired``: every assignment puts exactly one of runs ``i`` and ``h + i`` in A (``h`` = half
-    the runs; :func:`is_paired`). Then ``R Z = R_1 1 + (R_2 − R_1) F`` with ``F`` the second
-    half of ``Z``: the dense product over half the runs.
-    """
-
-    def __init__(self, counts: RunCounts, paired: bool = False) -> None:
-        self.matrix = counts.matrix
-        n_cols, n_runs = self.matrix.shape
-        self.paired = paired
-        self.dense_columns = self.matrix.getnnz(axis=1) * SPARSE_RATIO >= n_runs
-        per_block = np.add.reduceat(self.dense_columns.astype(np.int64), counts.bounds[:-1]) \
-            if n_cols else np.zeros(0, dtype=np.int64)
-        self.chunks = _block_chunks(counts.bounds, per_block,
-                                    max(1, CHUNK_BUDGET // max(n_runs, 1)))
-
-    def rows(self, lo: int, hi: int) -> tuple:
-        """Columns lo:hi of R split into a dense array (with its slices of runs; paired: the
-        first half's row sums and the halves' difference) and a sparse matrix, with their
-        places."""
-        dense = np.flatnonzero(self.dense_columns[lo:hi])
-        sparse = np.flatnonzero(~self.dense_columns[lo:hi])
-        dense_rows, slices, base, sparse_rows = None, None, None, None
-        if len(dense):
-            dense_rows = _dense_rows(self.matrix, lo, hi, dense, paired=self.paired)
-            if self.paired:
-                half = dense_rows.shape[1] // 2
-                base = dense_rows[:, :half].sum(axis=1)
-                dense_rows = dense_rows[:, half:] - dense_rows[:, :half]
-            dense_rows, slices = _exact_slices(dense_rows)
-        if len(sparse):
-            sparse_rows = self.matrix[lo + sparse]
-            exact32 = abs(sparse_rows).sum(axis=1).max() < 2**24
-            sparse_rows = sparse_rows.astype(np.float32 if exact32 else np.float64)
-        return dense, dense_rows, slices, base, sparse, sparse_rows
-
-    def product(self, rows: tuple, assignment: np.ndarray) -> np.ndarray:
-        """(columns, batch) float64 counts for bool assignments (batch, runs)."""
-        dense, dense_rows, slices, base, sparse, sparse_rows = rows
-        out = np.empty((len(dense) + len(sparse), len(assignment)))
-        if dense_rows is not None:
-            z = assignment[:, assignment.shape[1] // 2:] if self.paired else assignment
-            z = np.ascontiguousarray(z.T, dtype=dense_rows.dtype)
-            if len(slices) == 1:
-                part = dense_rows @ z
-            else:
-                part = np.zeros((len(dense), len(assignment)))
-                for u0, u1 in slices:
-                    part += dense_rows[:, u0:u1] @ z[u0:u1]
-            if base is not None:
-                part = part + base[:, None]
-            out[dense] = part
-        if sparse_rows is not None:
-            out[sparse] = sparse_rows @ np.ascontiguousarray(assignment.T,
-                                                             dtype=sparse_rows.dtype)
-        return out
-
-
-def _dense_rows(matrix: sp.csr_matrix, lo: int, hi: int, rows: np.ndarray,
-                paired: bool = False) -> np.ndarray:
-    """``matrix[lo:hi][rows].toarray()`` through a view of the CSR arrays (no copy of the rows
-    lo:hi): float32 where every entry is an integer below 2**24 (exact) and the rows are not
-    differenced (``paired``), float64 else."""
-    a, b = matrix.indptr[lo], matrix.indptr[hi]
-    view = sp.csr_matrix((matrix.data[a:b], matrix.indices[a:b], matrix.indptr[lo:hi + 1] - a),
-                         shape=(hi - lo, matrix.shape[1]), copy=False)
-    if len(rows) < hi - lo:
-        view = view[rows]
-    if not paired and view.has_canonical_format and (view.nnz == 0 or (
-            np.abs(view.data).max() < 2**24 and (view.data == np.rint(view.data)).all())):
-        return view.astype(np.float32).toarray()
-    return view.toarray().astype(np.float64, copy=False)
-
-
-def is_paired(assignments: np.ndarray) -> bool:
-    """Whether every row puts exactly one of columns ``i`` and ``h + i`` in A (``h`` = half the
-    columns): the assignments of a paired design."""
-    half, odd = divmod(assignments.shape[1], 2)
-    return not odd and half > 0 and bool(
-        (assignments[:, :half] != assignments[:, half:]).all())
-
-
-def _exact_slices(dense: np.ndarray) -> tuple[np.ndarray, list[tuple[int, int]]]:
-    """``dense`` (integer-valued) and slices of its columns (runs) in each of which every
-    row's absolute sum is below 2**24: as float32, exact in products, if each slice's sum of
-    per-run maxima stays below that; else float64 and one slice."""
-    n_runs = dense.shape[1]
-    peak = np.abs(dense).max(axis=0).astype(np.float64) if n_runs and len(dense) \
-        else np.zeros(n_runs)
-    if n_runs == 0 or peak.max() >= 2**24 or (
-            dense.dtype != np.float32 and not (dense == np.rint(dense)).all()):
-        return dense, [(0, n_runs)]
-    running = np.r_[0.0, np.cumsum(peak)]
-    slices, u0 = [], 0
-    while u0 < n_runs:
-        u1 = int(np.searchsorted(running, running[u0] + 2**24, side="left")) - 1
-        u1 = max(u1, u0 + 1)
-        slices.append((u0, u1))
-        u0 = u1
-    return dense.astype(np.float32, copy=False), slices
-
-
-def _block_chunks(bounds: np.ndarray, weights: np.ndarray, budget: int
-                  ) -> list[tuple[int, int, int, int]]:
-    """(first block, last block + 1, first column, last column + 1) of consecutive blocks whose
-    ``weights`` sum to at most ``budget`` (a single heavier block is a chunk of its own)."""
-    chunks, first, total = [], 0, 0
-    for b in range(len(bounds) - 1):
-        if total + weights[b] > budget and b > first:
-            chunks.append((first, b, int(bounds[first]), int(bounds[b])))
-            first, total = b, 0
-        total += weights[b]
-    chunks.append((first, len(bounds) - 1, int(bounds[first]), int(bounds[-1])))
-    return chunks
 
 
 def assignment_statistics(counts: RunCounts, states: StateModels, assignment: np.ndarray,

@@ -15,7 +15,8 @@ from simcred.risk.prediction import (
     ReactionTime,
 )
 from simcred.risk.scene import Lanes, VehicleStates
-from simcred.risk.ttr import RiskResult, max_risk, risk, risk_series
+from simcred.risk.series import risk_series
+from simcred.risk.ttr import RiskResult, max_risk, risk
 
 __all__ = [
     "DEFAULT_PREDICTIONS",

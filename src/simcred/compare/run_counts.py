@@ -1,0 +1,157 @@
+"""Per run, the counts of (state, successor) pairs: the sparse (columns × runs) matrix every
+run-level and response test permutes, counted block by block of runs from the state codes.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+START = -1  # state code of the start-distribution block
+
+#: Largest key space ``(|S| + 1)·|S|`` counted through a lookup table rather than a sort.
+DIRECT_KEYS = 2**22
+#: Rows per block of runs when counting through the lookup table.
+BLOCK_ROWS = 2**20
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class RunCounts:
+    """Per run, the counts of (state, successor) pairs: a sparse (columns × runs) matrix.
+
+    ``blocks[b]`` is the state of column block ``b`` (``START`` for the start distribution),
+    ``bounds[b]:bounds[b + 1]`` its columns, ``successors[c]`` the successor state of column
+    ``c``. Columns are sorted by (state, successor), the start block first.
+    """
+
+    matrix: sp.csr_matrix
+    blocks: np.ndarray
+    bounds: np.ndarray
+    successors: np.ndarray
+
+    @classmethod
+    def from_codes(cls, codes: np.ndarray, offsets: np.ndarray, n_states: int) -> RunCounts:
+        """Count start states and within-run transitions of state ``codes`` split by ``offsets``."""
+        return cls.from_parts([(codes, offsets)], n_states)
+
+    @classmethod
+    def from_parts(cls, parts: Sequence[tuple[np.ndarray, np.ndarray]], n_states: int
+                   ) -> RunCounts:
+        """:meth:`from_codes` of the parts' runs one after the other (set A's, then B's),
+        without joining them: small state spaces are counted block by block of runs
+        (:data:`BLOCK_ROWS` rows), so the working memory does not grow with the data."""
+        size = np.int64(n_states)
+        if (size + 1) * size > DIRECT_KEYS:
+            codes = np.concatenate([c for c, _ in parts])
+            starts = np.cumsum([0] + [len(c) for c, _ in parts[:-1]])
+            offsets = np.concatenate([[0]] + [o[1:] + s for (_, o), s in zip(parts, starts,
+                                                                             strict=True)])
+            keys, runs = _pair_keys(codes, offsets, size)
+            columns, column_of, run_of, count = _pair_counts(keys, runs, len(offsets) - 1)
+            indptr = np.r_[0, np.cumsum(np.bincount(column_of, minlength=len(columns)))]
+            matrix = sp.csr_matrix((count.astype(np.float64), run_of, indptr),
+                                   shape=(len(columns), len(offsets) - 1))  # (column, run)
+            return cls.from_matrix(matrix, columns, n_states)
+        blocks = [(codes, offsets, lo, hi) for codes, offsets in parts
+                  for lo, hi in _run_blocks(offsets)]
+        # two passes over the blocks (their keys computed twice) rather than keeping every
+        # block's keys: the columns must be known before any block's counts are placed
+        present = np.zeros(int((size + 1) * size), dtype=bool)
+        for block in blocks:
+            present[_pair_keys(*_block(*block), size)[0]] = True
+        columns = np.flatnonzero(present)
+        column_index = np.cumsum(present) - 1
+        del present
+        matrix = sp.hstack([_block_counts(*_block(*block), size, column_index, len(columns))
+                            for block in blocks], format="csr")
+        return cls.from_matrix(matrix, columns, n_states)
+
+    @classmethod
+    def from_matrix(cls, matrix: sp.csr_matrix, columns: np.ndarray, n_states: int
+                    ) -> RunCounts:
+        """The counts ``matrix`` (columns × runs, entries sorted by (column, run)) whose column
+        ``c`` is the pair key ``columns[c] = (state + 1) · n_states + successor`` (sorted)."""
+        size = np.int64(n_states)
+        origin = columns // size - 1
+        bounds = np.r_[0, np.flatnonzero(np.diff(origin)) + 1, len(columns)]
+        return cls(matrix, origin[bounds[:-1]], bounds, columns % size)
+
+    @property
+    def n_runs(self) -> int:
+        return self.matrix.shape[1]
+
+    def subset(self, runs: np.ndarray) -> RunCounts:
+        """The counts of the runs ``runs`` (repeats allowed: a bootstrap sample), unused columns
+        dropped."""
+        matrix = self.matrix[:, runs].tocsr()
+        used = np.flatnonzero(matrix.getnnz(axis=1) > 0)
+        block = np.repeat(np.arange(len(self.blocks)), np.diff(self.bounds))[used]
+        bounds = np.r_[0, np.flatnonzero(np.diff(block)) + 1, len(used)]
+        return RunCounts(matrix[used], self.blocks[block[bounds[:-1]]], bounds,
+                         self.successors[used])
+
+
+def _run_blocks(offsets: np.ndarray) -> list[tuple[int, int]]:
+    """Consecutive ranges of runs of about :data:`BLOCK_ROWS` rows each (at least one run)."""
+    n_runs = len(offsets) - 1
+    cuts = np.searchsorted(offsets, np.arange(BLOCK_ROWS, offsets[-1], BLOCK_ROWS))
+    bounds = np.unique(np.r_[0, np.clip(cuts, 1, n_runs), n_runs])
+    return list(zip(bounds[:-1].tolist(), bounds[1:].tolist(), strict=True))
+
+
+def _block(codes: np.ndarray, offsets: np.ndarray, lo: int, hi: int
+           ) -> tuple[np.ndarray, np.ndarray]:
+    """The codes and offsets of runs ``lo .. hi - 1`` (views, offsets from 0)."""
+    return codes[offsets[lo]:offsets[hi]], offsets[lo:hi + 1] - offsets[lo]
+
+
+def _pair_keys(codes: np.ndarray, offsets: np.ndarray, size: np.int64
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """Per start state and per transition: its key ``(from + 1) · |S| + to`` (a start: its
+    state, block START = origin START + 1 = 0) and its run; starts first, run by run."""
+    n_runs = len(offsets) - 1
+    starts = codes[offsets[:-1]]
+    keys = (codes[:-1] + 1) * size + codes[1:]
+    keys[offsets[1:-1] - 1] = -1  # a run's last row starts no transition
+    keys = np.concatenate([starts, keys[keys >= 0]])
+    runs = np.concatenate([np.arange(n_runs, dtype=np.int64),
+                           np.repeat(np.arange(n_runs, dtype=np.int64), np.diff(offsets) - 1)])
+    return keys, runs
+
+
+def _block_counts(codes: np.ndarray, offsets: np.ndarray, size: np.int64,
+                  column_index: np.ndarray, n_columns: int) -> sp.csr_matrix:
+    """The (column × run) counts of one block of runs, without sorting.
+
+    Runs never decrease within one key (starts and transitions are listed run by run), so the
+    COO → CSR conversion leaves each row's runs sorted and adding up duplicates is one linear
+    pass.
+    """
+    keys, runs = _pair_keys(codes, offsets, size)
+    matrix = sp.csr_matrix((np.ones(len(keys)), (column_index[keys], runs)),
+                           shape=(n_columns, len(offsets) - 1))
+    matrix.sum_duplicates()
+    return matrix
+
+
+def _pair_counts(keys: np.ndarray, runs: np.ndarray, n_runs: int):
+    """Distinct keys (sorted), and per distinct (key, run), sorted by (key, run): key index, run,
+    count.
+
+    One sort of ``key · runs + run`` when that fits into int64, else two.
+    """
+    if len(keys) and (int(keys.max()) + 1) * n_runs < 2**62:
+        combined = keys * np.int64(n_runs)
+        combined += runs
+        combined, count = np.unique(combined, return_counts=True)
+        key, run_of = np.divmod(combined, np.int64(n_runs))
+        del combined
+        new = np.r_[True, key[1:] != key[:-1]]
+        return key[new], np.cumsum(new) - 1, run_of, count
+    columns, inverse = np.unique(keys, return_inverse=True)
+    combined, count = np.unique(inverse.ravel() * np.int64(n_runs) + runs, return_counts=True)
+    column_of, run_of = np.divmod(combined, np.int64(n_runs))
+    return columns, column_of, run_of, count
