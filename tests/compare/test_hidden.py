@@ -106,3 +106,33 @@ def test_cli_path_b_and_its_one_line_refusals(tmp_path, capsys):
     assert len(err) == 1 and "never observed in the calibration runs" in err[0]
     assert run([*base, "-f", "v", "--sensor", str(tmp_path / "x.json")]) == 2
     assert "one of --sensor" in capsys.readouterr().err
+
+
+#: compare_hidden on a fixed seed before the time-major forward–backward (commit 071f03b):
+#: the p-value, statistic, fitted hidden transitions and bootstrap null, to the last bits
+OLD_PVALUE, OLD_STATISTIC = 0.95, 0.015585197404155466
+OLD_TRANSITIONS = [
+    0.9743839020057686, 0.025616097992929715, 1.3017118876996062e-12, 8.237548598703114e-20,
+    0.03596339362194401, 0.9124883904362938, 0.05154821592457718, 1.7184987817922157e-11,
+    2.5801179555321445e-11, 0.05306854316088282, 0.9029555091774275, 0.04397594763588847,
+    6.137357098745828e-22, 3.1727542382582315e-13, 0.04841021614706927, 0.9515897838526135,
+]
+OLD_NULL = [
+    0.02561065885090285, 0.022220020225960525, 0.02346455877072343, 0.03031927918657949,
+    0.029804706744237724, 0.02897637095640971, 0.036865730170349456, 0.02162925409508276,
+    0.02100772872811288, 0.02706635292506318, 0.020692722224363747, 0.02084714351413238,
+    0.010607330991792367, 0.021547915729236918, 0.02242884286525825, 0.04445489631065635,
+    0.02940378910559613, 0.016385821764721985, 0.032920642281781994,
+]
+
+
+def test_compare_hidden_equals_the_code_before_the_speedup():
+    rng = stream(7, 0)
+    sim, rec = universe.truth(rng, 40, 80), universe.recording(rng, 40, 80)
+    cal = universe.calibration_pairs(rng, 20, 80)
+    r = compare_hidden(sim, rec, observed="b", calibration=cal, features=["v"], bins=4,
+                       n_resamples=19, seed=3)
+    assert r.pvalue == OLD_PVALUE
+    assert r.statistic == pytest.approx(OLD_STATISTIC, rel=1e-12)
+    assert np.allclose(r.transitions_observed.ravel(), OLD_TRANSITIONS, rtol=1e-12, atol=1e-15)
+    assert np.allclose(r.null_distribution, OLD_NULL, rtol=1e-12, atol=0)

@@ -76,25 +76,34 @@ def forward_backward(like: np.ndarray, A: np.ndarray, pi: np.ndarray
     ``A`` (K, S, S); ``pi`` (K, S). Returns per model the expected start counts (K, S),
     transition counts (K, S, S), state visits (K, S) and the log-likelihood (K,).
     """
-    k, runs, steps, n_states = like.shape
+    return _forward_backward_tm(np.ascontiguousarray(like.transpose(2, 0, 1, 3)), A, pi)
+
+
+def _forward_backward_tm(like: np.ndarray, A: np.ndarray, pi: np.ndarray
+                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`forward_backward` on a time-major ``like`` (T, K, runs, S): every step's slice is
+    contiguous (the recursion's cost is the per-step passes, not strided copies)."""
+    steps, k, runs, n_states = like.shape
     alpha = np.empty_like(like)
-    scale = np.empty((k, runs, steps))
-    a = pi[:, None, :] * like[:, :, 0]
+    scale = np.empty((steps, k, runs))
+    a = pi[:, None, :] * like[0]
     for t in range(steps):
         if t:
-            a = (alpha[:, :, t - 1] @ A) * like[:, :, t]
-        scale[:, :, t] = a.sum(axis=2)
-        alpha[:, :, t] = a / scale[:, :, t, None]
+            a = (alpha[t - 1] @ A) * like[t]
+        scale[t] = a.sum(axis=2)
+        alpha[t] = a / scale[t, :, :, None]
     weighted = np.empty_like(alpha)  # like_t · beta_t / scale_t, for t ≥ 1
     beta = np.ones((k, runs, n_states))
+    A_T = A.transpose(0, 2, 1)
     for t in range(steps - 1, 0, -1):
-        weighted[:, :, t] = like[:, :, t] * beta / scale[:, :, t, None]
-        beta = weighted[:, :, t] @ A.transpose(0, 2, 1)
-    past = alpha[:, :, :-1].reshape(k, -1, n_states)
-    xi = A * (past.transpose(0, 2, 1) @ weighted[:, :, 1:].reshape(k, -1, n_states))
-    later = alpha[:, :, 1:] * weighted[:, :, 1:] * scale[:, :, 1:, None] / like[:, :, 1:]
-    start = (alpha[:, :, 0] * beta).sum(axis=1)
-    return start, xi, start + later.sum(axis=(1, 2)), np.log(scale).sum(axis=(1, 2))
+        weighted[t] = like[t] * beta / scale[t, :, :, None]
+        beta = weighted[t] @ A_T
+    past = alpha[:-1].transpose(1, 0, 2, 3).reshape(k, -1, n_states)
+    xi = A * (past.transpose(0, 2, 1) @ weighted[1:].transpose(1, 0, 2, 3).reshape(k, -1,
+                                                                                    n_states))
+    later = alpha[1:] * weighted[1:] * scale[1:, :, :, None] / like[1:]
+    start = (alpha[0] * beta).sum(axis=1)
+    return start, xi, start + later.sum(axis=(0, 2)), np.log(scale).sum(axis=(0, 2))
 
 
 def baum_welch(obs: Sequence[Sequence[np.ndarray]], B: np.ndarray, support: np.ndarray, *,
@@ -118,7 +127,8 @@ def baum_welch(obs: Sequence[Sequence[np.ndarray]], B: np.ndarray, support: np.n
         arr = np.stack([np.stack([obs[j][i] for i in chosen]) for j in range(k)])  # (K, R, T)
         emit = np.take_along_axis(B[:, None, :, :].transpose(0, 1, 3, 2),
                                   np.maximum(arr, 0)[..., None], axis=2)  # (K, R, T, S)
-        likes.append(np.where((arr >= 0)[..., None], emit, 1.0))
+        like = np.where((arr >= 0)[..., None], emit, 1.0)
+        likes.append(np.ascontiguousarray(like.transpose(2, 0, 1, 3)))  # time-major
     A = np.tile(uniform, (k, n_states, 1))
     pi = np.tile(uniform, (k, 1))
     last = np.full(k, -np.inf)
@@ -126,7 +136,7 @@ def baum_welch(obs: Sequence[Sequence[np.ndarray]], B: np.ndarray, support: np.n
         start, trans = np.zeros((k, n_states)), np.zeros((k, n_states, n_states))
         visits, loglik = np.zeros((k, n_states)), np.zeros(k)
         for like in likes:
-            s, x, g, ll = forward_backward(like, A, pi)
+            s, x, g, ll = _forward_backward_tm(like, A, pi)
             start, trans, visits, loglik = start + s, trans + x, visits + g, loglik + ll
         rows = trans.sum(axis=2, keepdims=True)
         A = np.where(rows > 0, trans / np.maximum(rows, 1e-300), uniform)
