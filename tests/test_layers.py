@@ -373,3 +373,32 @@ def test_an_injected_cli_import_or_module_state_is_found(tmp_path, target, code,
     path.write_text(path.read_text() + "\n\n" + body + "\n")
     found = sorted(set(rule(copy)) - set(rule(SRC)))
     assert found and all(message in problem for problem in found), found
+
+
+# -- sizes: modules under 500 lines, function bodies under 60 ---------------------------------
+
+MAX_MODULE_LINES, MAX_BODY_LINES = 500, 60
+
+
+def _body_lines(node: ast.FunctionDef | ast.AsyncFunctionDef) -> int:
+    """Lines of a function's body without its docstring."""
+    body = node.body
+    docstring = isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant) \
+        and isinstance(body[0].value.value, str)
+    first = body[1] if docstring and len(body) > 1 else body[0]
+    return node.end_lineno - first.lineno + 1
+
+
+def test_modules_and_functions_stay_short():
+    long_modules, long_functions = [], []
+    for path in sorted((SRC / "simcred").rglob("*.py")):
+        text = path.read_text(encoding="utf-8")
+        name = path.relative_to(SRC).as_posix()
+        if text.count("\n") > MAX_MODULE_LINES:
+            long_modules.append(f"{name}: {text.count(chr(10))} lines")
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef) \
+                    and _body_lines(node) > MAX_BODY_LINES:
+                long_functions.append(f"{name}:{node.lineno} {node.name}: {_body_lines(node)}")
+    assert not long_modules, long_modules
+    assert not long_functions, long_functions

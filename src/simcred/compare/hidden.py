@@ -264,13 +264,7 @@ def compare_hidden(a: TraceSet | str | Path, b: TraceSet | str | Path, *, observ
     dt = float(gt.time[1] - gt.time[0])
     lags = tuple(sensor.signals[n].lag(dt) for n in names)
     crop = max(lags)
-    for ts in (full, recorded):
-        missing = [n for n in names if n not in ts.signals]
-        if missing:
-            raise OptionError(f"{ts.source}: no signal(s) {missing}")
-    if np.any(recorded.lengths <= crop + 1):
-        raise OptionError(f"{recorded.source}: runs too short for the sensor delay of {crop} "
-                          "samples")
+    _check_sets(full, recorded, names, crop)
 
     full_runs, gt_runs = _runs(full, names), _runs(gt, names)
     hidden_edges = [_edges(np.concatenate([r[:, j] for r in full_runs + gt_runs]), bins)
@@ -288,17 +282,7 @@ def compare_hidden(a: TraceSet | str | Path, b: TraceSet | str | Path, *, observ
     rec_obs, cal_obs = symbols(rec), symbols(cal)
     full_states = [_codes(r, hidden_edges) for r in full_runs]
     gt_states = [_codes(r[:len(r) - crop], hidden_edges) for r in gt_runs]
-    seen = np.zeros(n_states, bool)
-    for s, o in zip(gt_states, cal_obs, strict=True):
-        seen[s[o >= 0]] = True
-    visited = np.zeros(n_states, bool)
-    for s in full_states:
-        visited[s] = True
-    if np.any(visited & ~seen):
-        raise OptionError(f"hidden state(s) {np.flatnonzero(visited & ~seen).tolist()} visited "
-                          f"by side {'a' if observed == 'b' else 'b'} but never observed in the "
-                          "calibration runs: no emission model can be estimated for them; use "
-                          "fewer bins or more calibration runs")
+    seen = _seen_states(gt_states, cal_obs, full_states, n_states, observed)
     everything = np.arange(len(gt_states))
     B = _emissions(gt_states, cal_obs, n_states, n_symbols, everything)
     dropout = float(np.mean(np.concatenate(rec_obs) < 0))
@@ -313,6 +297,49 @@ def compare_hidden(a: TraceSet | str | Path, b: TraceSet | str | Path, *, observ
     A0 = np.where(pooled.sum(axis=1, keepdims=True) > 0, _rows(pooled), seen / seen.sum())
     pi0 = (start_full + pi_obs * len(rec_obs)) / (start_full.sum() + len(rec_obs))
     rng = stream(resolve_seed(seed), HIDDEN_KEY)
+    null = _bootstrap_null(rng, (A0, pi0, B, dropout, seen), full_states, rec_obs,
+                           (gt_states, cal_obs), n_symbols, n_resamples)
+    pvalue = float((1 + np.sum(null >= statistic)) / (1 + n_resamples))
+    markov, invariant = _assumption_checks(full_states, gt_states, cal_obs, n_states, n_symbols)
+    return HiddenComparison(statistic, pvalue, alpha, pvalue <= alpha, n_resamples, observed,
+                            n_states, lags, dropout, markov, invariant, A_obs, A_full, B, null)
+
+
+def _check_sets(full: TraceSet, recorded: TraceSet, names: list[str], crop: int) -> None:
+    for ts in (full, recorded):
+        missing = [n for n in names if n not in ts.signals]
+        if missing:
+            raise OptionError(f"{ts.source}: no signal(s) {missing}")
+    if np.any(recorded.lengths <= crop + 1):
+        raise OptionError(f"{recorded.source}: runs too short for the sensor delay of {crop} "
+                          "samples")
+
+
+def _seen_states(gt_states, cal_obs, full_states, n_states: int, observed: str) -> np.ndarray:
+    """The hidden states the calibration runs observe; one line if the fully observed side
+    visits another (no emission model can be estimated for it)."""
+    seen = np.zeros(n_states, bool)
+    for s, o in zip(gt_states, cal_obs, strict=True):
+        seen[s[o >= 0]] = True
+    visited = np.zeros(n_states, bool)
+    for s in full_states:
+        visited[s] = True
+    if np.any(visited & ~seen):
+        raise OptionError(f"hidden state(s) {np.flatnonzero(visited & ~seen).tolist()} visited "
+                          f"by side {'a' if observed == 'b' else 'b'} but never observed in the "
+                          "calibration runs: no emission model can be estimated for them; use "
+                          "fewer bins or more calibration runs")
+    return seen
+
+
+def _bootstrap_null(rng: np.random.Generator, model, full_states, rec_obs, calibration,
+                    n_symbols: int, n_resamples: int) -> np.ndarray:
+    """The parametric bootstrap: per resample, both sides simulated from the pooled chain
+    ``model`` = (A0, pi0, B, dropout, seen), the observed side through the emissions, the
+    emissions re-estimated from resampled calibration runs; the distance of each refit."""
+    A0, pi0, B, dropout, seen = model
+    gt_states, cal_obs = calibration
+    n_states = len(seen)
     cum = np.cumsum(B, axis=1)
     emitted, B_stars, full_stats = [], [], []
     for _ in range(n_resamples):
@@ -333,8 +360,12 @@ def compare_hidden(a: TraceSet | str | Path, b: TraceSet | str | Path, *, observ
         A_star = baum_welch(emitted[lo:lo + batch], np.stack(B_stars[lo:lo + batch]), seen)[0]
         for j, A_j in enumerate(A_star):
             null[lo + j] = _distance(A_j, *full_stats[lo + j])
-    pvalue = float((1 + np.sum(null >= statistic)) / (1 + n_resamples))
+    return null
 
+
+def _assumption_checks(full_states, gt_states, cal_obs, n_states: int, n_symbols: int):
+    """G-tests of the Markov property (second-order counts of the full side) and of
+    time-invariant emissions (first vs second half of each calibration run)."""
     order2 = np.zeros((n_states, n_states, n_states))
     for s in full_states:
         np.add.at(order2, (s[1:-1], s[:-2], s[2:]), 1)
@@ -343,6 +374,4 @@ def compare_hidden(a: TraceSet | str | Path, b: TraceSet | str | Path, *, observ
         half = (np.arange(len(s)) >= len(s) // 2).astype(int)
         fresh = o >= 0
         np.add.at(halves, (s[fresh], half[fresh], o[fresh]), 1)
-    return HiddenComparison(statistic, pvalue, alpha, pvalue <= alpha, n_resamples, observed,
-                            n_states, lags, dropout, _g_test(order2), _g_test(halves), A_obs,
-                            A_full, B, null)
+    return _g_test(order2), _g_test(halves)
