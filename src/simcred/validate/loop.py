@@ -48,13 +48,13 @@ from simcred.validate.domain import (
 from simcred.validate.learned import COMPONENT, TEST_CASE, library_dict
 from simcred.validate.learned import number as _exact_text
 from simcred.validate.plan import (
-    POWER,
     PairedInput,
     Plan,
     cell_rows,
     needed_text,
     pilot,
     plan,
+    power_per_cell,
 )
 from simcred.validate.ranking import Ranked, rank
 from simcred.validate.spec import RunsSpec, ValidationFileError, ValidationSpec
@@ -278,7 +278,7 @@ def _candidate_verdict(spec: ValidationSpec, name: str, domain: Domain, relevant
         return CandidateVerdict(name, VALID, (f"valid in all {len(cells)} cells of the test "
                                               "case; its learned contract refines the test "
                                               "case (z3)",), relevant, proof)
-    power = POWER ** (1 / max(len(relevant), 1))
+    power = power_per_cell(len(relevant))
     reasons = [_undecided(name, c, spec, power) for c in cells if c.status is not CellStatus.VALID]
     if beyond:
         reasons.append(beyond)

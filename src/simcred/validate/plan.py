@@ -154,6 +154,11 @@ class Plan:
                 "candidates": {n: c.to_dict() for n, c in self.candidates.items()}}
 
 
+def power_per_cell(cells: int) -> float:
+    """Each of ``cells`` cells' share of :data:`POWER`: VALID needs every cell."""
+    return POWER ** (1 / max(cells, 1))
+
+
 def needed_units(units: int, se: float, tolerance: float, estimate: float, alpha: float,
                  power: float) -> int | None:
     """At its estimate: ``m (z se / (δ − E))²`` rounded up (module docs); None if ``E ≥ δ`` or
@@ -210,14 +215,14 @@ def plan(spec: ValidationSpec, grid: Grid, found: Pilot, relevant: tuple[int, ..
     """The plan for the test case's cells (module docs); ``paired``: the candidates whose runs
     pair with the reference's, searched by simulation from their own pairs."""
     alpha = spec.comparison.alpha
-    cell_power = POWER ** (1 / max(len(relevant), 1))
+    cell_power = power_per_cell(len(relevant))
     rule, halves = found.rule, found.halves
     rows: list[PlanRow] = []
     for cell, result in found.comparisons.items():
         units = min(count_units(h, rule) for h in halves[cell])
         rows += _pilot_rows(spec, grid, cell, result, units, alpha, cell_power)
     for name, domain in domains.items():
-        rows += _candidate_rows(name, domain, relevant, spec, alpha, cell_power)
+        rows += _candidate_rows(name, domain, relevant, spec, cell_power)
     candidates = {name: _paired_search(spec, grid, name, given, relevant, rows, cell_power,
                                        reps) for name, given in (paired or {}).items()}
     missing = [grid.label(c) for c in relevant if c not in halves]
@@ -335,7 +340,7 @@ def _row(source, cell, label, m, effect, spec, alpha, cell_power) -> PlanRow:
                    needed_units(m, se, delta, effect.estimate, alpha, cell_power))
 
 
-def _candidate_rows(name, domain, relevant, spec, alpha, cell_power) -> list[PlanRow]:
+def _candidate_rows(name, domain, relevant, spec, cell_power) -> list[PlanRow]:
     out = []
     for cell in relevant:
         out += cell_rows(name, domain.cells[cell], spec, cell_power)
