@@ -51,6 +51,8 @@ LIMITS = {limit.name: limit for limit in (
     Limit("variations", 1_000_000, "variations of a scenario"),
     Limit("workers", 256, "Dask worker processes"),
     Limit("episodes", 1_000_000, "episodes of a study"),
+    Limit("scene_values", 100_000_000, "values (frames × objects × signals) of a levelX scene "
+          "run"),
 )}
 
 

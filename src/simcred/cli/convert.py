@@ -73,7 +73,9 @@ def convert(
         help="ROS 2 bag: comma-separated message field paths (twist.twist.linear.x) instead "
              "of the known types' signals.")] = None,
     runs: Annotated[str | None, typer.Option(
-        help="ROS 2 bag: bag (a bag is a run) or namespace (a topic namespace is a run).")
+        help="ROS 2 bag: bag (a bag is a run) or namespace (a topic namespace is a run). "
+             "highD family: tracks (a track is a run) or recordings (a recording is a run, "
+             "its tracks obj<id>. signals).")
                     ] = None,
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing OUT (never "
                                                                 "the input).")] = False,

@@ -77,7 +77,7 @@ FORMATS: dict[str, Format] = {f.name: f for f in (
     Format("osi", "osi", "ASAM OSI GroundTruth trace (.osi length-prefixed, .mcap)",
            ("objects_as", "missing"), ("host",)),
     Format("levelx", "levelx", "highD/inD/rounD/exiD/uniD folder (NN_tracks.csv, "
-           "NN_tracksMeta.csv, NN_recordingMeta.csv)", ("recordings", "direction")),
+           "NN_tracksMeta.csv, NN_recordingMeta.csv)", ("recordings", "direction", "runs")),
     Format("mdf", "mdf", "ASAM MDF4 measurement file (.mf4, .mdf) or a directory of them",
            ("channels", "resample", "run_channel")),
     Format("ros2", "rosbag", "ROS 2 bag directory (.db3 or .mcap storage) or a directory of bags",

@@ -8,9 +8,12 @@ reads a copy the user obtained; its tests build files from the published column 
 
 Rules (also in ``docs/formats.md``)
 -----------------------------------
-* **Runs**: every track is a run, id ``<recording>:<track>`` (``01:17``), recordings and tracks
-  in ascending order. A track with a single frame cannot be a run (no transition): it is left
-  out and counted in ``metadata["short_tracks"]``.
+* **Runs** (``runs="tracks"``, default): every track is a run, id ``<recording>:<track>``
+  (``01:17``), recordings and tracks in ascending order. A track with a single frame cannot be a
+  run (no transition): it is left out and counted in ``metadata["short_tracks"]``.
+  ``runs="recordings"``: every recording is a run with its tracks as objects ``obj<track>.*``
+  (the layout of :mod:`simcred.io.levelx_scenes`); signals, direction and per-track metadata are
+  those of track mode.
 * **Time**: ``t = frame / frameRate`` of the recording (seconds since the recording started).
 * **Signals** (SI units, in ``metadata["units"]``): ``x``, ``y`` (centre of the vehicle), ``vx``,
   ``vy``, ``ax``, ``ay``; highD adds ``lane`` (the file's ``laneId``, a feature like any other),
@@ -44,10 +47,12 @@ import pyarrow.csv as pacsv
 from simcred.errors import OptionError, TraceSetError
 from simcred.io._columns import check_table, float_column
 from simcred.io._paths import local
+from simcred.io.levelx_scenes import scenes
 from simcred.traces import RUN_INFO, TraceSet, handed_over
 
 TRACKS = re.compile(r"^(\d+)_tracks\.csv$")
 DIRECTIONS = ("normalise", "keep")
+RUNS = ("tracks", "recordings")
 UNITS = {"x": "m", "y": "m", "vx": "m/s", "vy": "m/s", "ax": "m/s^2", "ay": "m/s^2",
          "lane": "", "heading": "deg"}
 
@@ -82,15 +87,41 @@ def is_levelx(directory: Path) -> bool:
 
 
 def read(directory: Path, *, recordings: Sequence[str] | None = None,
-         direction: str = "normalise") -> TraceSet:
-    """Read the recordings of a levelX folder, every track a run (see the module rules).
+         direction: str = "normalise", runs: str = "tracks") -> TraceSet:
+    """Read the recordings of a levelX folder (see the module rules).
 
     ``recordings``: the recording numbers to read (``["01", "02"]``; default all).
+    ``runs``: ``"tracks"`` (every track a run) or ``"recordings"`` (every recording a run, its
+    tracks the objects ``obj<track>.<signal>``: :mod:`simcred.io.levelx_scenes`).
     """
     if direction not in DIRECTIONS:
         raise OptionError(f"direction must be one of {', '.join(DIRECTIONS)}, got {direction!r}")
-    found = sorted((m.group(1), p) for p in Path(directory).iterdir()
-                   if (m := TRACKS.match(p.name)))
+    if runs not in RUNS:
+        raise OptionError(f"runs must be one of {', '.join(RUNS)}, got {runs!r}")
+    loaded = [_load(directory, name, path, direction)
+              for name, path in _found(Path(directory), recordings)]
+    for part in loaded[1:]:
+        if part.signals != loaded[0].signals:
+            raise TraceSetError(f"{part.where}: layout {list(part.signals)} differs from "
+                                f"{loaded[0].where}: {list(loaded[0].signals)}")
+    if runs == "recordings":
+        return scenes(loaded, UNITS, direction, str(directory))
+    parts = [_track_runs(part) for part in loaded]
+    lengths = np.concatenate([p.lengths for p in parts])
+    return TraceSet(
+        signals=parts[0].signals,
+        time=handed_over(np.concatenate([p.time for p in parts])),
+        values=handed_over(np.concatenate([p.values for p in parts])),
+        offsets=np.concatenate([[0], np.cumsum(lengths)]),
+        run_ids=tuple(r for p in parts for r in p.run_ids),
+        metadata=_merged_metadata(parts, direction),
+        source=str(directory),
+    )
+
+
+def _found(directory: Path, recordings: Sequence[str] | None) -> list[tuple[str, Path]]:
+    """The ``(recording, tracks file)`` pairs to read, in ascending order."""
+    found = sorted((m.group(1), p) for p in directory.iterdir() if (m := TRACKS.match(p.name)))
     if recordings is not None:
         wanted = [str(r) for r in ([recordings] if isinstance(recordings, str) else recordings)]
         known = [n for n, _ in found]
@@ -101,22 +132,7 @@ def read(directory: Path, *, recordings: Sequence[str] | None = None,
         found = [(n, p) for n, p in found if n in wanted]
     if not found:
         raise TraceSetError(f"{directory}: no levelX recording (NN_tracks.csv) in the folder")
-    parts = [_recording(directory, name, path, direction) for name, path in found]
-    signals = parts[0].signals
-    for part in parts[1:]:
-        if part.signals != signals:
-            raise TraceSetError(f"{part.source}: layout {list(part.signals)} differs from "
-                                f"{parts[0].source}: {list(signals)}")
-    lengths = np.concatenate([p.lengths for p in parts])
-    return TraceSet(
-        signals=signals,
-        time=handed_over(np.concatenate([p.time for p in parts])),
-        values=handed_over(np.concatenate([p.values for p in parts])),
-        offsets=np.concatenate([[0], np.cumsum(lengths)]),
-        run_ids=tuple(r for p in parts for r in p.run_ids),
-        metadata=_merged_metadata(parts, direction),
-        source=str(directory),
-    )
+    return found
 
 
 def _merged_metadata(parts: list[TraceSet], direction: str) -> dict:
@@ -196,13 +212,32 @@ def _cell(text: str | None) -> str | int | float | None:
     return value if math.isfinite(value) else None
 
 
-def _recording(directory: Path, name: str, path: Path, direction: str) -> TraceSet:
+@dataclass(frozen=True, slots=True)
+class Recording:
+    """One recording read and checked, before it becomes runs: its rows ordered by track and
+    frame, the direction already normalised; track ``ids[i]`` is rows
+    ``starts[i]:starts[i] + counts[i]``."""
+
+    name: str
+    where: str  # the tracks file, for errors and as the source
+    layout: Layout
+    signals: tuple[str, ...]
+    frame: np.ndarray  # int64, per row
+    time: np.ndarray  # frame / frameRate, per row
+    values: np.ndarray  # (rows, signals)
+    ids: np.ndarray
+    starts: np.ndarray
+    counts: np.ndarray
+    info: dict[int, dict]  # per track id, see _track_info
+    row: dict  # the recordingMeta row
+
+
+def _load(directory: Path, name: str, path: Path, direction: str) -> Recording:
     tracks = _csv(path)
     layout = LEVELX if LEVELX.x in tracks.column_names else HIGHD
     meta_path = directory / f"{name}_tracksMeta.csv"
-    rec_path = directory / f"{name}_recordingMeta.csv"
     meta = _csv(meta_path)
-    rate, rec_row = _recording_meta(rec_path)
+    rate, rec_row = _recording_meta(directory / f"{name}_recordingMeta.csv")
     where = str(path)
 
     track = _ids(tracks, layout.track, where)
@@ -232,23 +267,28 @@ def _recording(directory: Path, name: str, path: Path, direction: str) -> TraceS
         upper_track = np.array([info[int(t)]["driving_direction"] == 1 for t in ids])
         turned = [signals.index(s) for s in TURNED]
         values[np.ix_(np.repeat(upper_track, counts), turned)] *= -1.0
+    return Recording(name, where, layout, signals, frame, frame / rate, values, ids, starts,
+                     counts, info, rec_row)
 
-    keep = counts >= 2
+
+def _track_runs(rec: Recording) -> TraceSet:
+    """Every track of ``rec`` with two frames or more a run; single-frame tracks counted."""
+    keep = rec.counts >= 2
     if not keep.any():
-        raise TraceSetError(f"{where}: no track has two frames or more")
-    short = {f"{name}:{t}": int(c) for t, c in zip(ids[~keep], counts[~keep], strict=True)}
+        raise TraceSetError(f"{rec.where}: no track has two frames or more")
+    ids, name = rec.ids, rec.name
+    short = {f"{name}:{t}": int(c) for t, c in zip(ids[~keep], rec.counts[~keep], strict=True)}
     rows = np.concatenate([np.arange(s, s + c) for s, c in
-                           zip(starts[keep], counts[keep], strict=True)])
-    run_ids = tuple(f"{name}:{t}" for t in ids[keep])
+                           zip(rec.starts[keep], rec.counts[keep], strict=True)])
     metadata = {
-        "format": layout.name, "units": {s: UNITS[s] for s in signals},
-        RUN_INFO: {f"{name}:{t}": info[int(t)] for t in ids[keep]},
-        "recordings": {name: rec_row},
+        "format": rec.layout.name, "units": {s: UNITS[s] for s in rec.signals},
+        RUN_INFO: {f"{name}:{t}": rec.info[int(t)] for t in ids[keep]},
+        "recordings": {name: rec.row},
         **({"short_tracks": short} if short else {}),
     }
-    return TraceSet(signals, handed_over(frame[rows] / rate), handed_over(values[rows]),
-                    np.concatenate([[0], np.cumsum(counts[keep])]), run_ids, metadata,
-                    source=where)
+    return TraceSet(rec.signals, handed_over(rec.time[rows]), handed_over(rec.values[rows]),
+                    np.concatenate([[0], np.cumsum(rec.counts[keep])]),
+                    tuple(f"{name}:{t}" for t in ids[keep]), metadata, source=rec.where)
 
 
 def _track_info(meta: pa.Table, layout: Layout, where: str, recording: str) -> dict[int, dict]:
