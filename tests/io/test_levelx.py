@@ -244,8 +244,9 @@ def test_malformed_highd_folder_is_one_line_exit_2(tmp_path, name):
     lines = [line for line in err.splitlines() if line.strip()]
     assert len(lines) == 1 and lines[0].startswith("error:"), err[-400:]
     assert "Traceback" not in err + out and "corrupt_h" in lines[0]
-    with pytest.raises((TraceSetError, OptionError)):
-        read(folder)
+    for runs in ("tracks", "recordings"):  # the scene mode reads through the same checks
+        with pytest.raises((TraceSetError, OptionError)):
+            read(folder, runs=runs)
 
 
 def test_twenty_malformed_cases():
@@ -256,3 +257,122 @@ def test_highd_folder_copy_reads_the_same(tmp_path):
     folder = highd_folder(tmp_path / "h", TWO)
     shutil.copytree(folder, tmp_path / "copy")
     assert read(tmp_path / "copy").equals(read(folder))
+
+
+# -- scene mode: every recording a run, its tracks the objects -------------------------------------
+
+
+def two_recordings(folder: Path) -> Path:
+    """Recording 01: TWO plus a single-frame track 9; recording 02: tracks 3 and 7 (another 7)."""
+    highd_folder(folder, {**TWO, 9: {**TWO[1], "frames": [6], "x0": 50.0}})
+    return highd_folder(folder, {3: {**TWO[7], "frames": [10, 11, 13]},
+                                 7: {**TWO[1], "frames": [11, 12], "cls": "Car"}}, rec="02")
+
+
+def test_scene_mode_holds_every_row_of_track_mode_once(tmp_path):
+    folder = two_recordings(tmp_path / "h")
+    tracks, scenes = read(folder), read(folder, runs="recordings")
+    assert scenes.run_ids == ("01", "02") and scenes.metadata["runs"] == "recordings"
+    fields = ("x", "y", "vx", "vy", "ax", "ay", "lane", "present")
+    assert scenes.signals == tuple(f"obj{t}.{s}" for t in (1, 3, 7, 9) for s in fields)
+    assert scenes.run(0)["t"].tolist() == [f / 25 for f in (0, 1, 2, 3, 4, 6)]
+    present = {(r, t): scenes.run(i)[f"obj{t}.present"] == 1 for i, r in enumerate(("01", "02"))
+               for t in (1, 3, 7, 9)}
+    file_rows = 3 + 4 + 1 + 3 + 2
+    assert sum(int(p.sum()) for p in present.values()) == file_rows  # each row once
+    for run_id in tracks.run_ids:  # a track-mode run is its object's present frames, bit for bit
+        rec, track = run_id.split(":")
+        run, scene = tracks.run(tracks.run_ids.index(run_id)), scenes.run(scenes.run_ids.index(rec))
+        here = present[(rec, int(track))]
+        assert scene["t"][here].tolist() == run["t"].tolist()
+        for s in tracks.signals:
+            assert scene[f"obj{track}.{s}"][here].tolist() == run[s].tolist()
+            assert not scene[f"obj{track}.{s}"][~here].any()  # absent: 0
+    single = scenes.run(0)  # track 9, a single frame: left out of track mode, an object here
+    assert single["obj9.present"].tolist() == [0, 0, 0, 0, 0, 1]
+    assert single["obj9.x"][-1] == -(50.0 + 2.25) and single["obj9.vx"][-1] == 30.0
+    assert not present[("01", 3)].any() and not present[("02", 1)].any()  # not in the recording
+
+
+def test_scene_mode_keeps_metadata_per_object_through_convert(tmp_path):
+    folder = two_recordings(tmp_path / "h")
+    scenes = read(folder, runs="recordings")
+    objects = scenes.metadata[RUN_INFO]["02"]["objects"]
+    assert list(objects) == ["obj3", "obj7"]
+    assert objects["obj3"] == {"recording": "02", "track": 3, "class": "Truck", "width": 2.5,
+                               "length": 12.0, "driving_direction": 2}
+    assert scenes.metadata[RUN_INFO]["01"]["objects"]["obj7"]["class"] == "Truck"  # another 7
+    assert scenes.units["obj3.vx"] == "m/s" and scenes.units["obj3.present"] == ""
+    assert scenes.metadata["recordings"]["02"]["startTime"] == "08:38"
+    assert run(["convert", str(folder), str(tmp_path / "s.parquet"), "--runs", "recordings"]) == 0
+    back = TraceSet.read(tmp_path / "s.parquet")
+    assert back.digest() == scenes.digest()
+    assert {k: v for k, v in back.metadata.items() if k != "converted_from"} == scenes.metadata
+    assert back.metadata["converted_from"]["options"]["runs"] == "recordings"
+    json.dumps(dict(scenes.metadata), allow_nan=False)
+
+
+def test_scene_mode_direction_keep_and_ind_layout(tmp_path):
+    kept = read(highd_folder(tmp_path / "h", TWO), runs="recordings", direction="keep")
+    assert kept.run(0)["obj1.x"][0] == 100.0 + 2.25 and kept.run(0)["obj1.vx"][0] == -30.0
+    folder = tmp_path / "ind"
+    folder.mkdir()
+    rows = [{"trackId": k, "frame": f, "xCenter": 1.0 + f, "yCenter": -2.0 * k,
+             "heading": 90.0} for k in (0, 1) for f in range(k, 3)]
+    write_table(folder / "00_tracks.csv", IND_TRACKS, rows)
+    write_table(folder / "00_tracksMeta.csv", IND_META,
+                [{"trackId": k, "width": 0.8, "length": 1.9, "class": c}
+                 for k, c in ((0, "bicycle"), (1, "pedestrian"))])
+    write_table(folder / "00_recordingMeta.csv", IND_RECORDING, [{"frameRate": 25}])
+    ts = TraceSet.read(folder, runs="recordings")
+    assert ts.run_ids == ("00",) and "obj1.heading" in ts.signals and "obj1.lane" not in ts.signals
+    assert ts.column("obj1.present").tolist() == [0, 1, 1]
+    assert ts.column("obj1.y").tolist() == [0.0, -2.0, -2.0]
+    assert ts.metadata[RUN_INFO]["00"]["objects"]["obj1"]["class"] == "pedestrian"
+
+
+def test_scene_mode_refuses_a_single_frame_and_too_many_values(tmp_path, monkeypatch):
+    folder = highd_folder(tmp_path / "h", {1: {**TWO[1], "frames": [4]}})
+    with pytest.raises(TraceSetError, match="01_tracks.csv: a single frame \\(4\\)"):
+        read(folder, runs="recordings")
+    monkeypatch.setenv("SIMCRED_MAX_SCENE_VALUES", "79")  # 5 frames × 2 objects × 8 signals
+    with pytest.raises(OptionError, match="runs='recordings'.* = 80 exceeds the limit of 79"):
+        read(highd_folder(tmp_path / "two", TWO), runs="recordings")
+
+
+def scene_traffic(folder: Path, seed: int, shift: float = 0.0) -> Path:
+    """Eight recordings of 12 vehicles coming and going, speeds around 30 m/s."""
+    rng = np.random.default_rng(seed)
+    for rec in range(1, 9):
+        tracks = {tid: {"frames": list(range(3 * tid, 3 * tid + 40)),
+                        "x0": float(rng.uniform(0, 300)), "v": float(rng.normal(30, 3)),
+                        "lane": 2 if tid % 2 else 6, "direction": 1 if tid % 2 else 2,
+                        "cls": "Car", "w": 4.5, "h": 1.8} for tid in range(1, 13)}
+        highd_folder(folder, tracks, rec=f"{rec:02d}", shift=shift)
+    return folder
+
+
+@pytest.mark.parametrize("shift, same", [(0.0, True), (15.0, False)])
+def test_cli_compare_on_highd_folders_in_scene_mode(tmp_path, capsys, shift, same):
+    a = scene_traffic(tmp_path / "a", seed=1)
+    b = scene_traffic(tmp_path / "b", seed=1, shift=shift)
+    code = run(["compare", str(a), str(b), "--read", "runs=recordings", "-f", "obj4.vx",
+                "--bins", "4", "--permutations", "99", "--seed", "3", "--json"])
+    assert code == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["chain"]["rejected"] is (not same)
+    if same:
+        assert doc["distance"] == 0.0 and not doc["start"]["rejected"]
+
+
+@pytest.mark.parametrize("command", [["convert", "{f}", "{f}.parquet", "--runs", "scenes"],
+                                     ["compare", "{f}", "{f}", "-f", "vx", "--read",
+                                      "runs=scenes"]])
+def test_scene_option_bad_value_is_one_line_exit_2(tmp_path, command):
+    folder = highd_folder(tmp_path / "h", TWO)
+    code, out, err, _ = run_isolated([c.format(f=folder) for c in command], 10)
+    assert code == 2, (code, err[-400:])
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert lines == ["error: runs must be one of tracks, recordings, got 'scenes'"], err[-400:]
+    with pytest.raises(OptionError, match="runs must be one of tracks, recordings"):
+        read(folder, runs="scenes")
