@@ -292,6 +292,9 @@ def test_scene_mode_holds_every_row_of_track_mode_once(tmp_path):
     assert single["obj9.present"].tolist() == [0, 0, 0, 0, 0, 1]
     assert single["obj9.x"][-1] == -(50.0 + 2.25) and single["obj9.vx"][-1] == 30.0
     assert not present[("01", 3)].any() and not present[("02", 1)].any()  # not in the recording
+    only = read(folder, runs="recordings", recordings=["02"])
+    assert only.run_ids == ("02",) and only.signals[::8] == ("obj3.x", "obj7.x")
+    assert only.run(0)["obj7.x"].tolist() == scenes.run(1)["obj7.x"].tolist()
 
 
 def test_scene_mode_keeps_metadata_per_object_through_convert(tmp_path):

@@ -82,6 +82,7 @@ def compare(
     read: Annotated[list[str] | None, typer.Option(
         "--read", help="A reader option KEY=VALUE for both inputs, repeatable (the format's own, "
                        "as in `simcred convert`: e.g. runs=namespace for ROS 2 bags, "
+                       "runs=recordings for highD-family folders, "
                        "topics=/a/odom,/b/odom).")] = None,
     observed: Annotated[Side | None, typer.Option(
         help="The side that is a sensor's recording; the other side's ground truth is pushed "
