@@ -11,6 +11,7 @@ import yaml
 from simcred.cli import run
 from simcred.compare import Method
 from simcred.validate.spec import (
+    FILE_FIELDS,
     NOT_IN_FILE,
     ComparisonSpec,
     ValidationFileError,
@@ -155,13 +156,22 @@ def test_every_method_field_is_a_key_or_excluded_with_a_reason():
     assert keys | set(NOT_IN_FILE) == fields and not keys & set(NOT_IN_FILE)
     assert all(reason.strip() for reason in NOT_IN_FILE.values())
     assert set(VALUES) == keys  # a new key of the section needs a value here
+    assert set(FILE_FIELDS) <= keys
+
+
+def test_recorded_options_are_the_file_keys_and_what_it_sets():
+    """verdict.json's provenance.options.comparison: the file's own keys always, a key with
+    Method's default only where the file sets it otherwise (earlier verdicts keep their bytes)."""
+    assert list(ComparisonSpec().model_dump()) == list(FILE_FIELDS)
+    assert list(ComparisonSpec(time_bins=4).model_dump()) == [*FILE_FIELDS, "time_bins"]
 
 
 @pytest.mark.parametrize("key", sorted(VALUES))
 def test_every_key_reaches_the_method(key):
-    method = parse_validation(_with_comparison(**{key: VALUES[key]}), source="v.yaml").method
-    expected = VALUES[key]
+    spec = parse_validation(_with_comparison(**{key: VALUES[key]}), source="v.yaml")
+    method, expected = spec.method, VALUES[key]
     assert getattr(method, key) == (tuple(expected) if isinstance(expected, list) else expected)
+    assert spec.model_dump(mode="json")["comparison"][key] == expected  # the verdict records it
     assert method.test.value == "response" and method.inputs == ("v",)
 
 

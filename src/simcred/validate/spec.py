@@ -34,10 +34,12 @@ from pydantic import (
     BaseModel,
     ConfigDict,
     Field,
+    SerializerFunctionWrapHandler,
     ValidationError,
     ValidationInfo,
     create_model,
     field_validator,
+    model_serializer,
     model_validator,
 )
 
@@ -222,6 +224,9 @@ NOT_IN_FILE = {
 }
 #: The section's own defaults and ranges where they differ from :class:`Method`'s (type, default
 #: or ``Field``); every other key has Method's default.
+#: These keys come first and are always recorded (``verdict.json`` ``provenance.options``); the
+#: others follow in Method's order and are recorded where the file sets them to other than
+#: Method's default (so a verdict records what a file of the earlier sections recorded).
 FILE_FIELDS: dict[str, tuple[Any, Any]] = {
     "bins": (int | list[int], 3),
     "alpha": (float, Field(default=0.05, gt=0, lt=1)),
@@ -244,6 +249,12 @@ class _MethodKeys(_Strict):
             raise ValueError(str(exc)) from None
         return value
 
+    @model_serializer(mode="wrap")
+    def _recorded(self, handler: SerializerFunctionWrapHandler) -> dict[str, Any]:
+        fields = type(self).model_fields
+        return {k: v for k, v in handler(self).items()
+                if k in FILE_FIELDS or getattr(self, k) != fields[k].default}
+
 
 COMPARISON_DOC = """Options of the response comparison (``compare(test="response")``) in every cell:
 every field of :class:`~simcred.compare.Method` except those in :data:`NOT_IN_FILE` (``bins``
@@ -254,8 +265,9 @@ replicates of the deviation's bounds, ``seed``, ``resample`` (s), ``history``, `
 
 
 def _comparison_spec() -> type[_Strict]:
-    fields = {f.name: FILE_FIELDS.get(f.name, (Any, f.default))
-              for f in dataclasses.fields(Method) if f.name not in NOT_IN_FILE}
+    fields = dict(FILE_FIELDS)
+    fields.update((f.name, (Any, f.default)) for f in dataclasses.fields(Method)
+                  if f.name not in NOT_IN_FILE and f.name not in FILE_FIELDS)
     return create_model("ComparisonSpec", __base__=_MethodKeys, __module__=__name__,
                         __doc__=COMPARISON_DOC, **fields)
 
