@@ -4,10 +4,12 @@ cell result as validate for the same inputs, files and CLI."""
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
 
+from simcred.compare import Method
 from simcred.errors import OptionError
 from simcred.io.openacc import HUMAN, read_openacc
 from simcred.regions import CellStatus
@@ -45,9 +47,38 @@ def judged():
                                     {"features": ("gap", "x")}, {"inputs": ("a",)},
                                     {"inputs": ("gap", "v", "v_leader")},
                                     {"tolerance": {"v_leader": 0.1}}, {"tolerance": {"v": -1}},
-                                    {"min_runs": 1}, {"seed": -1}])
+                                    {"min_runs": 1}, {"seed": -1}, {"alpha": "x"},
+                                    {"bins": (3, 4)}, {"sample_step": None},
+                                    {"features": ("gap", "gap")}, {"permutations": 0},
+                                    {"seed": np.random.default_rng(0)}])
 def test_bad_options(kwargs):
     with pytest.raises(OptionError):
+        StudyOptions(**kwargs)
+
+
+@pytest.mark.parametrize(("kwargs", "method"), [
+    ({"alpha": 1.5}, {"alpha": 1.5}), ({"alpha": "x"}, {"alpha": "x"}),
+    ({"sample_step": 0}, {"resample": 0}), ({"seed": 1.5}, {"seed": 1.5}),
+    ({"permutations": 2.5}, {"permutations": 2.5}),
+    ({"features": ("gap", "gap")}, {"features": ("gap", "gap")})])
+def test_comparison_options_are_checked_by_method(kwargs, method):
+    """One place: the study's comparison options fail with Method's own message."""
+    with pytest.raises(OptionError) as expected:
+        Method(test="response", **method)
+    with pytest.raises(OptionError, match=f"^{re.escape(str(expected.value))}$"):
+        StudyOptions(**kwargs)
+
+
+@pytest.mark.parametrize(("kwargs", "needle"), [
+    ({"inputs": ("a",)}, "input 'a' is not one of the features"),  # compare's own checks
+    ({"inputs": ("gap", "v", "v_leader")}, "every feature is declared an input"),
+    ({"bins": 1}, "bins must be integers >= 2"), ({"bins": (3, 4)}, "bins gives 2 values"),
+    ({"permutations": 0}, "permutations must be at least 19"),  # the study's least sizes
+    ({"bootstrap": -1}, "bootstrap must be at least 100"),
+    ({"features": ("gap", "x")}, "unknown feature(s) x"),
+    ({"seed": np.random.default_rng(0)}, "seeds the SUMO replays")])
+def test_study_messages(kwargs, needle):
+    with pytest.raises(OptionError, match=re.escape(needle)):
         StudyOptions(**kwargs)
 
 

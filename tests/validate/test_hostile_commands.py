@@ -86,3 +86,30 @@ def test_a_disk_fault_in_a_candidates_simulation_is_exit_74(tmp_path, monkeypatc
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "no space left" in err
     assert not (tmp_path / "DIR").exists() and not (tmp_path / "DIR.partial").exists()
+
+
+def test_validate_runs_a_simulator_without_the_cli(tmp_path):
+    """The library runs a candidate's simulator command through the simulator registry: the
+    CLI is never imported (no re-entry, no global state)."""
+    import os
+    import subprocess
+    import sys
+
+    import simcred
+
+    path = write_universe(tmp_path, runs=10, steps=20, candidates={
+        "sim": {"simulate": {"command": SIMPLECAR, "output": "."}}})
+    code = (
+        "import sys\n"
+        "from pathlib import Path\n"
+        "from simcred.validate import read_inputs, read_validation, simulate_candidates\n"
+        f"spec, base = read_validation({str(path)!r})\n"
+        f"made = simulate_candidates(spec, base, Path({str(tmp_path / 'DIR')!r}))\n"
+        "inputs = read_inputs(spec, base, made)\n"
+        "assert inputs.candidates['sim'].n_runs == 2, inputs.candidates['sim'].n_runs\n"
+        "assert not [m for m in sys.modules if m.startswith('simcred.cli')]\n"
+    )
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+        [str(Path(simcred.__file__).parents[1]), os.environ.get("PYTHONPATH", "")])}
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
+    assert done.returncode == 0, done.stderr

@@ -2,11 +2,22 @@
 
 from __future__ import annotations
 
+import dataclasses
+from pathlib import Path
+
 import pytest
 import yaml
 
 from simcred.cli import run
-from simcred.validate.spec import ValidationFileError, read_validation
+from simcred.compare import Method
+from simcred.validate.spec import (
+    FILE_FIELDS,
+    NOT_IN_FILE,
+    ComparisonSpec,
+    ValidationFileError,
+    parse_validation,
+    read_validation,
+)
 
 from .conftest import write_universe
 
@@ -20,7 +31,8 @@ def _mutated(path, change):
 
 CASES = [
     ("unknown top-level key", lambda d: d.update(extra=1), "extra"),
-    ("unknown nested key", lambda d: d["comparison"].update(bin=3), "comparison.bin"),
+    ("unknown nested key", lambda d: d["comparison"].update(bin=3),
+     "comparison.bin: unknown key (the section takes bins, alpha"),
     ("missing test case", lambda d: d.pop("test_case"), "test_case"),
     ("edges not increasing", lambda d: d["conditions"]["v"].update(edges=[5, 5, 10]),
      "conditions.v.edges"),
@@ -30,8 +42,10 @@ CASES = [
      "acceptance: no longer an option"),
     ("removed max_distance", lambda d: d["test_case"].update(max_distance=0.5),
      "test_case.max_distance: no longer an option"),
-    ("removed baseline", lambda d: d["comparison"].update(baseline=3),
-     "comparison.baseline: no longer an option"),
+    ("baseline not an option", lambda d: d["comparison"].update(baseline=3),
+     "comparison.baseline: not an option of the validation file"),
+    ("history below 1", lambda d: d["comparison"].update(history=0),
+     "comparison.history: history must be an integer >= 1"),
     ("missing tolerance", lambda d: d["test_case"].pop("tolerance"), "test_case.tolerance"),
     ("tolerance not positive", lambda d: d["test_case"].update(tolerance={"x": 0}),
      "test_case.tolerance: tolerance of 'x' must be a finite number > 0 or"),
@@ -118,3 +132,79 @@ def test_failing_simulator_command_names_the_candidate(tmp_path, capsys):
     assert run(["validate", str(path), "--out", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err
     assert "candidates.sim.simulate" in err and "Traceback" not in err
+
+
+# -- the comparison section: every field of Method, or excluded with its reason ---------------
+
+#: A valid value of every key of the comparison section that is not the file's default.
+VALUES = {"bins": [4, 5], "alpha": 0.1, "permutations": 99, "seed": 3, "history": 2,
+          "time_bins": 3, "resample": 0.5, "bootstrap": 200}
+DOCUMENT = {"test_case": {"conditions": "10 <= v <= 25", "tolerance": {"x": 1.0}},
+            "reference": {"path": "ref.parquet"},
+            "candidates": {"sim": {"runs": {"path": "sim.parquet"}}},
+            "features": ["x", "v"], "inputs": ["v"],
+            "conditions": {"v": {"edges": [5, 10, 20]}}}
+
+
+def _with_comparison(**comparison):
+    return {**DOCUMENT, "comparison": comparison}
+
+
+def test_every_method_field_is_a_key_or_excluded_with_a_reason():
+    fields = {f.name for f in dataclasses.fields(Method)}
+    keys = set(ComparisonSpec.model_fields)
+    assert keys | set(NOT_IN_FILE) == fields and not keys & set(NOT_IN_FILE)
+    assert all(reason.strip() for reason in NOT_IN_FILE.values())
+    assert set(VALUES) == keys  # a new key of the section needs a value here
+    assert set(FILE_FIELDS) <= keys
+
+
+def test_recorded_options_are_the_file_keys_and_what_it_sets():
+    """verdict.json's provenance.options.comparison: the file's own keys always, a key with
+    Method's default only where the file sets it otherwise (earlier verdicts keep their bytes)."""
+    assert list(ComparisonSpec().model_dump()) == list(FILE_FIELDS)
+    assert list(ComparisonSpec(time_bins=4).model_dump()) == [*FILE_FIELDS, "time_bins"]
+
+
+@pytest.mark.parametrize("key", sorted(VALUES))
+def test_every_key_reaches_the_method(key):
+    spec = parse_validation(_with_comparison(**{key: VALUES[key]}), source="v.yaml")
+    method, expected = spec.method, VALUES[key]
+    assert getattr(method, key) == (tuple(expected) if isinstance(expected, list) else expected)
+    assert spec.model_dump(mode="json")["comparison"][key] == expected  # the verdict records it
+    assert method.test.value == "response" and method.inputs == ("v",)
+
+
+def test_defaults_are_the_files():
+    method = parse_validation(_with_comparison(), source="v.yaml").method
+    assert (method.bins, method.alpha, method.permutations, method.bootstrap, method.seed,
+            method.history, method.time_bins, method.resample) == (3, 0.05, 199, 500, 0, 1,
+                                                                   None, None)
+
+
+@pytest.mark.parametrize("key", sorted(NOT_IN_FILE))
+def test_excluded_field_is_one_line_with_its_reason(key):
+    with pytest.raises(ValidationFileError) as info:
+        parse_validation(_with_comparison(**{key: 1}), source="v.yaml")
+    assert str(info.value) == (f"v.yaml: comparison.{key}: not an option of the validation "
+                               f"file: {NOT_IN_FILE[key]}")
+
+
+@pytest.mark.parametrize(("key", "value", "needle"), [
+    ("time_bins", 1, "time-bins must be an integer >= 2"),
+    ("history", "two", "history must be an integer >= 1"),
+    ("permutations", 5, "Input should be greater than or equal to 19"),
+    ("nope", 1, "unknown key"),
+])
+def test_bad_comparison_value_is_one_line_naming_the_key(key, value, needle):
+    with pytest.raises(ValidationFileError) as info:
+        parse_validation(_with_comparison(**{key: value}), source="v.yaml")
+    message = str(info.value)
+    assert "\n" not in message and message.startswith(f"v.yaml: comparison.{key}: ")
+    assert needle in message
+
+
+def test_docs_name_every_key_and_every_exclusion():
+    text = (Path(__file__).parents[2] / "docs" / "validate.md").read_text()
+    for key in (*ComparisonSpec.model_fields, *NOT_IN_FILE):
+        assert f"`{key}`" in text, key

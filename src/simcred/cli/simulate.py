@@ -17,8 +17,6 @@ from simcred.cli._app import (
     say,
 )
 from simcred.cli._writing import Overwrite, Resume, trace_set_kind, writing
-from simcred.errors import OptionError
-from simcred.limits import check_count, check_finite
 
 simulate_app = typer.Typer(help="Simulate seeded campaigns of runs into trace sets.")
 app.add_typer(simulate_app, name="simulate")
@@ -30,18 +28,26 @@ TraceOut = Annotated[Path, typer.Option(help="Trace set to write: a directory (C
 ChunkSize = Annotated[int, typer.Option(help="Runs per task.")]
 
 
-def _simulate(experiment, params: dict, runs: int, seed: int, out: Path, chunk_size: int,
-              workers: int | None, scheduler: str | None, overwrite: bool, resume: bool) -> None:
-    from simcred.sim.campaign import Campaign
+def _simulate(name: str, out: Path, params: dict, *, overwrite: bool = False,
+              resume: bool = False) -> None:
+    """Run the simulator ``name`` of :data:`simcred.sim.registry.SIMULATORS` (its checks first,
+    then its runs written atomically to ``out``)."""
+    from simcred.sim.registry import SIMULATORS
 
-    campaign = Campaign(experiment, runs, seed, params, chunk_size)
-    with writing(out, kind=trace_set_kind(out), overwrite=overwrite, resume=resume) as target, \
-            target.engine(workers, scheduler) as runner:
-        traces = campaign.run(runner=runner, progress=progress("simulating chunks"))
-        traces.write(target.path)
+    simulator = SIMULATORS[name]
+    params = simulator.defaults(**params)
+    simulator.check(params)
+    kind = trace_set_kind(out) if simulator.trace_set else "directory"
+    with writing(out, *simulator.inputs(params), kind=kind, overwrite=overwrite,
+                 resume=resume if simulator.resumable else None) as target:
+        if simulator.runner:
+            with target.engine(params["workers"], params["scheduler"]) as runner:
+                summary = simulator.write(target.path, params, runner,
+                                          progress(simulator.progress))
+        else:
+            summary = simulator.write(target.path, params, None, None)
     if not State.quiet:
-        say(f"wrote {out}: {traces.n_runs} runs, {traces.n_rows} rows, "
-            f"signals {', '.join(traces.signals)}")
+        say(f"wrote {out}{'/' if simulator.slash else ''}: {summary}")
 
 
 @simulate_app.command("simplecar")
@@ -61,15 +67,10 @@ def simulate_simplecar(
     resume: Resume = False,
 ) -> None:
     """SimpleCar runs of the λ sweep (Neurohr et al. sec. VI-A, eq. 8)."""
-    from simcred.sim.experiments import simplecar_sweep
-
-    check_finite(lam, "--lambda", minimum=0.01, open_minimum=True, maximum=100)
-    check_finite(dt, "--dt", minimum=0, open_minimum=True)
-    check_finite(duration, "--duration", minimum=0, open_minimum=True)
-    steps = check_count(round(duration / dt) + 1, "steps", "--duration / --dt + 1")
-    check_count(check_count(runs, "runs", "--runs") * steps, "rows", "--runs × steps")
-    _simulate(simplecar_sweep.simulate, {"lam": lam, "dt": dt, "duration": duration}, runs,
-              seed, out, chunk_size, workers, scheduler, overwrite, resume)
+    _simulate("simplecar", out, {"lam": lam, "runs": runs, "seed": seed, "dt": dt,
+                                 "duration": duration, "chunk_size": chunk_size,
+                                 "workers": workers, "scheduler": scheduler},
+              overwrite=overwrite, resume=resume)
 
 
 @simulate_app.command("tjunction")
@@ -87,13 +88,9 @@ def simulate_tjunction(
     resume: Resume = False,
 ) -> None:
     """T-junction runs with static occlusion (Neurohr et al. sec. VI-B)."""
-    from simcred.sim.experiments import tjunction
-
-    if category not in tjunction.CATEGORIES:
-        raise OptionError(f"category must be one of {', '.join(tjunction.CATEGORIES)}; "
-                          f"got {category!r}")
-    _simulate(tjunction.simulate, {"category": category}, runs, seed, out, chunk_size,
-              workers, scheduler, overwrite, resume)
+    _simulate("tjunction", out, {"category": category, "runs": runs, "seed": seed,
+                                 "chunk_size": chunk_size, "workers": workers,
+                                 "scheduler": scheduler}, overwrite=overwrite, resume=resume)
 
 
 @simulate_app.command("cutin")
@@ -107,25 +104,13 @@ def simulate_cutin(
     overwrite: Overwrite = False,
 ) -> None:
     """Cut-in and brake, the manufactured universe of Wagner, Groh et al. (GT and SD)."""
-    from simcred.sim.experiments import cutin
-
-    with writing(out, overwrite=overwrite) as target:
-        measurement = cutin.simulate(seed, cutin.CutInConfig(ego_model=ego_model))
-        measurement.write(target.path)
-    if not State.quiet:
-        say(f"wrote {out}: GT and SD, {measurement.sd.n_rows} samples each")
-
-
+    _simulate("cutin", out, {"seed": seed, "ego_model": ego_model}, overwrite=overwrite)
 
 
 SumoModels = Annotated[str, typer.Option(
     "--models", help="Comma-separated SUMO car-following models (Krauss, IDM, EIDM, ACC, CACC, "
     "KraussPS, Wiedemann, W99); vType attributes after a colon, separated by '+': "
     "IDM:tau=1.2+accel=1.5.")]
-
-
-def _sumo_models(text: str) -> list[str]:
-    return [part.strip().replace("+", ",") for part in text.split(",") if part.strip()]
 
 
 @simulate_app.command("sumo-following")
@@ -151,16 +136,7 @@ def simulate_sumo_following(
     recorded gap [m] and speed [m/s]. Outputs: gap [m], dv [m/s] (leader −
     follower), v [m/s], a [m/s²], v_leader [m/s] on the input's time stamps [s].
     """
-    from simcred.sim.sumo import replay, write_replays
-    from simcred.traces import TraceSet
-
-    with writing(out, traces, overwrite=overwrite, resume=resume) as target, \
-            target.engine(workers, scheduler) as runner:
-        source = TraceSet.read(traces)
-        results = replay(source, _sumo_models(models), seed=seed, runner=runner,
-                         chunk_size=chunk_size, progress=progress("SUMO episodes (chunks)"))
-        written = write_replays(results, target.path, options={"models": models, "seed": seed,
-                                                           "chunk_size": chunk_size})
-    if not State.quiet:
-        say(f"wrote {out}/: {', '.join(p.name for p in written)}: "
-            f"{source.n_runs} episodes x {len(results)} models")
+    _simulate("sumo-following", out, {"traces": traces, "models": models, "seed": seed,
+                                      "chunk_size": chunk_size, "workers": workers,
+                                      "scheduler": scheduler},
+              overwrite=overwrite, resume=resume)

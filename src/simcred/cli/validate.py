@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 from typing import Annotated
 
@@ -16,11 +15,10 @@ from simcred.cli._app import (
     out_console,
 )
 from simcred.cli._writing import Overwrite, Resume, writing
-from simcred.errors import SimcredError
-from simcred.outputs import Checkpoint, partial_path
 from simcred.report.validate import write_validation_report
 from simcred.validate import read_inputs, read_validation, validate
-from simcred.validate.spec import RunsSpec, ValidationSpec
+from simcred.validate.simulate import simulate_candidates
+from simcred.validate.spec import ValidationSpec
 from simcred.validate.verdict import verdict_document
 
 
@@ -93,46 +91,6 @@ def _print_plan(plan) -> None:
                               f"{searched.simulations} simulations", highlight=False)
         if searched.note:
             out_console.print(f"  {name}: {searched.note}", highlight=False, soft_wrap=True)
-
-
-def simulate_candidates(spec: ValidationSpec, base: Path, out: Path,
-                        checkpoint: Checkpoint | None = None) -> dict[str, RunsSpec]:
-    """Run each candidate's simulator command (in-process, ``simcred simulate ...``) with
-    ``--out out/runs/<candidate>`` (the command itself carries no --out, --overwrite or
-    --resume: :func:`~simcred.validate.spec.without_placed_output`); the runs it wrote, per
-    candidate.
-
-    Each finished simulation is marked in ``checkpoint``: a resumed validation does not run it
-    again (its output was written atomically, so it is complete).
-    """
-    made = {}
-    for index, (name, candidate) in enumerate(spec.candidates.items()):
-        if candidate.simulate is None:
-            continue
-        folder = (out / "runs" / name).resolve()
-        made[name] = RunsSpec(path=str(folder / candidate.simulate.output),
-                              options=candidate.simulate.options)
-        done = f"simulated-{index:04d}"
-        if checkpoint is not None and done in checkpoint:
-            continue
-        for left in (folder, partial_path(folder)):  # an interrupted simulation: start over
-            shutil.rmtree(left, ignore_errors=True)
-        folder.mkdir(parents=True)
-        args = [*(a.replace("{base}", str(base)) for a in candidate.simulate.command),
-                "--out", str(folder)]  # the only output: the file's own --out was refused
-        from simcred.cli import run
-
-        quiet, debug = State.quiet, State.debug
-        try:
-            code = run(["--quiet", *args], propagate_interrupt=True)
-        finally:
-            State.quiet, State.debug = quiet, debug
-        if code != 0:
-            raise SimcredError(f"candidates.{name}.simulate: 'simcred {' '.join(args)}' exited "
-                               f"with {code}")
-        if checkpoint is not None:
-            checkpoint.save(done, b"")
-    return made
 
 
 def _inputs(validation: Path, spec: ValidationSpec, base: Path) -> list[Path]:

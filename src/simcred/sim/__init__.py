@@ -1,8 +1,9 @@
 """The simulator: batched vehicle models, the AD function, sensor models, the closed loop, the
 resimulation of scenario descriptions, and seeded campaigns (serial or on Dask).
 
-``experiments/`` (the cut-in, the T-junction, the SimpleCar sweep) are leaves: only ``paper`` and
-``cli`` import them (docs/architecture.md).
+``experiments/`` (the cut-in, the T-junction, the SimpleCar sweep) are leaves: only ``paper``,
+``cli`` and the simulator registry (:mod:`simcred.sim.registry`, what ``simcred simulate`` and
+``validate`` run) import them (docs/architecture.md).
 """
 
 from simcred.sim.campaign import Campaign, run_id

@@ -42,10 +42,12 @@ from simcred._json import dumps, envelope
 from simcred._version import versions
 from simcred.compare import Method
 from simcred.compare.effect import check_margins
+from simcred.compare.process import resolve_bins
+from simcred.compare.transitions import response_features
 from simcred.engine import Engine, Progress, engine
 from simcred.errors import OptionError
 from simcred.io.openacc import ACC, HUMAN, UNITS, EpisodeRules, read_openacc, recording_files
-from simcred.limits import check_count, check_finite
+from simcred.limits import check_count
 from simcred.regions import (
     SOURCE_RUN,
     CellComparison,
@@ -98,40 +100,47 @@ class StudyOptions:
     rules: EpisodeRules = field(default_factory=EpisodeRules)
 
     def __post_init__(self) -> None:
+        """The comparison's options are checked by :class:`~simcred.compare.Method` and
+        compare's own checks of features, inputs and bins (one place, the messages of
+        ``simcred compare``); the study adds the episodes' signals, its least sizes (19
+        permutations, 100 bootstrap replicates: the interval's ends need them), an integer seed
+        (it also seeds SUMO) and its own options (models, bands, minimum data)."""
         for name in ("models", "features", "inputs"):
             object.__setattr__(self, name, tuple(getattr(self, name)))
         object.__setattr__(self, "bands", tuple((float(lo), float(hi)) for lo, hi in self.bands))
-        check_finite(self.alpha, "alpha", minimum=0, maximum=1, open_minimum=True,
-                     open_maximum=True)
-        check_count(self.permutations, "permutations", "permutations", minimum=19)
-        check_count(self.bootstrap, "permutations", "bootstrap", minimum=100)
-        check_count(self.bins, "bins", "bins", minimum=2)
-        check_finite(self.sample_step, "sample step", minimum=0, open_minimum=True)
-        if self.max_episodes is not None:
-            check_count(self.max_episodes, "episodes", "max episodes", minimum=2)
         if not self.models:
             raise OptionError("give at least one SUMO model")
-        self._check_features()
-        object.__setattr__(self, "tolerance", dict(check_margins(self.tolerance or None,
-                                                                 self.response)))
+        self._check_comparison()
+        if self.max_episodes is not None:
+            check_count(self.max_episodes, "episodes", "max episodes", minimum=2)
         self.edges  # noqa: B018  (the bands form one grid)
         if self.min_runs < 2 or self.min_samples < 2 or self.min_length < 2:
             raise OptionError(f"min runs, min samples and min length must be at least 2, got "
                               f"{self.min_runs}, {self.min_samples}, {self.min_length}")
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
-            raise OptionError(f"seed must be a non-negative integer, got {self.seed!r}")
 
-    def _check_features(self) -> None:
+    def _check_comparison(self) -> None:
+        for name, least in (("permutations", 19), ("bootstrap", 100)):  # before Method's
+            value = getattr(self, name)                                  # "positive integer"
+            if isinstance(value, int) and not isinstance(value, bool) and value < least:
+                raise OptionError(f"{name} must be at least {least}, got {value}")
+        if self.sample_step is None:
+            raise OptionError("sample step must be a positive number of seconds (the segments "
+                              "are resampled to it), got None")
+        self.method  # noqa: B018  (Method checks every option it has)
         signals = [name for name in UNITS if name != TIME]
         unknown = [f for f in (*self.features, *self.inputs) if f not in signals]
-        if unknown or not self.features:
-            raise OptionError(f"unknown feature(s) {', '.join(unknown) or '(none given)'}: the "
-                              f"episodes' signals are {', '.join(signals)}")
-        if any(i not in self.features for i in self.inputs):
-            raise OptionError(f"inputs {list(self.inputs)} must be features "
-                              f"({list(self.features)})")
-        if not self.response:
-            raise OptionError("every feature is an input: no response is left to compare")
+        if unknown:
+            raise OptionError(f"unknown feature(s) {', '.join(unknown)}: the episodes' signals "
+                              f"are {', '.join(signals)}")
+        response_features(self.features, self.inputs)
+        resolve_bins(self.bins, len(self.features))
+        check_count(self.permutations, "permutations", "permutations", minimum=19)
+        check_count(self.bootstrap, "permutations", "bootstrap", minimum=100)
+        if not isinstance(self.seed, int):
+            raise OptionError(f"seed must be a non-negative integer (it seeds the SUMO replays "
+                              f"too), got {self.seed!r}")
+        object.__setattr__(self, "tolerance", dict(check_margins(self.tolerance or None,
+                                                                 self.response)))
 
     @property
     def response(self) -> tuple[str, ...]:

@@ -133,7 +133,8 @@ def read_inputs(spec: ValidationSpec, base: Path,
     missing = [n for n, c in spec.candidates.items() if c.runs is None and n not in simulated]
     if missing:
         raise ValidationFileError(f"candidates.{missing[0]}.simulate: the simulator command has "
-                                  "not been run (simcred validate runs it)")
+                                  "not been run (simcred validate runs it, or "
+                                  "simcred.validate.simulate_candidates)")
     return Inputs(_read(spec.reference, base),
                   {n: _read(c.runs or simulated[n], base) for n, c in spec.candidates.items()},
                   tuple(_read(m, base) for m in spec.monitor),

@@ -24,16 +24,28 @@ and the key. Paths are relative to the validation file's folder. See docs/valida
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 from pathlib import Path
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    SerializerFunctionWrapHandler,
+    ValidationError,
+    ValidationInfo,
+    create_model,
+    field_validator,
+    model_serializer,
+    model_validator,
+)
 
 from simcred.compare.method import Method
 from simcred.contracts.loader import load_yaml
-from simcred.errors import SimcredError
+from simcred.errors import OptionError, SimcredError
 
 NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*$")
 RESERVED = {"and", "or", "not", "implies", "true", "false", "deviation"}
@@ -187,19 +199,80 @@ class ConditionSpec(_Strict):
         return edges
 
 
-class ComparisonSpec(_Strict):
-    """Options of the response comparison (``compare(test="response")``) in every cell:
-    ``bins`` per feature, the level ``alpha``, ``permutations`` of the difference test,
-    ``bootstrap`` replicates of the deviation's bounds, ``seed``, ``resample`` (s). Each key is
-    a field of :class:`~simcred.compare.Method` (the file's defaults and ranges here, the checks
-    every comparison shares there); :attr:`ValidationSpec.method` makes the method."""
+#: The fields of :class:`~simcred.compare.Method` that the ``comparison`` section does not take,
+#: each with the reason (the one-line error for such a key). Every other field is a key of the
+#: section (:data:`ComparisonSpec`), checked by ``Method`` itself: a new field of the method is
+#: accepted here without code, unless it is added to this list.
+NOT_IN_FILE = {
+    "features": "the features are the file's top-level 'features'",
+    "inputs": "the inputs are the file's top-level 'inputs'",
+    "test": "every cell is compared by the response test",
+    "pair_by": "pairs are the file's top-level 'pairs: {by: KEY}'",
+    "group_by": "groups are the file's top-level 'groups: {by: KEY}'",
+    "margin": "the margin of every cell is test_case.tolerance",
+    "kernel": "the response comparison has no kernel option (random Fourier features of a "
+              "Gaussian kernel)",
+    "estimator": "the response comparison has no estimator option (its deviation is a "
+                 "2-Wasserstein distance, not an MMD estimate)",
+    "chain": "the response comparison has no chain option",
+    "one_sided": "the response comparison counts a state seen by one side only as no evidence",
+    "multiplicity": "errors are controlled over the test case's cells",
+    "baseline": "the response comparison has no baseline option",
+    "relevance": "feature relevance belongs to the run-level test",
+    "continue_on_start_difference": "the response comparison has no start-distribution test",
+    "stop_early": "stopping early belongs to the paper's per-transition permutation test",
+}
+#: The section's own defaults and ranges where they differ from :class:`Method`'s (type, default
+#: or ``Field``); every other key has Method's default.
+#: These keys come first and are always recorded (``verdict.json`` ``provenance.options``); the
+#: others follow in Method's order and are recorded where the file sets them to other than
+#: Method's default (so a verdict records what a file of the earlier sections recorded).
+FILE_FIELDS: dict[str, tuple[Any, Any]] = {
+    "bins": (int | list[int], 3),
+    "alpha": (float, Field(default=0.05, gt=0, lt=1)),
+    "permutations": (int, Field(default=199, ge=19, le=100_000)),
+    "bootstrap": (int, Field(default=500, ge=100, le=100_000)),
+    "seed": (int, Field(default=0, ge=0)),
+    "resample": (float | None, Field(default=None, gt=0)),
+}
 
-    bins: int | list[int] = 3
-    alpha: float = Field(default=0.05, gt=0, lt=1)
-    permutations: int = Field(default=199, ge=19, le=100_000)
-    bootstrap: int = Field(default=500, ge=100, le=100_000)
-    seed: int = Field(default=0, ge=0)
-    resample: float | None = Field(default=None, gt=0)
+
+class _MethodKeys(_Strict):
+    """Each key checked by :class:`Method` on its own (the error names the key)."""
+
+    @field_validator("*")
+    @classmethod
+    def _method_checks(cls, value: Any, info: ValidationInfo) -> Any:
+        try:
+            Method(test="response", **{info.field_name: value})
+        except OptionError as exc:
+            raise ValueError(str(exc)) from None
+        return value
+
+    @model_serializer(mode="wrap")
+    def _recorded(self, handler: SerializerFunctionWrapHandler) -> dict[str, Any]:
+        fields = type(self).model_fields
+        return {k: v for k, v in handler(self).items()
+                if k in FILE_FIELDS or getattr(self, k) != fields[k].default}
+
+
+COMPARISON_DOC = """Options of the response comparison (``compare(test="response")``) in every cell:
+every field of :class:`~simcred.compare.Method` except those in :data:`NOT_IN_FILE` (``bins``
+per feature, the level ``alpha``, ``permutations`` of the difference test, ``bootstrap``
+replicates of the deviation's bounds, ``seed``, ``resample`` (s), ``history``, ``time_bins``,
+...), with the file's defaults and ranges (:data:`FILE_FIELDS`) where they differ;
+:attr:`ValidationSpec.method` makes the method."""
+
+
+def _comparison_spec() -> type[_Strict]:
+    fields = dict(FILE_FIELDS)
+    fields.update((f.name, (Any, f.default)) for f in dataclasses.fields(Method)
+                  if f.name not in NOT_IN_FILE and f.name not in FILE_FIELDS)
+    return create_model("ComparisonSpec", __base__=_MethodKeys, __module__=__name__,
+                        __doc__=COMPARISON_DOC, **fields)
+
+
+ComparisonSpec = _comparison_spec()
 
 
 class UnitKeySpec(_Strict):
@@ -311,10 +384,6 @@ REMOVED = {
     "within test_case.tolerance (docs/validate.md)",
     ("acceptance",): "VALID now means shown within test_case.tolerance; there is no acceptance "
     "rule (docs/validate.md)",
-    ("comparison", "kernel"): "the response comparison has no kernel option",
-    ("comparison", "chain"): "the response comparison has no chain option",
-    ("comparison", "multiplicity"): "errors are controlled over the test case's cells",
-    ("comparison", "baseline"): "the response comparison has no baseline option",
 }
 
 
@@ -329,6 +398,7 @@ def parse_validation(data: Any, *, source: str = "<memory>") -> ValidationSpec:
         if found is not None:
             raise ValidationFileError(f"{source}: {'.'.join(path)}: no longer an option: "
                                       f"{instead}")
+    _comparison_keys(data.get("comparison"), source)
     try:
         return ValidationSpec.model_validate(data)
     except ValidationError as exc:
@@ -337,3 +407,18 @@ def parse_validation(data: Any, *, source: str = "<memory>") -> ValidationSpec:
         message = error["msg"].removeprefix("Value error, ")  # a model check names its key
         raise ValidationFileError(f"{source}: {where + ': ' if where else ''}{message}"
                                   ) from None
+
+
+def _comparison_keys(section: Any, source: str) -> None:
+    """One line for a key of the ``comparison`` section that is not one: a field of the method
+    the file does not take (with the reason), or no field at all (with the keys it takes)."""
+    if not isinstance(section, dict):
+        return
+    for key in section:
+        if key in NOT_IN_FILE:
+            raise ValidationFileError(f"{source}: comparison.{key}: not an option of the "
+                                      f"validation file: {NOT_IN_FILE[key]}")
+        if key not in ComparisonSpec.model_fields:
+            raise ValidationFileError(
+                f"{source}: comparison.{key}: unknown key (the section takes "
+                f"{', '.join(ComparisonSpec.model_fields)})")
