@@ -6,10 +6,9 @@ variation's assessment too (max TTR risk every 0.1 s, reaction, category). Measu
 (one process) and on a local Dask cluster of 2 workers (cluster start-up excluded, one warm-up
 run first). References in the same run, serially, on the same variations:
 
-* **before** issue 24 point 6: the assessment as it was (``max_risk`` with the default 11 "keep"
-  nodes, every evasion checked in full, the colliding predictions scanned all together, frames
-  along +x turned anyway) — emulated here by :func:`before_path` with a reference copy of the
-  old brake/kickdown check; the ratio before / now;
+* **before** issue 24 point 6: the campaign as it was (``max_risk`` with the default 11 "keep"
+  nodes and the search and refit code of then: ``benchmarks/_vary_before.py`` patches reference
+  copies in); the ratio before / now;
 * the **literal** assessment, ``risk(...).risk.max()`` run by run with 11 nodes (timed alone).
 
 Every variation's maximum risk is compared with the before path's: the largest change in
@@ -25,7 +24,6 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
 
@@ -33,15 +31,11 @@ import numpy as np
 from rich.console import Console
 from rich.table import Table
 
-import simcred.risk.ttr as ttr_module
-import simcred.risk.ttr_search as search_module
 from simcred.engine import Engine, engine
 from simcred.kinematics import Track
 from simcred.reprocess.pipeline import reprocess
 from simcred.reprocess.vary import VaryConfig, _max_risks, _resimulate_chunk
 from simcred.risk import PredictionSet, VehicleStates, risk
-from simcred.risk.prediction import PredictedPath, heading_vector, rectangles_overlap
-from simcred.risk.prediction import travel_distance as travel
 from simcred.scenario.variation import generate_variations
 from simcred.sim.experiments import cutin
 from simcred.sim.resimulation import resimulate
@@ -50,6 +44,7 @@ from simcred.traces import TIME
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 from _timing import best_of, machine, save_results  # noqa: E402
+from _vary_before import before_path  # noqa: E402
 
 TARGET = 10.0
 
@@ -76,39 +71,6 @@ def _literal_max_risks(tracks, c: VaryConfig) -> np.ndarray:
                                 VehicleStates.of_tracks([to[::step]], name="objects")
                                 ).risk.max()))
     return np.array(peaks)
-
-
-def _hits_longitudinal_before(r, idx, start, j0, times, name, evasion):
-    """Reference copy of the brake/kickdown check before issue 24 point 6: the lateral path,
-    heading and rectangle test on every row (no longitudinal prefilter)."""
-    t, s = times[j0:], start[:, None]
-    xi_s, v_s = travel(r.ego_v0[idx], r.ego_a0[idx], s)
-    since = np.maximum(t - s, 0.0)
-    if name == "brake":
-        distance = travel(v_s, evasion.brake_acceleration, since)[0]
-    else:
-        distance = evasion.kickdown_travel(v_s, since)[0]
-    xi = np.where(t > s, xi_s + distance, r.ego_x[idx, j0:])
-    path = PredictedPath(r.ego_path.y0[idx], tuple(b[idx] for b in r.ego_path.b),
-                         r.ego_path.length[idx])
-    y, slope = path.at(xi)
-    to = tuple(a[idx, j0:] for a in r.to) + tuple(a[idx] for a in r.to_half)
-    half = (r.ego_half[0][idx], r.ego_half[1][idx])
-    return rectangles_overlap((xi, y, *heading_vector(slope), *half), to).any(axis=1)
-
-
-@contextmanager
-def before_path(config: VaryConfig):
-    """The assessment before issue 24 point 6 (in this process: the serial runs only): 11 nodes,
-    no longitudinal prefilter, no tiers, frames along +x turned."""
-    saved = (search_module._hits_longitudinal, ttr_module._TIERS, ttr_module._identity)
-    search_module._hits_longitudinal = _hits_longitudinal_before
-    ttr_module._TIERS = ()
-    ttr_module._identity = lambda frame: False
-    try:
-        yield replace(config, predictions=PredictionSet())
-    finally:
-        search_module._hits_longitudinal, ttr_module._TIERS, ttr_module._identity = saved
 
 
 def _decades(a: np.ndarray, b: np.ndarray) -> float:
@@ -158,6 +120,7 @@ def main() -> None:
     repeats = 1 if quick else 2
     description = reprocess(cutin.simulate(0)).descriptions["fit(GT)"]
     one, _ = best_of(lambda: resimulate(description), 3)
+    generate_and_resimulate(description, VaryConfig(n=20), Engine())  # warm-up
     with before_path(config) as old_config:
         before, old_risks = best_of(lambda: generate_and_resimulate(description, old_config,
                                                                     Engine()), 1)

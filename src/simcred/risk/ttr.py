@@ -63,6 +63,9 @@ _MAX_RISK_SAMPLES = 1 << 18
 # max_risk scans the colliding predictions by tiers of prior probability: >= 0.01, >= 0.001, the
 # rest (a scene pruned on its likely predictions never scans its unlikely ones)
 _TIERS = (0.01, 0.001)
+# max_risk assesses every coarse²-th scene in full and the other coarse ones against their floor
+# (False: every coarse-th in full, as before issue 24; the same values either way)
+_NESTED_COARSE = True
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -310,8 +313,9 @@ def _search(rows: CollidingRows, sel: np.ndarray, first: np.ndarray, ttr: np.nda
                                rows=scan, prune=prune)
         lo_idx, hi_idx, code = (np.where(mine, new, old) for new, old in
                                 ((lo, lo_idx), (hi, hi_idx), (got, code)))
+    # the few rows still reachable are refined as one group (fewer numpy calls)
     return bisect_ttr(rows, lo_idx, hi_idx, code, times, evasion, lanes,
-                      only=reachable(lo_idx))
+                      only=reachable(lo_idx), group_size=times.size)
 
 
 # -- public API ----------------------------------------------------------------------------------
@@ -446,11 +450,12 @@ def max_risk(ego: VehicleStates, objects: VehicleStates, *,
 
     # every coarse²-th scene in full (every group's first scene among them), the other coarse
     # ones against their floor: pruned ones stay below it, so the riskiest is exact
-    done = np.flatnonzero(local % (coarse * coarse) == 0)
+    full = coarse * coarse if _NESTED_COARSE else coarse
+    done = np.flatnonzero(local % full == 0)
     best = np.full(counts.size, -np.inf)
     found = risks(done, None)
     np.maximum.at(best, group[done], found)
-    more = np.flatnonzero((local % coarse == 0) & (local % (coarse * coarse) != 0))
+    more = np.flatnonzero((local % coarse == 0) & (local % full != 0))
     if more.size:
         found = np.concatenate([found, risks(more, best[group[more]])])
         done = np.concatenate([done, more])

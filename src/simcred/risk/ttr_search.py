@@ -180,8 +180,13 @@ def scan_ttr(r: CollidingRows, first: np.ndarray, times: np.ndarray, evasion: Ev
         work = active.size * (times.size - k) * len(evasion.maneuvers)
         block = int(np.clip(work_samples // max(work, 1), 1, (times.size - 2 - k) // q + 1))
         index = k + q * np.arange(block)
-        ok = avoids(r, np.repeat(active, block), np.tile(times[index], active.size), k + 1,
-                     times, evasion, lanes)
+        pair_row, pair_start = np.repeat(active, block), np.tile(index, active.size)
+        # a start at or after the planned collision never avoids it (the plan's own sample
+        # collides): not evaluated
+        before = np.flatnonzero(pair_start < first[pair_row])
+        ok = np.zeros((pair_row.size, len(evasion.maneuvers)), dtype=bool)
+        ok[before] = avoids(r, pair_row[before], times[pair_start[before]], k + 1, times,
+                            evasion, lanes)
         can = ok.any(axis=1).reshape(active.size, block)
         codes = np.argmax(ok, axis=1).reshape(active.size, block)
         ends = np.where(can.all(axis=1), block, np.argmin(can, axis=1))  # first failing start
@@ -201,12 +206,16 @@ def scan_ttr(r: CollidingRows, first: np.ndarray, times: np.ndarray, evasion: Ev
 
 def bisect_ttr(r: CollidingRows, lo_idx: np.ndarray, hi_idx: np.ndarray, code: np.ndarray,
                times: np.ndarray, evasion: EvasionSet, lanes: Lanes,
-               only: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+               only: np.ndarray | None = None, group_size: int = _BISECTION_GROUP
+               ) -> tuple[np.ndarray, np.ndarray]:
     """The bisection of :func:`search_ttr` after :func:`scan_ttr`: TTR and maneuver code.
 
     ``only`` (bool, rows): refine these rows only; the others keep the scan's lower end
     ``times[lo_idx]``. The groups and the samples each group checks are those of all rows, so
-    a refined row gets the value it gets without ``only``.
+    a refined row gets the value it gets without ``only``. ``group_size``: rows whose ``lo_idx``
+    lie in one span of this many samples are refined together, from the earliest one's sample
+    on (a larger span: fewer, longer numpy calls; the samples before a row's start follow the
+    plan, which does not collide there, so the values do not depend on it).
     """
     q = evasion.scan_step
     code = code.copy()
@@ -214,8 +223,8 @@ def bisect_ttr(r: CollidingRows, lo_idx: np.ndarray, hi_idx: np.ndarray, code: n
     hi = times[hi_idx]
     # rows grouped by their lo (about a second each): a group checks from its earliest lo on
     valid = lo_idx >= 0
-    for group in np.unique(lo_idx[valid] // _BISECTION_GROUP):
-        members = valid & (lo_idx // _BISECTION_GROUP == group)
+    for group in np.unique(lo_idx[valid] // group_size):
+        members = valid & (lo_idx // group_size == group)
         j0 = int(lo_idx[members].min()) + 1       # the sample after the earliest lo
         refine = np.flatnonzero(members if only is None else members & only)
         if not refine.size:
