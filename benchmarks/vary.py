@@ -116,6 +116,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="100 variations, one repeat")
     quick = parser.parse_args().quick
+    load_start = _load()
     config = VaryConfig(n=100 if quick else 300)
     repeats = 1 if quick else 2
     description = reprocess(cutin.simulate(0)).descriptions["fit(GT)"]
@@ -154,7 +155,8 @@ def main() -> None:
           f"(identical to before: {split['11_nodes_identical_to_before']}), before "
           f"{split['assessment_before_s']:.2f} s, literal {split['assessment_literal_s']:.2f} s")
     save_results(ROOT / "benchmarks" / "results" / ("vary-quick.json" if quick else "vary.json"),
-                 {"machine": machine(), "load_average": _load(), "results": results})
+                 {"machine": machine(), "load_average_start": load_start,
+                  "load_average_end": _load(), "results": results})
 
 
 def _load() -> list[float]:
