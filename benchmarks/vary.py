@@ -4,11 +4,17 @@
 resimulated (KS, ideal sensor, 100 Hz) — target < 10 s on 2 cores; the time includes each
 variation's assessment too (max TTR risk every 0.1 s, reaction, category). Measured serially
 (one process) and on a local Dask cluster of 2 workers (cluster start-up excluded, one warm-up
-run first). Reference in the same run: one resimulation of the unvaried description, and the
-old assessment path (``risk(...).risk.max()`` run by run, before ``max_risk``), serially, on the
-same variations: the ratio old / new, and whether every variation's maximum risk is identical.
-Also timed alone: the generation (vary, refit, plausibility) and the assessment of the
-resimulated runs (new and old path), to say where the rest of the time goes.
+run first). References in the same run, serially, on the same variations:
+
+* **before** issue 24 point 6: the campaign as it was (``max_risk`` with the default 11 "keep"
+  nodes and the search and refit code of then: ``benchmarks/_vary_before.py`` patches reference
+  copies in); the ratio before / now;
+* the **literal** assessment, ``risk(...).risk.max()`` run by run with 11 nodes (timed alone).
+
+Every variation's maximum risk is compared with the before path's: the largest change in
+decades (the campaign now takes 5 nodes, docs/variation.md) and, with 11 nodes, identity of the
+exact speed-ups. Also timed alone: the generation (vary, refit, plausibility) and the
+assessment of the resimulated runs (each path), to say where the rest of the time goes.
 
 Usage: python benchmarks/vary.py [--quick]
 """
@@ -18,19 +24,18 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from contextlib import contextmanager
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 from rich.console import Console
 from rich.table import Table
 
-import simcred.reprocess.vary as vary_module
 from simcred.engine import Engine, engine
 from simcred.kinematics import Track
 from simcred.reprocess.pipeline import reprocess
 from simcred.reprocess.vary import VaryConfig, _max_risks, _resimulate_chunk
-from simcred.risk import VehicleStates, risk
+from simcred.risk import PredictionSet, VehicleStates, risk
 from simcred.scenario.variation import generate_variations
 from simcred.sim.experiments import cutin
 from simcred.sim.resimulation import resimulate
@@ -39,6 +44,7 @@ from simcred.traces import TIME
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 from _timing import best_of, machine, save_results  # noqa: E402
+from _vary_before import before_path  # noqa: E402
 
 TARGET = 10.0
 
@@ -56,8 +62,8 @@ def generate_and_resimulate(description, config: VaryConfig, runner: Engine) -> 
     return np.array([o.max_risk for _, outcomes in parts for o in outcomes])
 
 
-def _old_max_risks(tracks, c: VaryConfig) -> np.ndarray:
-    """The assessment before max_risk: the full risk series of every run, one call per run."""
+def _literal_max_risks(tracks, c: VaryConfig) -> np.ndarray:
+    """The literal assessment: the full risk series of every run (11 nodes), one call per run."""
     peaks = []
     for ego, to in tracks:
         step = max(1, int(round(c.risk_dt / (ego.t[1] - ego.t[0]))))
@@ -67,18 +73,16 @@ def _old_max_risks(tracks, c: VaryConfig) -> np.ndarray:
     return np.array(peaks)
 
 
-@contextmanager
-def old_path():
-    """The campaign with the old assessment (in this process: the serial runs only)."""
-    vary_module._max_risks = _old_max_risks
-    try:
-        yield
-    finally:
-        vary_module._max_risks = _max_risks
+def _decades(a: np.ndarray, b: np.ndarray) -> float:
+    """Largest |log10(a / b)| (0 where both are 0, inf where only one is)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        d = np.abs(np.log10(a) - np.log10(b))
+    return float(np.max(np.where(a == b, 0.0, d)))
 
 
-def parts(description, config: VaryConfig) -> dict[str, float]:
-    """Seconds of the generation alone and of the assessment alone (new and old path), serial."""
+def parts(description, config: VaryConfig) -> dict[str, object]:
+    """Seconds of the generation alone and of the assessment alone (each path), serial, and
+    how far each path's maxima lie from the before path's."""
     start = time.perf_counter()
     variations = generate_variations(description, config.n, config.seed, options=config.options,
                                      limits=config.limits, chunk_size=config.chunk_size)
@@ -88,26 +92,41 @@ def parts(description, config: VaryConfig) -> dict[str, float]:
                       indices=[v.index for v in variations.variations])
     tracks = [tuple(Track.from_columns(runs.run(k), name, time=TIME).with_rates()
                     for name in (config.ego, config.to)) for k in range(runs.n_runs)]
-    new, _ = best_of(lambda: [_max_risks(tracks[k:k + config.chunk_size], config)
-                              for k in range(0, len(tracks), config.chunk_size)], 1)
-    old, _ = best_of(lambda: _old_max_risks(tracks, config), 1)
-    return {"generation_s": generation, "assessment_s": new, "assessment_old_s": old}
+
+    def assess(c: VaryConfig) -> np.ndarray:
+        return np.concatenate([_max_risks(tracks[k:k + c.chunk_size], c)
+                               for k in range(0, len(tracks), c.chunk_size)])
+
+    now, now_risks = best_of(lambda: assess(config), 1)
+    exact, exact_risks = best_of(lambda: assess(replace(config, predictions=PredictionSet())), 1)
+    with before_path(config) as old_config:
+        before, before_risks = best_of(lambda: assess(old_config), 1)
+    literal, literal_risks = best_of(lambda: _literal_max_risks(tracks, config), 1)
+    return {"generation_s": generation, "assessment_s": now,
+            "assessment_11_nodes_s": exact, "assessment_before_s": before,
+            "assessment_literal_s": literal,
+            "assessment_ratio_before_to_now": before / now,
+            "assessment_ratio_before_to_11_nodes": before / exact,
+            "11_nodes_identical_to_before": bool(np.array_equal(exact_risks, before_risks)),
+            "before_identical_to_literal": bool(np.array_equal(before_risks, literal_risks)),
+            "max_change_decades_now_vs_before": _decades(now_risks, before_risks)}
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="100 variations, one repeat")
     quick = parser.parse_args().quick
+    load_start = _load()
     config = VaryConfig(n=100 if quick else 300)
     repeats = 1 if quick else 2
     description = reprocess(cutin.simulate(0)).descriptions["fit(GT)"]
     one, _ = best_of(lambda: resimulate(description), 3)
-    with old_path():
-        before, old_risks = best_of(lambda: generate_and_resimulate(description, config,
+    generate_and_resimulate(description, VaryConfig(n=20), Engine())  # warm-up
+    with before_path(config) as old_config:
+        before, old_risks = best_of(lambda: generate_and_resimulate(description, old_config,
                                                                     Engine()), 1)
     serial, new_risks = best_of(lambda: generate_and_resimulate(description, config, Engine()),
                                 repeats)
-    identical = bool(np.array_equal(old_risks, new_risks))
     split = parts(description, config)
     with engine(2, None) as runner:
         generate_and_resimulate(description, VaryConfig(n=20), runner)  # warm-up
@@ -116,24 +135,34 @@ def main() -> None:
     for column in ("where", "seconds", "target", "met", "in unvaried resimulations"):
         table.add_column(column)
     results = {"variations": config.n, "kept": int(new_risks.size), "one_resimulation_s": one,
-               "old_path_serial_s": before, "ratio_old_to_new_serial": before / serial,
-               "max_risks_identical_to_old_path": identical, **split}
-    rows = (("old path, serial (1 process)", before), ("serial (1 process)", serial),
+               "before_serial_s": before, "ratio_before_to_now_serial": before / serial,
+               "max_change_decades_campaign": _decades(new_risks, old_risks), **split}
+    rows = (("before (issue 24 point 6), serial", before), ("serial (1 process)", serial),
             ("Dask, 2 workers", dask))
     for label, seconds in rows:
         met = seconds < TARGET
         table.add_row(label, f"{seconds:.2f}", f"< {TARGET:g}",
                       "[green]yes[/green]" if met else "[red]no[/red]", f"{seconds / one:.0f}")
-        if not label.startswith("old"):
+        if not label.startswith("before"):
             results[label] = {"seconds": seconds, "met": met,
                               "ratio_to_one_resimulation": seconds / one}
     Console().print(table)
-    print(f"old / new serial: {before / serial:.2f}x; every variation's maximum risk identical "
-          f"to the old path's: {identical} ({new_risks.size} variations)")
-    print(f"alone, serial: generation {split['generation_s']:.2f} s, assessment "
-          f"{split['assessment_s']:.2f} s (old path {split['assessment_old_s']:.2f} s)")
+    print(f"before / now serial: {before / serial:.2f}x; largest change of a variation's maximum "
+          f"risk: {results['max_change_decades_campaign']:.4f} decades ({new_risks.size} "
+          f"variations)")
+    print(f"alone, serial: generation {split['generation_s']:.2f} s; assessment now "
+          f"{split['assessment_s']:.2f} s, with 11 nodes {split['assessment_11_nodes_s']:.2f} s "
+          f"(identical to before: {split['11_nodes_identical_to_before']}), before "
+          f"{split['assessment_before_s']:.2f} s, literal {split['assessment_literal_s']:.2f} s")
     save_results(ROOT / "benchmarks" / "results" / ("vary-quick.json" if quick else "vary.json"),
-                 {"machine": machine(), "results": results})
+                 {"machine": machine(), "load_average_start": load_start,
+                  "load_average_end": _load(), "results": results})
+
+
+def _load() -> list[float]:
+    import os
+
+    return [round(x, 2) for x in os.getloadavg()]
 
 
 if __name__ == "__main__":

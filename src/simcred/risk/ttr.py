@@ -60,6 +60,12 @@ _CHUNK_SAMPLES = 1 << 16
 # max_risk's chunks: larger (fewer numpy calls on the small arrays of its pruned phases; about
 # 2 MB per work array)
 _MAX_RISK_SAMPLES = 1 << 18
+# max_risk scans the colliding predictions by tiers of prior probability: >= 0.01, >= 0.001, the
+# rest (a scene pruned on its likely predictions never scans its unlikely ones)
+_TIERS = (0.01, 0.001)
+# max_risk assesses every coarse²-th scene in full and the other coarse ones against their floor
+# (False: every coarse-th in full, as before issue 24; the same values either way)
+_NESTED_COARSE = True
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -177,14 +183,23 @@ def _predict(o: dict[str, np.ndarray], plan: dict[str, Any],
     path = PredictedPath(path.y0[..., None], tuple(b[..., None] for b in path.b),
                          path.length[..., None])
     y, slope = path.at(xi)
-    to_world = RoadFrames(*(a[:, :, None, None] for a in (frame.cos, frame.sin, frame.centre)))
-    x, y = to_world.to_world(o["x"][..., None] + xi, y)
-    cos, sin = to_world.to_world(*heading_vector(slope))
+    x, (cos, sin) = o["x"][..., None] + xi, heading_vector(slope)
     ego: RoadFrames = plan["frame"]
-    to_ego = RoadFrames(*(a[:, None, None, None] for a in (ego.cos, ego.sin, ego.centre)))
-    x, y = to_ego.to_local(x, y)
-    cos, sin = to_ego.to_local(cos, sin)
+    for f, to in ((RoadFrames(*(a[:, :, None, None] for a in (frame.cos, frame.sin, frame.centre))),
+                   "to_world"),
+                  (RoadFrames(*(a[:, None, None, None] for a in (ego.cos, ego.sin, ego.centre))),
+                   "to_local")):
+        if _identity(f):    # along +x (the usual case): x·1 ∓ y·0 = x exactly, skipped
+            continue
+        x, y = getattr(f, to)(x, y)
+        cos, sin = getattr(f, to)(cos, sin)
     return (x - plan["x0"][:, None, None, None], y, cos, sin)
+
+
+def _identity(frame: RoadFrames) -> bool:
+    """Every frame along +x (rotation by 0: turning into or out of it changes no number but
+    the sign of a zero)."""
+    return bool((frame.cos == 1.0).all() and (frame.sin == 0.0).all())
 
 
 def _take(a: np.ndarray, shape: tuple[int, ...], sel: np.ndarray) -> np.ndarray:
@@ -248,22 +263,59 @@ def _chunk(ego: dict[str, np.ndarray], obj: dict[str, np.ndarray], predictions: 
                                    path.length[scene]),
             ego_half=tuple(h[scene] for h in plan["half"]),
         )
-        scene_of = sel // (collides.shape[1] * collides.shape[2])
-
-        def reachable(lo_idx: np.ndarray) -> np.ndarray:
-            """Rows whose scene's risk, with the TTRs' lower ends ``lo_idx``, reaches floor."""
-            np.put(ttr, sel, np.where(lo_idx >= 0, times[np.maximum(lo_idx, 0)], 0.0))
-            return (_scene_risk(ttr, predictions.probabilities, reaction)[2] >= floor)[scene_of]
-
-        lo_idx, hi_idx, scan_code = scan_ttr(rows, first.ravel()[sel], times, evasion, lanes,
-                                             work_samples=work_samples,
-                                             prune=None if floor is None else reachable)
-        only = None if floor is None else reachable(lo_idx)
-        found, found_code = bisect_ttr(rows, lo_idx, hi_idx, scan_code, times, evasion, lanes,
-                                       only=only)
+        found, found_code = _search(rows, sel, first.ravel()[sel], ttr, floor, predictions,
+                                    evasion, lanes, reaction, work_samples)
         np.put(ttr, sel, found)
         np.put(code, sel, found_code)
     return ttr, code, collision_time
+
+
+def _search(rows: CollidingRows, sel: np.ndarray, first: np.ndarray, ttr: np.ndarray,
+            floor: np.ndarray | None, predictions: PredictionSet, evasion: EvasionSet,
+            lanes: Lanes, reaction: ReactionTime | None, work_samples: int
+            ) -> tuple[np.ndarray, np.ndarray]:
+    """TTR and maneuver code of the colliding rows ``sel`` (flat indices into ``ttr``, whose
+    other entries are final; ``ttr`` is used as work space).
+
+    With ``floor``, rows are scanned by tiers of prior probability (:data:`_TIERS`): a scene
+    whose bound falls below its floor while its likely predictions are scanned (the unlikely
+    ones counted at TTR 0) never scans the unlikely ones. Every scene that can still reach its
+    floor is scanned in full, tier after tier, and bisected, so its TTRs are those without
+    tiers (a row's scan does not depend on the others')."""
+    times = predictions.times
+    if floor is None:
+        lo_idx, hi_idx, code = scan_ttr(rows, first, times, evasion, lanes,
+                                        work_samples=work_samples)
+        return bisect_ttr(rows, lo_idx, hi_idx, code, times, evasion, lanes)
+    scene_of = sel // (ttr.size // ttr.shape[0])
+
+    def reachable(lo_idx: np.ndarray) -> np.ndarray:
+        """Rows whose scene's risk, with the TTRs' lower ends ``lo_idx``, reaches floor."""
+        np.put(ttr, sel, np.where(lo_idx >= 0, times[np.maximum(lo_idx, 0)], 0.0))
+        return (_scene_risk(ttr, predictions.probabilities, reaction)[2] >= floor)[scene_of]
+
+    probability = predictions.probabilities[sel % ttr.shape[-1]]
+    tier = np.searchsorted(-np.asarray(_TIERS), -probability)
+    lo_idx, hi_idx, code = np.full(sel.size, -1), first.copy(), np.full(sel.size, -1)
+    for k in range(len(_TIERS) + 1):
+        scan = np.flatnonzero(tier == k)
+        scan = scan[reachable(lo_idx)[scan]]
+        if not scan.size:
+            continue
+        mine = np.zeros(sel.size, dtype=bool)
+        mine[scan] = True
+
+        def prune(lo: np.ndarray, mine: np.ndarray = mine, before: np.ndarray = lo_idx
+                  ) -> np.ndarray:
+            return reachable(np.where(mine, lo, before))
+
+        lo, hi, got = scan_ttr(rows, first, times, evasion, lanes, work_samples=work_samples,
+                               rows=scan, prune=prune)
+        lo_idx, hi_idx, code = (np.where(mine, new, old) for new, old in
+                                ((lo, lo_idx), (hi, hi_idx), (got, code)))
+    # the few rows still reachable are refined as one group (fewer numpy calls)
+    return bisect_ttr(rows, lo_idx, hi_idx, code, times, evasion, lanes,
+                      only=reachable(lo_idx), group_size=times.size)
 
 
 # -- public API ----------------------------------------------------------------------------------
@@ -396,10 +448,18 @@ def max_risk(ego: VehicleStates, objects: VehicleStates, *,
             parts.append(_scene_risk(ttr, nodes.probabilities, reaction)[2])
         return np.concatenate(parts)
 
-    done = np.flatnonzero(local % coarse == 0)         # every group's first scene among them
-    found = risks(done, None)
+    # every coarse²-th scene in full (every group's first scene among them), the other coarse
+    # ones against their floor: pruned ones stay below it, so the riskiest is exact
+    full = coarse * coarse if _NESTED_COARSE else coarse
+    done = np.flatnonzero(local % full == 0)
     best = np.full(counts.size, -np.inf)
+    found = risks(done, None)
     np.maximum.at(best, group[done], found)
+    more = np.flatnonzero((local % coarse == 0) & (local % full != 0))
+    if more.size:
+        found = np.concatenate([found, risks(more, best[group[more]])])
+        done = np.concatenate([done, more])
+        np.maximum.at(best, group[done], found)
     top = np.zeros(counts.size, dtype=int)             # the riskiest coarse scene of each group
     order = np.lexsort((-found, group[done]))
     firsts = order[np.r_[True, np.diff(group[done][order]) > 0]]
