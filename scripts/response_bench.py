@@ -188,6 +188,8 @@ def markdown(table: dict, methods: list[str], alpha: float) -> str:
 def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--reps", type=int, default=200)
+    parser.add_argument("--first-rep", type=int, default=0,
+                        help="replications first-rep .. first-rep + reps - 1 (fresh seeds)")
     parser.add_argument("--designs", default="h0", help="names, patterns, or h0/defects/all")
     parser.add_argument("--methods", default=",".join(METHODS))
     parser.add_argument("--alpha", type=float, default=0.05)
@@ -209,7 +211,7 @@ def main(argv: list[str] | None = None) -> dict:
         print(f"one draw of {name}: {draw_ms[name]:.1f} ms", flush=True)
 
     work = [(name, r, methods, args.alpha, args.permutations) for name in designs
-            for r in range(args.reps)]
+            for r in range(args.first_rep, args.first_rep + args.reps)]
     t0 = time.perf_counter()
     if args.jobs > 1:
         with ProcessPoolExecutor(args.jobs) as pool:
@@ -221,6 +223,7 @@ def main(argv: list[str] | None = None) -> dict:
     print(markdown(table, methods, args.alpha))
     print(f"\n{len(work)} replications in {wall:.1f} s ({args.jobs} processes)")
     out = {"alpha": args.alpha, "permutations": args.permutations, "reps": args.reps,
+           "first_rep": args.first_rep,
            "methods": methods, "designs": designs, "draw_ms": draw_ms, "table": table,
            "wall_s": wall, "pvalues": {name: {m: [r["p"][m] for r in results
                                                   if r["design"] == name] for m in methods}

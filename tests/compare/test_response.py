@@ -48,8 +48,9 @@ def _transitions(rng, units, per_unit, n_states=3):
     state = rng.integers(0, n_states, n)
     unit = np.repeat(np.arange(units), per_unit)
     order = np.lexsort((unit, state))
+    profile = rng.normal(size=(len(np.unique(state)), 1))  # the state's mean response
     return Transitions(state[order], unit[order], rng.normal(size=(n, 1))[order], ("x",),
-                       np.array([1.0]))
+                       np.array([1.0]), profile=profile)
 
 
 def _every_split(units_a, units):
@@ -105,6 +106,43 @@ def test_statistic_equals_literal_computation():
         weighted += share * diff
         spread += share**2 * phi.var(axis=0).sum() * (1 / k + 1 / l_)
     assert pooled[0, 0] == pytest.approx(weighted @ weighted / spread, rel=1e-10)
+
+
+def test_profile_statistic_equals_literal_computation():
+    """The profile contrast: ``w_s h(s)`` in place of ``w_s``, ``h`` the state's mean
+    response centred and scaled with the weights; the chain is Tippett's combination."""
+    rng = np.random.default_rng(5)
+    data = _transitions(rng, 10, 12, n_states=3)
+    kernel = kernel_sums(data, 10, np.random.default_rng(3))
+    features = _literal_features(data, np.random.default_rng(3))
+    assignment = np.zeros((1, 10), dtype=bool)
+    assignment[0, [1, 2, 5, 8, 9]] = True
+    _, pooled, _, _ = assignment_statistics(kernel.counts, assignment, 1, kernel.variances,
+                                            data.profile)
+    share = np.array([(data.state == s).mean() for s in range(3)])
+    h = data.profile[:, 0] - share @ data.profile[:, 0]
+    h /= np.sqrt(share @ h**2)
+    weighted, spread = np.zeros(FOURIER), 0.0
+    for s in range(3):
+        here = data.state == s
+        side = assignment[0][data.unit[here]]
+        phi = features[here] / LEVELS
+        diff = phi[side].mean(axis=0) - phi[~side].mean(axis=0)
+        weighted += share[s] * h[s] * diff
+        spread += (share[s] * h[s])**2 * phi.var(axis=0).sum() * (1 / side.sum()
+                                                                    + 1 / (~side).sum())
+    assert pooled.shape == (1, 2)
+    assert pooled[0, 1] == pytest.approx(weighted @ weighted / spread, rel=1e-10)
+
+
+def test_chain_is_tippett_of_features_and_profile():
+    """Literal: each column's exceedance p-value over the assignments, the smallest per row."""
+    from simcred.compare.response import chain_statistic
+
+    z = np.random.default_rng(6).normal(size=(50, 6))  # 2 features, 2 profile contrasts
+    columns = [z[:, 0], z[:, 1], z[:, 2:].sum(axis=1)]
+    literal = [-min(np.mean(c >= c[i]) for c in columns) for i in range(len(z))]
+    assert np.allclose(chain_statistic(z, 2), literal)
 
 
 def _literal_features(data, rng):

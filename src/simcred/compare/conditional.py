@@ -237,8 +237,8 @@ def _comparison(outcome: ResponseOutcome, start: MMDTestResult, space: StateSpac
             int(outcome.m[i]), int(outcome.n[i]), float(outcome.statistic[i]),
             bool(rejected[i]), pvalue=float(outcome.pvalue[i]),
             n_resamples=outcome.permutations, adjusted_pvalue=float(outcome.adjusted[i]))))
-    combine = "pooled states + paired runs (Tippett)" \
-        if analysis.design.kind == DesignKind.PAIRS.value else "pooled states"
+    combine = "pooled states per feature + response profile" + (
+        " + paired runs" if analysis.design.kind == DesignKind.PAIRS.value else "") + " (Tippett)"
     chain = ChainVerdict("response", combine, outcome.chain_statistic, outcome.chain_pvalue,
                          outcome.chain_pvalue <= options.alpha, outcome.permutations,
                          int(outcome.in_family.sum()))

@@ -23,9 +23,20 @@ states with their pooled share of transitions ``w_s`` and studentised:
 (``v_s,j``: pooled within-state variance of the features, label-free; ``m_s``, ``n_s``: the
 assignment's transitions per side). Every term has mean zero under H0 whatever the state mix, and
 the studentisation keeps the null's scale when the two sides' runs have different lengths (the
-issue-11 lesson). Chain = the sum over features of ``T_j`` standardised over the assignments [3].
-It aggregates a difference of one sign over the whole state space (a variance change, a bias);
-a difference whose sign changes between states (a delay) partly cancels — see calibration.md.
+issue-11 lesson). It aggregates a difference of one sign over the whole state space (a variance
+change, a bias); a difference whose sign changes between states cancels in it.
+
+**Profile statistics.** A delay, a late brake or a gain change the response by an amount that
+follows how the model responds in that state — its sign changes with the state's mean response
+(braking vs accelerating, rising vs falling command). With ``h_k(s)`` the pooled mean of the
+global fit of response feature ``k`` in state ``s`` (label-free), centred and scaled with the
+weights ``w_s``, ``T_k,j`` is ``T_j`` with ``w_s h_k(s)`` in place of ``w_s``: the A–B difference
+projected on the response profile instead of summed.
+
+**Chain** = Tippett's combination [3] of the per-feature ``T_j`` and the sum of the profile
+``T_k,j`` over ``k`` and ``j``, each standardised over the assignments: a change in one feature is
+not diluted by the features that do not change, and the profile statistic adds the changes of
+varying sign. Measured against the sum of ``T_j`` alone (calibration.md).
 
 **Per-state statistics** (where it shows): ``T_s,j = m n/(m+n) · ‖d_s,j‖²``, standardised, max-T
 family-wise adjusted [4], and *reported only when the chain verdict rejects* (gatekeeping: no
@@ -52,6 +63,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from simcred.compare.paired_runs import tippett
 from simcred.compare.run_counts import RunCounts
 from simcred.compare.runs import OneSided, exceedance_pvalues, row_max, standardise
 from simcred.compare.side_counts import SideCounts, is_paired
@@ -254,9 +266,9 @@ def response_test(data: Transitions, n_units: int, assignments: np.ndarray,
     kernel = kernel_sums(data, n_units, rng)
     n_features = len(data.response)
     stats, pooled, m, n = assignment_statistics(kernel.counts, assignments, n_features,
-                                                kernel.variances)
+                                                kernel.variances, data.profile)
     z, in_family = standardise(stats, OneSided.NEUTRAL)
-    chain = standardise(pooled, OneSided.NEUTRAL)[0].sum(axis=1)
+    chain = chain_statistic(standardise(pooled, OneSided.NEUTRAL)[0], n_features)
     adjusted = exceedance_pvalues(row_max(z[:, in_family])[:, None], z[0])
     adjusted[~in_family] = 1.0
     per_state = (len(kernel.counts.blocks), n_features)
@@ -270,18 +282,43 @@ def response_test(data: Transitions, n_units: int, assignments: np.ndarray,
         permutations=len(assignments) - 1, bandwidth=kernel.bandwidth, chain_null=chain)
 
 
+def chain_statistic(z: np.ndarray, n_features: int) -> np.ndarray:
+    """The chain statistic of every assignment from the standardised pooled statistics
+    (P + 1, K · features): Tippett's combination of each feature's ``T_j`` and the sum of the
+    profile statistics (module docs); larger = more extreme."""
+    level = [z[:, j] for j in range(n_features)]
+    if z.shape[1] == n_features:
+        return tippett(*level)
+    return tippett(*level, z[:, n_features:].sum(axis=1))
+
+
+def contrasts(share: np.ndarray, profile: np.ndarray | None) -> np.ndarray:
+    """(K, blocks) state weights of the pooled statistics: 1, then each column of ``profile``
+    centred and scaled with the weights ``share`` (a column constant over the states is left
+    out)."""
+    rows = [np.ones(len(share))]
+    for column in () if profile is None else profile.T:
+        centred = column - share @ column
+        scale = np.sqrt(share @ centred**2)
+        if scale > 1e-12 * max(np.abs(column).max(), 1e-300):
+            rows.append(centred / scale)
+    return np.array(rows)
+
+
 def assignment_statistics(sums: RunCounts, assignments: np.ndarray, n_features: int,
-                          variances: np.ndarray
+                          variances: np.ndarray, profile: np.ndarray | None = None
                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Statistics of every assignment: (P + 1, blocks · features) per-state ``T_s,j``,
-    (P + 1, features) pooled studentised ``T_j``, and the observed m, n per block."""
+    (P + 1, K · features) pooled studentised ``T_k,j`` (k = 0: ``T_j``; then one block of
+    features per profile contrast, :func:`contrasts`), and the observed m, n per block."""
     product = SideCounts(sums, paired=is_paired(assignments))
     width = 1 + n_features * FOURIER
     totals = np.asarray(sums.matrix.sum(axis=1)).ravel()
     share = totals[0::width] / max(totals[0::width].sum(), 1.0)
+    weights = contrasts(share, profile) * share  # (K, blocks)
     per_state = np.empty((len(assignments), len(sums.blocks), n_features))
-    pooled = np.zeros((n_features * FOURIER, len(assignments)))
-    spread = np.zeros((n_features, len(assignments)))
+    pooled = np.zeros((len(weights), n_features * FOURIER, len(assignments)))
+    spread = np.zeros((len(weights), n_features, len(assignments)))
     batch = int(np.clip(BATCH_BUDGET // max(*sums.matrix.shape, 1), 8, 1024))
     for first, last, lo, hi in product.chunks:
         rows = product.rows(lo, hi)
@@ -290,15 +327,15 @@ def assignment_statistics(sums: RunCounts, assignments: np.ndarray, n_features: 
             value, diff, inverse = _statistic(side_a.reshape(last - first, width, -1),
                                               totals[lo:hi].reshape(last - first, width),
                                               n_features)
-            here, weight = slice(start, start + batch), share[first:last]
+            here, weight = slice(start, start + batch), weights[:, first:last]
             per_state[here, first:last] = value.transpose(2, 0, 1)
-            pooled[:, here] += np.einsum("s,sdb->db", weight, diff)
-            spread[:, here] += np.einsum("s,sj,sb->jb", weight**2, variances[first:last],
-                                         inverse)
+            pooled[:, :, here] += np.einsum("ks,sdb->kdb", weight, diff)
+            spread[:, :, here] += np.einsum("ks,sj,sb->kjb", weight**2, variances[first:last],
+                                            inverse)
     observed = sums.matrix[0::width] @ assignments[0].astype(np.float64)
     with np.errstate(invalid="ignore", divide="ignore"):
-        studentised = ((pooled.reshape(n_features, FOURIER, -1) ** 2).sum(axis=1)
-                       / LEVELS**2 / spread).T
+        studentised = ((pooled.reshape(len(weights), n_features, FOURIER, -1) ** 2).sum(axis=2)
+                       / LEVELS**2 / spread).reshape(len(weights) * n_features, -1).T
     return (per_state.reshape(len(assignments), -1), studentised,
             observed.astype(np.int64), (totals[0::width] - observed).astype(np.int64))
 

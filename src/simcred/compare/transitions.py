@@ -46,7 +46,9 @@ class Transitions:
     ``state``: state code at ``t``; ``unit``: the design unit of the transition's run;
     ``residual``: (n, J) adjusted response in the response features' units per second (global
     and per-state fits: the chain test's); ``level``: the response after the global fit only
-    (the effect's; None: not computed, ``residual`` serves).
+    (the effect's; None: not computed, ``residual`` serves); ``profile``: (distinct states, J)
+    per state the pooled mean of the global fit, i.e. how the model responds there on average
+    (label-free; the response test's profile contrasts; None: not computed).
     """
 
     state: np.ndarray
@@ -55,6 +57,7 @@ class Transitions:
     response: tuple[str, ...]
     spread: np.ndarray | None = None  # pooled standard deviation of the raw response rates
     level: np.ndarray | None = None
+    profile: np.ndarray | None = None
 
     @property
     def effect_residual(self) -> np.ndarray:
@@ -99,9 +102,19 @@ def transitions(parts: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray, np.nda
     order = _order(state, unit)
     state, unit = np.take(state, order), np.take(unit, order)
     covariates = np.take(covariates, order, axis=0)
-    level = global_residual(covariates, np.take(rate, order, axis=0))
+    spread = rate.std(axis=0)
+    rate = np.take(rate, order, axis=0)
+    level = global_residual(covariates, rate)
     residual = per_state_residual(state, covariates, level)
-    return Transitions(state, unit, residual, response, rate.std(axis=0), level)
+    return Transitions(state, unit, residual, response, spread, level,
+                       state_means(state, rate - level))
+
+
+def state_means(state: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """(distinct states, columns): the mean of ``values`` over each state's rows (``state``
+    sorted)."""
+    starts = np.r_[0, np.flatnonzero(np.diff(state)) + 1]
+    return np.add.reduceat(values, starts, axis=0) / np.diff(np.r_[starts, len(state)])[:, None]
 
 
 def _order(state: np.ndarray, unit: np.ndarray) -> np.ndarray:
