@@ -240,7 +240,7 @@ def test_two_condition_variables(tmp_path):
 def test_the_size_decides_not_the_p_value(tmp_path):
     """Issue 22: VALID meant "no difference found", NOT VALID "a difference found". Now the size
     of the deviation decides: with a tolerance far above the AR change's deviation every cell
-    is valid, whatever its difference p-value; with one far below, cells whose bounds straddle
+    is valid, whatever its difference or deviation p-value; with one far below, cells whose bounds straddle
     it are inconclusive, never valid. (Here the difference test does not even reject above
     20 m/s: the AR change shifts the response up for x > 0 and down for x < 0, which its pooled
     statistic averages away — the deviation, an RMS over states, does not; docs/validate.md.)"""
@@ -249,7 +249,8 @@ def test_the_size_decides_not_the_p_value(tmp_path):
     code, verdict = _run(path, tmp_path / "wide")
     cells = verdict["domains"]["sim"]["cells"]
     assert [c["status"] for c in cells] == ["valid"] * 5 and code == 0
-    assert min(c["difference_pvalue"] for c in cells) <= 0.05  # a "difference" in a valid cell
+    # a shown deviation (the deviation's own test rejects the same law) in a valid cell
+    assert min(c["deviation"][0]["deviation_pvalue"] for c in cells) <= 0.05
     path = write_universe(tmp_path, test_case={"conditions": "10 <= v <= 25",
                                                "tolerance": {"x": 0.3}})
     code, verdict = _run(path, tmp_path / "narrow")
