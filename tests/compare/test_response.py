@@ -84,55 +84,56 @@ def test_exact_by_enumeration(kind):
     assert rejections["state"] <= rejections["chain"]  # gatekept: never without the chain
 
 
-def test_statistic_equals_literal_computation():
-    """Per state and for the pooled chain statistic, against a per-transition computation."""
-    rng = np.random.default_rng(1)
-    data = _transitions(rng, 10, 12, n_states=2)
-    kernel = kernel_sums(data, 10, np.random.default_rng(3))
-    features = _literal_features(data, np.random.default_rng(3))
-    assignment = np.zeros((1, 10), dtype=bool)
-    assignment[0, [0, 2, 3, 7]] = True
-    stats, pooled, m, n = assignment_statistics(kernel.counts, assignment, 1, kernel.variances)
-    weighted, spread = np.zeros(FOURIER), 0.0
-    for s in range(2):
+def _literal_pooled(data, features, assignment, weight):
+    """``‖Σ_s weight_s d_s‖² / Σ_s weight_s² v_s (1/m_s + 1/n_s)`` per transition, and per state
+    (m, n, m n/(m+n) ‖d_s‖²)."""
+    weighted, spread, per_state = np.zeros(FOURIER), 0.0, []
+    for s in range(len(weight)):
         here = data.state == s
-        side = assignment[0][data.unit[here]]
+        side = assignment[data.unit[here]]
         phi = features[here] / LEVELS
         diff = phi[side].mean(axis=0) - phi[~side].mean(axis=0)
         k, l_ = side.sum(), (~side).sum()
+        per_state.append((k, l_, k * l_ / (k + l_) * (diff @ diff)))
+        weighted += weight[s] * diff
+        spread += weight[s]**2 * phi.var(axis=0).sum() * (1 / k + 1 / l_)
+    return weighted @ weighted / spread, per_state
+
+
+def _literal_case(seed, n_states, chosen):
+    data = _transitions(np.random.default_rng(seed), 10, 12, n_states=n_states)
+    kernel = kernel_sums(data, 10, np.random.default_rng(3))
+    features = _literal_features(data, np.random.default_rng(3))
+    assignment = np.zeros((1, 10), dtype=bool)
+    assignment[0, chosen] = True
+    share = np.array([(data.state == s).mean() for s in range(n_states)])
+    return data, kernel, features, assignment, share
+
+
+def test_statistic_equals_literal_computation():
+    """Per state and for the pooled chain statistic, against a per-transition computation."""
+    data, kernel, features, assignment, share = _literal_case(1, 2, [0, 2, 3, 7])
+    stats, pooled, m, n = assignment_statistics(kernel.counts, assignment, 1, kernel.variances)
+    literal, per_state = _literal_pooled(data, features, assignment[0], share)
+    for s, (k, l_, value) in enumerate(per_state):
         assert (m[s], n[s]) == (k, l_)
-        assert stats[0, s] == pytest.approx(k * l_ / (k + l_) * (diff @ diff), rel=1e-12)
-        share = here.mean()
-        weighted += share * diff
-        spread += share**2 * phi.var(axis=0).sum() * (1 / k + 1 / l_)
-    assert pooled[0, 0] == pytest.approx(weighted @ weighted / spread, rel=1e-10)
+        assert stats[0, s] == pytest.approx(value, rel=1e-12)
+    assert pooled[0, 0] == pytest.approx(literal, rel=1e-10)
 
 
 def test_profile_statistic_equals_literal_computation():
     """The profile contrast: ``w_s h(s)`` in place of ``w_s``, ``h`` the state's mean
-    response centred and scaled with the weights; the chain is Tippett's combination."""
-    rng = np.random.default_rng(5)
-    data = _transitions(rng, 10, 12, n_states=3)
-    kernel = kernel_sums(data, 10, np.random.default_rng(3))
-    features = _literal_features(data, np.random.default_rng(3))
-    assignment = np.zeros((1, 10), dtype=bool)
-    assignment[0, [1, 2, 5, 8, 9]] = True
+    response centred and scaled with the weights."""
+    data, kernel, features, assignment, share = _literal_case(5, 3, [1, 2, 5, 8, 9])
     _, pooled, _, _ = assignment_statistics(kernel.counts, assignment, 1, kernel.variances,
                                             data.profile)
-    share = np.array([(data.state == s).mean() for s in range(3)])
     h = data.profile[:, 0] - share @ data.profile[:, 0]
     h /= np.sqrt(share @ h**2)
-    weighted, spread = np.zeros(FOURIER), 0.0
-    for s in range(3):
-        here = data.state == s
-        side = assignment[0][data.unit[here]]
-        phi = features[here] / LEVELS
-        diff = phi[side].mean(axis=0) - phi[~side].mean(axis=0)
-        weighted += share[s] * h[s] * diff
-        spread += (share[s] * h[s])**2 * phi.var(axis=0).sum() * (1 / side.sum()
-                                                                    + 1 / (~side).sum())
     assert pooled.shape == (1, 2)
-    assert pooled[0, 1] == pytest.approx(weighted @ weighted / spread, rel=1e-10)
+    assert pooled[0, 0] == pytest.approx(_literal_pooled(data, features, assignment[0], share)[0],
+                                         rel=1e-10)
+    assert pooled[0, 1] == pytest.approx(
+        _literal_pooled(data, features, assignment[0], share * h)[0], rel=1e-10)
 
 
 def test_chain_is_tippett_of_features_and_profile():
