@@ -241,9 +241,10 @@ def test_the_size_decides_not_the_p_value(tmp_path):
     """Issue 22: VALID meant "no difference found", NOT VALID "a difference found". Now the size
     of the deviation decides: with a tolerance far above the AR change's deviation every cell
     is valid, whatever its difference or deviation p-value; with one far below, cells whose
-    bounds straddle it are inconclusive, never valid. (Here the difference test does not even reject above
-    20 m/s: the AR change shifts the response up for x > 0 and down for x < 0, which its pooled
-    statistic averages away — the deviation, an RMS over states, does not; docs/validate.md.)"""
+    bounds straddle it are inconclusive, never valid. (Here the difference test does not even
+    reject above 20 m/s: the AR change shifts the response up for x > 0 and down for x < 0,
+    which its pooled statistic averages away — the deviation, an RMS over states, does not;
+    docs/validate.md.)"""
     path = write_universe(tmp_path, test_case={"conditions": "10 <= v <= 25",
                                                "tolerance": {"x": 20.0}})
     code, verdict = _run(path, tmp_path / "wide")
