@@ -37,6 +37,7 @@ from simcred.compare.result import (
 from simcred.compare.transitions import response_features
 from simcred.engine import Progress
 from simcred.errors import OptionError
+from simcred.limits import check_count
 from simcred.seeds import resolve_seed, stream
 from simcred.traces import TraceSet
 
@@ -253,6 +254,7 @@ def resolve_bins(bins: int | Sequence[int], n_features: int) -> tuple[int, ...]:
     for value in per_feature:
         if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 2:
             raise OptionError(f"bins must be integers >= 2, got {value!r}")
+        check_count(int(value), "bins", "bins")  # before any data is read or simulated
     return tuple(int(v) for v in per_feature)
 
 
