@@ -27,6 +27,7 @@ from typing import Any
 import yaml
 
 import simcred._display as _display
+from simcred.compare.observed import SensorModel
 from simcred.contracts.algebra import Contract, Status, valid
 from simcred.contracts.configure import configure, setup_refines
 from simcred.contracts.expr import Bool, negate, parse, to_text
@@ -45,9 +46,14 @@ from simcred.validate.domain import (
     cell_settings,
     learn_domain,
 )
-from simcred.compare.observed import SensorModel
 from simcred.validate.learned import COMPONENT, TEST_CASE, library_dict
 from simcred.validate.learned import number as _exact_text
+from simcred.validate.observed import (
+    Observation,
+    observation_level,
+    read_sensor,
+    with_sensor_alone,
+)
 from simcred.validate.plan import (
     PairedInput,
     Plan,
@@ -56,12 +62,6 @@ from simcred.validate.plan import (
     pilot,
     plan,
     power_per_cell,
-)
-from simcred.validate.observed import (
-    Observation,
-    observation_level,
-    read_sensor,
-    with_sensor_alone,
 )
 from simcred.validate.ranking import Ranked, rank
 from simcred.validate.spec import RunsSpec, ValidationFileError, ValidationSpec
