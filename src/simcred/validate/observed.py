@@ -24,7 +24,7 @@ cell.
 from __future__ import annotations
 
 import zlib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -145,6 +145,4 @@ def with_sensor_alone(observation: Observation, spec: ValidationSpec, grid: Grid
             engine.compare_cell(settings, grid, cell, name + EFFECT_SUFFIX, rule,
                                 truth_cells.get(cell), own_cells.get(cell))
             for cell in relevant)
-    return Observation(observation.sensor, observation.source, observation.cropped,
-                       observation.reference, observation.candidates, observation.truths,
-                       effects)
+    return replace(observation, effects=effects)
