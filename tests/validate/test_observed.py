@@ -54,6 +54,15 @@ def test_a_real_reaction_delay_in_the_candidate_is_still_found():
     assert verdicts["observed"].count("not valid") >= 6, verdicts["observed"]
 
 
+def test_python_api_with_a_sensor_declared_inline_needs_no_inputs_sensor():
+    rng = np.random.default_rng(9)
+    reference, candidate = universe.recording(rng, 20, 50), universe.truth(rng, 20, 50)
+    spec = universe.validation(0, sensor=universe.SENSOR)
+    result = validate(spec, Inputs(reference, {"sim": candidate}, ()))
+    assert result.observation is not None and result.observation.sensor == universe.SENSOR
+    assert result.observation.cropped == 3
+
+
 def _files(folder: Path, sensor: object) -> Path:
     rng = np.random.default_rng(5)
     universe.recording(rng, RUNS, STEPS).write(folder / "recorded.parquet")

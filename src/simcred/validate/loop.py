@@ -208,10 +208,13 @@ def _observed(spec: ValidationSpec, inputs: Inputs) -> tuple[Observation | None,
     (candidates pushed through the sensor, every run cropped); else None and ``inputs``."""
     if spec.reference.observed is None:
         return None, inputs
-    if inputs.sensor is None:
-        raise ValidationFileError("reference.observed: the sensor model was not read "
-                                  "(read_inputs reads it, or give Inputs.sensor)")
-    observation = observation_level(spec, inputs.sensor, inputs.reference, inputs.candidates)
+    sensor = inputs.sensor
+    if sensor is None and isinstance(spec.reference.observed.sensor, dict):
+        sensor = read_sensor(spec, Path())  # declared inline: nothing to read from disk
+    if sensor is None:
+        raise ValidationFileError("reference.observed.sensor: the sensor model file was not "
+                                  "read (read_inputs reads it, or give Inputs.sensor)")
+    observation = observation_level(spec, sensor, inputs.reference, inputs.candidates)
     return observation, replace(inputs, reference=observation.reference,
                                 candidates=observation.candidates)
 
