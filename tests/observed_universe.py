@@ -85,3 +85,23 @@ def calibration_pairs(rng: np.random.Generator, runs: int, steps: int
     """Paired GT/SD recordings of the same runs (a reference system next to the sensor)."""
     states = hidden(rng, runs, steps)
     return traceset(states[:, BURN:]), traceset(record(rng, states))
+
+
+def validation(seed: int, *, sensor: SensorModel | None = None, tolerance: float = 0.25):
+    """The validation of this universe used by tests/validate/test_observed.py and
+    scripts/observed_validate.py: the follower's speed response (``v``, the leader's speed ``u``
+    an input), tolerance ``tolerance`` m/s², cells of ``u`` 16-20-24 m/s (the test case), 3 bins,
+    P = 99, α = 0.05; ``sensor``: the reference declared observed through it (inline). Paths are
+    placeholders: pass the sets with :class:`~simcred.validate.loop.Inputs`."""
+    from simcred.validate.spec import parse_validation
+
+    reference: dict = {"path": "-"}
+    if sensor is not None:
+        reference["observed"] = {"sensor": {k: s.to_dict() for k, s in sensor.signals.items()}}
+    return parse_validation({
+        "test_case": {"conditions": "16 <= u <= 24", "tolerance": {"v": tolerance}},
+        "reference": reference, "candidates": {"sim": {"runs": {"path": "-"}}},
+        "features": ["u", "v"], "inputs": ["u"],
+        "conditions": {"u": {"unit": "m/s", "edges": [16, 20, 24]}},
+        "comparison": {"bins": 3, "permutations": 99, "alpha": 0.05, "seed": seed},
+        "min_data": {"runs": 8, "samples": 200}})

@@ -58,10 +58,27 @@ def validate_command(
             out_console.print(f"  {verdict.candidate}: {verdict.verdict}", highlight=False)
             for reason in verdict.reasons:
                 out_console.print(f"    - {reason}", highlight=False, soft_wrap=True)
+        if result.observation is not None:
+            _print_observation(document["observation"])
         if result.plan is not None:
             _print_plan(result.plan)
         out_console.print(f"wrote {out / 'verdict.json'}", highlight=False, soft_wrap=True)
     raise typer.Exit(result.exit_code)
+
+
+def _print_observation(observation: dict) -> None:
+    sensor = observation["sensor"]
+    out_console.print(f"reference observed ({observation['route']}): the candidates pushed "
+                      f"through the {sensor['kind']} sensor model ({sensor['source']}"
+                      + (f", {sensor['draws']} parameter draws" if sensor["draws"] else "")
+                      + f"), {observation['cropped_samples']} samples cropped per run",
+                      highlight=False, soft_wrap=True)
+    for name, cells in observation["sensor_alone"].items():
+        for cell in cells:
+            shown = ", ".join(f"{d['feature']} {d['estimate']:.3g} {d['unit']}"
+                              for d in cell["deviation"]) or cell["reason"]
+            out_console.print(f"  the sensor alone, {name}, {cell['label']}: {shown}",
+                              highlight=False, soft_wrap=True)
 
 
 def _print_plan(plan) -> None:
@@ -96,4 +113,7 @@ def _print_plan(plan) -> None:
 def _inputs(validation: Path, spec: ValidationSpec, base: Path) -> list[Path]:
     """Every file the validation reads: --out may not be, contain or lie inside one."""
     runs = [c.runs for c in spec.candidates.values() if c.runs is not None]
-    return [validation, *(base / r.path for r in [spec.reference, *runs, *spec.monitor])]
+    observed = spec.reference.observed
+    sensor = [base / observed.sensor] if observed and isinstance(observed.sensor, str) else []
+    return [validation, *(base / r.path for r in [spec.reference, *runs, *spec.monitor]),
+            *sensor]

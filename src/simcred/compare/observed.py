@@ -200,6 +200,14 @@ def _crop_lags(traces: TraceSet, sensor: SensorModel) -> int:
     return crop
 
 
+def delay_steps(sensor: SensorModel, *sets: TraceSet) -> int:
+    """The samples every run of ``sets`` loses so that the sensor's largest delay looks back into
+    the run (the sensor's signals checked on each set; one line for a run too short)."""
+    for traces in sets:
+        _check_signals(traces, sensor)
+    return max(_crop_lags(traces, sensor) for traces in sets)
+
+
 def crop(traces: TraceSet, steps: int) -> TraceSet:
     """Every run without its first ``steps`` samples."""
     if steps == 0:
@@ -422,8 +430,7 @@ def compare_observed(a: TraceSet | str | Path, b: TraceSet | str | Path, *, obse
     a, b = load(a), load(b)
     root = resolve_seed(seed)
     truth, recording = (b, a) if observed == "a" else (a, b)
-    _check_signals(recording, model)
-    lost = max(_crop_lags(truth, model), _crop_lags(recording, model))
+    lost = delay_steps(model, recording, truth)
     pushed = observe(truth, model, seed=stream(root, OBSERVE_KEY), crop_to=lost)
     cropped = crop(recording, lost)
     pair = (cropped, pushed) if observed == "a" else (pushed, cropped)

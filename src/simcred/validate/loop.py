@@ -20,13 +20,14 @@ over the test case's cells, with a simultaneous interval (:mod:`simcred.validate
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import yaml
 
 import simcred._display as _display
+from simcred.compare.observed import SensorModel
 from simcred.contracts.algebra import Contract, Status, valid
 from simcred.contracts.configure import configure, setup_refines
 from simcred.contracts.expr import Bool, negate, parse, to_text
@@ -47,6 +48,12 @@ from simcred.validate.domain import (
 )
 from simcred.validate.learned import COMPONENT, TEST_CASE, library_dict
 from simcred.validate.learned import number as _exact_text
+from simcred.validate.observed import (
+    Observation,
+    observation_level,
+    read_sensor,
+    with_sensor_alone,
+)
 from simcred.validate.plan import (
     PairedInput,
     Plan,
@@ -68,12 +75,14 @@ MAX_VIOLATIONS = 50  # per monitor in verdict.json; the count says how many ther
 @dataclass(frozen=True, slots=True, eq=False)
 class Inputs:
     """The read trace sets; ``replays``: candidates a simulator command made by replaying the
-    reference run by run (paired with it automatically)."""
+    reference run by run (paired with it automatically); ``sensor``: the sensor model of an
+    observed reference (:mod:`simcred.validate.observed`)."""
 
     reference: TraceSet
     candidates: dict[str, TraceSet]
     monitored: tuple[TraceSet, ...]
     replays: frozenset[str] = frozenset()
+    sensor: SensorModel | None = None
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -107,6 +116,7 @@ class Validation:
     ranking: tuple[Ranked, ...] = ()
     plan: Plan | None = None
     tolerance_resolution: tuple[Resolution, ...] = ()
+    observation: Observation | None = None
 
     @property
     def exit_code(self) -> int:
@@ -138,7 +148,8 @@ def read_inputs(spec: ValidationSpec, base: Path,
     return Inputs(_read(spec.reference, base),
                   {n: _read(c.runs or simulated[n], base) for n, c in spec.candidates.items()},
                   tuple(_read(m, base) for m in spec.monitor),
-                  frozenset(n for n, c in spec.candidates.items() if c.simulate is not None))
+                  frozenset(n for n, c in spec.candidates.items() if c.simulate is not None),
+                  read_sensor(spec, base))
 
 
 def _read(runs: RunsSpec, base: Path) -> TraceSet:
@@ -166,11 +177,12 @@ def validate(spec: ValidationSpec, inputs: Inputs, *, source: str = "<memory>",
     units = inputs.reference.units
     empty = Library.from_dict(library_dict(placeholder(spec), {}, units), source="test case")
     relevant = _relevant_cells(grid, empty.test_case(TEST_CASE), empty)
-    reference = segments(inputs.reference, grid, spec.segments.min_length)
+    observation, seen = _observed(spec, inputs)
+    reference = segments(seen.reference, grid, spec.segments.min_length)
     spec, resolution = resolve(spec, reference, relevant)
     rules = {n: cell_rule(spec, len(relevant), n in inputs.replays) for n in inputs.candidates}
     domains = {n: learn_domain(spec, grid, reference, runs, n, rules[n])
-               for n, runs in inputs.candidates.items()}
+               for n, runs in seen.candidates.items()}
     data = library_dict(spec, domains, units)
     library = Library.from_dict(data, source="learned contracts")
     target = library.test_case(TEST_CASE)
@@ -183,10 +195,28 @@ def validate(spec: ValidationSpec, inputs: Inputs, *, source: str = "<memory>",
     verdict, summary = _overall(spec, verdicts, configuration, planned)
     halves = pilot(spec, reference, relevant)
     needs = plan(spec, grid, halves, relevant, domains,
-                 _paired(spec, grid, reference, inputs, rules)) if planned else None
+                 _paired(spec, grid, reference, seen, rules)) if planned else None
     ranking = rank(domains, relevant, spec, tuple(halves.comparisons.values()))
+    if observation is not None:
+        observation = with_sensor_alone(observation, spec, grid, relevant)
     return Validation(spec, grid, domains, verdicts, verdict, summary, data, configuration,
-                      uncovered, monitors, ranking, needs, resolution)
+                      uncovered, monitors, ranking, needs, resolution, observation)
+
+
+def _observed(spec: ValidationSpec, inputs: Inputs) -> tuple[Observation | None, Inputs]:
+    """For an observed reference, the observation level and the inputs as compared there
+    (candidates pushed through the sensor, every run cropped); else None and ``inputs``."""
+    if spec.reference.observed is None:
+        return None, inputs
+    sensor = inputs.sensor
+    if sensor is None and isinstance(spec.reference.observed.sensor, dict):
+        sensor = read_sensor(spec, Path())  # declared inline: nothing to read from disk
+    if sensor is None:
+        raise ValidationFileError("reference.observed.sensor: the sensor model file was not "
+                                  "read (read_inputs reads it, or give Inputs.sensor)")
+    observation = observation_level(spec, sensor, inputs.reference, inputs.candidates)
+    return observation, replace(inputs, reference=observation.reference,
+                                candidates=observation.candidates)
 
 
 def _paired(spec: ValidationSpec, grid: Grid, reference: Segments, inputs: Inputs,

@@ -9,7 +9,8 @@ and the key. Paths are relative to the validation file's folder. See docs/valida
       conditions: "10 <= v_leader <= 25"  # operating conditions (over the condition variables)
       tolerance: {v: 0.1}                 # largest acceptable response deviation, per feature
                                           # (or {v: {relative: 1.0}}: the reference's spread)
-    reference: {path: ref.parquet}        # any format simcred reads (reader options allowed)
+    reference: {path: ref.parquet}        # any format simcred reads (reader options allowed);
+                                          # observed: {sensor: sensor.json} when it is a recording
     candidates:
       idm: {runs: {path: idm.parquet}, cost: 1}
     features: [gap, v, v_leader]
@@ -44,6 +45,7 @@ from pydantic import (
 )
 
 from simcred.compare.method import Method
+from simcred.compare.observed import SensorModel
 from simcred.contracts.loader import load_yaml
 from simcred.errors import OptionError, SimcredError
 
@@ -65,6 +67,44 @@ class RunsSpec(_Strict):
 
     path: str = Field(min_length=1)
     options: dict[str, str | int | float | bool] = Field(default_factory=dict)
+
+
+class ObservedSpec(_Strict):
+    """The reference is a sensor's recording of the process the candidates write as ground truth
+    (docs/observed.md, the observation-model route): each candidate is pushed through ``sensor``
+    before its cells are compared. ``sensor`` is a JSON file (declared, or written by ``simcred
+    estimate-sensor`` with the parameter draws that carry its uncertainty) or a declared model
+    inline, ``{signal: {offset, delay, noise_sd, dropout}}``."""
+
+    sensor: Any
+
+    @field_validator("sensor")
+    @classmethod
+    def _model(cls, sensor: Any) -> Any:
+        if isinstance(sensor, str) and sensor:
+            return sensor
+        if not isinstance(sensor, dict):
+            raise ValueError("a sensor model file (path) or {signal: {offset, delay, noise_sd, "
+                             f"dropout}}}}, got {sensor!r}")
+        try:
+            SensorModel.from_dict(sensor, "declared sensor")
+        except OptionError as exc:
+            raise ValueError(str(exc)) from None
+        return sensor
+
+
+class ReferenceSpec(RunsSpec):
+    """The reference's runs; ``observed``: they are a sensor's recording (:class:`ObservedSpec`).
+    Without it the reference is compared as it is (and recorded as before)."""
+
+    observed: ObservedSpec | None = None
+
+    @model_serializer(mode="wrap")
+    def _recorded(self, handler: SerializerFunctionWrapHandler) -> dict[str, Any]:
+        out = handler(self)
+        if self.observed is None:
+            out.pop("observed", None)
+        return out
 
 
 class RelativeTolerance(_Strict):
@@ -299,7 +339,7 @@ class SegmentSpec(_Strict):
 class ValidationSpec(_Strict):
     name: str = Field(default="validation", max_length=200)
     test_case: TestCaseSpec
-    reference: RunsSpec
+    reference: ReferenceSpec
     reference_note: str = ""
     candidates: dict[str, CandidateSpec] = Field(min_length=1)
     features: list[str] = Field(min_length=1)

@@ -36,6 +36,8 @@ def verdict_document(result: Validation, inputs: Inputs, *, validation_file: Pat
         "monitors": {n: _monitor(m) for n, m in result.monitors.items()},
         "provenance": provenance(result, inputs, validation_file, date),
     }
+    if result.observation is not None:  # only then: a direct validation keeps its bytes
+        body = {"observation": result.observation.to_dict(), **body}
     return envelope("validation_verdict", body)
 
 
