@@ -33,10 +33,19 @@ global fit of response feature ``k`` in state ``s`` (label-free), centred and sc
 weights ``w_s``, ``T_k,j`` is ``T_j`` with ``w_s h_k(s)`` in place of ``w_s``: the A–B difference
 projected on the response profile instead of summed.
 
-**Chain** = Tippett's combination [3] of the per-feature ``T_j`` and the sum of the profile
-``T_k,j`` over ``k`` and ``j``, each standardised over the assignments: a change in one feature is
-not diluted by the features that do not change, and the profile statistic adds the changes of
-varying sign. Measured against the sum of ``T_j`` alone (calibration.md).
+**Spread statistics.** ``S_j`` is ``T_j`` computed on ``|r_j|`` (the dithered residual's size,
+in units of its pooled spread) instead of its Fourier features: a Levene-type comparison [5] of
+the response's spread, state by state, pooled. The kernel's mean embedding at the median
+bandwidth sees a change of spread (a noisier model, clipped tails) only weakly. A response whose
+adjusted residual is below ``NOISE_FLOOR`` of its raw spread has no noise of its own (a
+kinematic identity: only the dither and fit leftovers, whose size differs between places a
+deterministic model drives): its spread is not compared.
+
+**Chain** = Tippett's combination [3] of ``z(T_j) + z(S_j)`` per feature and the sum of the
+profile ``T_k,j`` over ``k`` and ``j``, each standardised over the assignments: a change in one
+feature is not diluted by the features that do not change, and the profile statistic adds the
+changes of varying sign. Measured against the sum of ``T_j`` alone and other variants
+(calibration.md).
 
 **Per-state statistics** (where it shows): ``T_s,j = m n/(m+n) · ‖d_s,j‖²``, standardised, max-T
 family-wise adjusted [4], and *reported only when the chain verdict rejects* (gatekeeping: no
@@ -54,6 +63,8 @@ References
 [2] Rahimi & Recht, Random Features for Large-Scale Kernel Machines, NIPS 2007.
 [3] Pesarin & Salmaso, Permutation Tests for Complex Data, Wiley, 2010.
 [4] Westfall & Young, Resampling-Based Multiple Testing, Wiley, 1993.
+[5] Levene, Robust tests for equality of variances, in Contributions to Probability and
+    Statistics, Stanford University Press, 1960.
 """
 
 from __future__ import annotations
@@ -67,7 +78,7 @@ from simcred.compare.paired_runs import tippett
 from simcred.compare.run_counts import RunCounts
 from simcred.compare.runs import OneSided, exceedance_pvalues, row_max, standardise
 from simcred.compare.side_counts import SideCounts, is_paired
-from simcred.compare.transitions import Transitions
+from simcred.compare.transitions import Transitions, state_means
 
 #: The comparison's resolution: residuals get N(0, (RESOLUTION · spread)²) noise, spread = the
 #: pooled standard deviation of the raw response.
@@ -76,6 +87,9 @@ RESOLUTION = 0.02
 FOURIER = 16
 #: Each feature value is rounded to a multiple of 1 / LEVELS (integer sums, exact products).
 LEVELS = 256
+#: Responses whose adjusted residual's spread is below this share of the raw response's get no
+#: spread statistic (module docs).
+NOISE_FLOOR = 0.05
 #: Residual pairs used for the median-distance bandwidth.
 BANDWIDTH_PAIRS = 4096
 #: Elements of one dense (columns × batch) block of a permutation batch.
@@ -117,11 +131,14 @@ class ResponseOutcome:
 @dataclass(frozen=True, slots=True, eq=False)
 class KernelSums:
     """Per (state, unit) sums of ``[1, features]`` (a RunCounts of blocks of width
-    ``1 + J · FOURIER``), per state the pooled feature variance ``v_s,j``, the bandwidths."""
+    ``1 + J · FOURIER``), per state the pooled feature variance ``v_s,j``, the bandwidths; the
+    same for the residuals' sizes ``[1, |r_j|]`` (:func:`size_sums`)."""
 
     counts: RunCounts
     variances: np.ndarray
     bandwidth: tuple[float, ...]
+    sizes: RunCounts
+    size_variances: np.ndarray
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -209,7 +226,21 @@ def kernel_sums(data: Transitions, n_units: int, rng: np.random.Generator) -> Ke
     count = totals[:, :1]
     variance = squares / count - (totals[:, 1:] / count) ** 2
     variances = np.maximum(variance.reshape(n_blocks, -1, FOURIER).sum(axis=2), 0.0) / LEVELS**2
-    return KernelSums(layout.counts(), variances, tuple(feature_map.bandwidth))
+    return KernelSums(layout.counts(), variances, tuple(feature_map.bandwidth),
+                      *size_sums(data, residual, n_units))
+
+
+def size_sums(data: Transitions, residual: np.ndarray, n_units: int
+              ) -> tuple[RunCounts, np.ndarray]:
+    """Per (state, unit) sums of ``[1, |r_j|]`` (each ``|r_j|`` in units of its pooled standard
+    deviation, rounded to 1 / LEVELS: integer sums) and per state their pooled variance."""
+    size = np.abs(residual)
+    scale = size.std(axis=0)
+    values = np.rint(LEVELS * size / np.where(scale > 0, scale, 1.0))
+    sums = unit_sums(data, np.column_stack([np.ones(len(values)), values]), n_units)
+    mean = state_means(data.state, values)
+    variances = (state_means(data.state, values**2) - mean**2) / LEVELS**2
+    return sums, np.maximum(variances, 0.0)
 
 
 class _Layout:
@@ -268,7 +299,8 @@ def response_test(data: Transitions, n_units: int, assignments: np.ndarray,
     stats, pooled, m, n = assignment_statistics(kernel.counts, assignments, n_features,
                                                 kernel.variances, data.profile)
     z, in_family = standardise(stats, OneSided.NEUTRAL)
-    chain = chain_statistic(standardise(pooled, OneSided.NEUTRAL)[0], n_features)
+    chain = chain_statistic(standardise(pooled, OneSided.NEUTRAL)[0], n_features,
+                            spread_statistics(kernel, data, assignments))
     adjusted = exceedance_pvalues(row_max(z[:, in_family])[:, None], z[0])
     adjusted[~in_family] = 1.0
     per_state = (len(kernel.counts.blocks), n_features)
@@ -282,11 +314,27 @@ def response_test(data: Transitions, n_units: int, assignments: np.ndarray,
         permutations=len(assignments) - 1, bandwidth=kernel.bandwidth, chain_null=chain)
 
 
-def chain_statistic(z: np.ndarray, n_features: int) -> np.ndarray:
+def spread_statistics(kernel: KernelSums, data: Transitions, assignments: np.ndarray
+                      ) -> np.ndarray | None:
+    """(P + 1, features) standardised spread statistics ``S_j``, 0 for a response below the
+    noise floor; None when no response has noise of its own (module docs)."""
+    if data.spread is None:
+        return None
+    noisy = data.residual.std(axis=0) >= NOISE_FLOOR * data.spread
+    if not noisy.any():
+        return None
+    _, pooled, _, _ = assignment_statistics(kernel.sizes, assignments, len(data.response),
+                                            kernel.size_variances, dims=1)
+    return standardise(pooled, OneSided.NEUTRAL)[0] * noisy
+
+
+def chain_statistic(z: np.ndarray, n_features: int, spread: np.ndarray | None = None
+                    ) -> np.ndarray:
     """The chain statistic of every assignment from the standardised pooled statistics
-    (P + 1, K · features): Tippett's combination of each feature's ``T_j`` and the sum of the
-    profile statistics (module docs); larger = more extreme."""
-    level = [z[:, j] for j in range(n_features)]
+    (P + 1, K · features) and spread statistics (P + 1, features): Tippett's combination of
+    each feature's ``T_j + S_j`` and the sum of the profile statistics (module docs); larger =
+    more extreme."""
+    level = [z[:, j] if spread is None else z[:, j] + spread[:, j] for j in range(n_features)]
     if z.shape[1] == n_features:
         return tippett(*level)
     return tippett(*level, z[:, n_features:].sum(axis=1))
@@ -306,18 +354,20 @@ def contrasts(share: np.ndarray, profile: np.ndarray | None) -> np.ndarray:
 
 
 def assignment_statistics(sums: RunCounts, assignments: np.ndarray, n_features: int,
-                          variances: np.ndarray, profile: np.ndarray | None = None
+                          variances: np.ndarray, profile: np.ndarray | None = None,
+                          dims: int = FOURIER
                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Statistics of every assignment: (P + 1, blocks · features) per-state ``T_s,j``,
     (P + 1, K · features) pooled studentised ``T_k,j`` (k = 0: ``T_j``; then one block of
-    features per profile contrast, :func:`contrasts`), and the observed m, n per block."""
+    features per profile contrast, :func:`contrasts`), and the observed m, n per block.
+    ``dims``: columns per response feature in ``sums`` (``FOURIER``; 1 for the sizes)."""
     product = SideCounts(sums, paired=is_paired(assignments))
-    width = 1 + n_features * FOURIER
+    width = 1 + n_features * dims
     totals = np.asarray(sums.matrix.sum(axis=1)).ravel()
     share = totals[0::width] / max(totals[0::width].sum(), 1.0)
     weights = contrasts(share, profile) * share  # (K, blocks)
     per_state = np.empty((len(assignments), len(sums.blocks), n_features))
-    pooled = np.zeros((len(weights), n_features * FOURIER, len(assignments)))
+    pooled = np.zeros((len(weights), n_features * dims, len(assignments)))
     spread = np.zeros((len(weights), n_features, len(assignments)))
     batch = int(np.clip(BATCH_BUDGET // max(*sums.matrix.shape, 1), 8, 1024))
     for first, last, lo, hi in product.chunks:
@@ -326,7 +376,7 @@ def assignment_statistics(sums: RunCounts, assignments: np.ndarray, n_features: 
             side_a = product.product(rows, assignments[start:start + batch])
             value, diff, inverse = _statistic(side_a.reshape(last - first, width, -1),
                                               totals[lo:hi].reshape(last - first, width),
-                                              n_features)
+                                              n_features, dims)
             here, weight = slice(start, start + batch), weights[:, first:last]
             per_state[here, first:last] = value.transpose(2, 0, 1)
             pooled[:, :, here] += np.einsum("ks,sdb->kdb", weight, diff)
@@ -334,16 +384,16 @@ def assignment_statistics(sums: RunCounts, assignments: np.ndarray, n_features: 
                                             inverse)
     observed = sums.matrix[0::width] @ assignments[0].astype(np.float64)
     with np.errstate(invalid="ignore", divide="ignore"):
-        studentised = ((pooled.reshape(len(weights), n_features, FOURIER, -1) ** 2).sum(axis=2)
+        studentised = ((pooled.reshape(len(weights), n_features, dims, -1) ** 2).sum(axis=2)
                        / LEVELS**2 / spread).reshape(len(weights) * n_features, -1).T
     return (per_state.reshape(len(assignments), -1), studentised,
             observed.astype(np.int64), (totals[0::width] - observed).astype(np.int64))
 
 
-def _statistic(side_a: np.ndarray, totals: np.ndarray, n_features: int
+def _statistic(side_a: np.ndarray, totals: np.ndarray, n_features: int, dims: int
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per block and assignment: ``m n / (m + n) · ‖μ_A,j − μ_B,j‖²`` (blocks, features, batch),
-    ``μ_A − μ_B`` (blocks, features · FOURIER, batch) and ``1/m + 1/n`` (blocks, batch); the
+    ``μ_A − μ_B`` (blocks, features · dims, batch) and ``1/m + 1/n`` (blocks, batch); the
     last two 0 and the first NaN where a side is empty."""
     m = side_a[:, 0, :]
     n = totals[:, :1] - m
@@ -351,7 +401,7 @@ def _statistic(side_a: np.ndarray, totals: np.ndarray, n_features: int
     with np.errstate(invalid="ignore", divide="ignore"):
         diff = side_a[:, 1:, :] / m[:, None, :] \
             - (totals[:, 1:, None] - side_a[:, 1:, :]) / n[:, None, :]
-        per_feature = (diff**2).reshape(len(m), n_features, FOURIER, -1).sum(axis=2)
+        per_feature = (diff**2).reshape(len(m), n_features, dims, -1).sum(axis=2)
         value = (m * n / (m + n))[:, None, :] * per_feature / LEVELS**2
         inverse = np.where(empty, 0.0, 1.0 / m + 1.0 / n)
     value[np.broadcast_to(empty[:, None, :], value.shape)] = np.nan
