@@ -46,7 +46,7 @@ from simcred.validate.domain import (
     cell_settings,
     learn_domain,
 )
-from simcred.validate.learned import COMPONENT, TEST_CASE, library_dict
+from simcred.validate.learned import COMPONENT, TEST_CASE, built_contracts, library_dict
 from simcred.validate.observed import (
     Observation,
     observation_level,
@@ -183,7 +183,8 @@ def validate(spec: ValidationSpec, inputs: Inputs, *, source: str = "<memory>",
     domains = {n: learn_domain(spec, grid, reference, runs, n, rules[n])
                for n, runs in seen.candidates.items()}
     data = library_dict(spec, domains, units)
-    library = Library.from_dict(data, source="learned contracts")
+    library = Library.from_dict(data, source="learned contracts",
+                                built=built_contracts(domains))
     target = library.test_case(TEST_CASE)
     beyond_text = _beyond_grid(grid, target, library)
     verdicts = {n: _candidate_verdict(spec, n, d, relevant, library, target, beyond_text)
