@@ -126,7 +126,9 @@ def _the_file_says_what_was_built(result):
     """The learned contracts are built as ASTs; contracts.yaml's text of them parses back to
     the very same trees (issue 27: printed at the edge, never parsed back by the loop)."""
     from_file = Library.from_dict(result.library, source="contracts.yaml")
-    built = built_contracts(result.domains)
+    target = from_file.test_case(TEST_CASE)
+    built = built_contracts(result.spec, result.domains, target.assumption)
+    assert built.pop(f"test_cases.{TEST_CASE}") == target
     assert built and {k.split(".")[1] for k in built} == set(from_file.model_contracts)
     for key, contract in built.items():
         assert from_file.model_contracts[key.split(".")[1]] == contract

@@ -21,7 +21,7 @@ library refuses it), so they are left out of the library and named in the verdic
 The contracts are built as ASTs (:func:`learned_contracts`, :func:`required`) and handed to
 the library as they are (:meth:`~simcred.contracts.library.Library.from_dict`'s ``built``);
 their text in ``contracts.yaml`` is printed from the same trees (:func:`assertion_text`), never
-parsed back. The test case's conditions are the user's text and are parsed as written.
+parsed back. Only the test case's conditions, the user's text, are parsed (once, as written).
 """
 
 from __future__ import annotations
@@ -82,10 +82,14 @@ def library_dict(spec: ValidationSpec, domains: dict[str, Domain],
     }
 
 
-def built_contracts(domains: dict[str, Domain]) -> dict[str, Contract]:
-    """The learned contracts keyed as the library names them (``models.<name>.contract``), for
-    :meth:`~simcred.contracts.library.Library.from_dict`'s ``built``."""
-    return {f"models.{n}.contract": c for n, c in learned_contracts(domains).items()}
+def built_contracts(spec: ValidationSpec, domains: dict[str, Domain],
+                    conditions: Expr) -> dict[str, Contract]:
+    """The learned contracts and the test case (``conditions``: its conditions as parsed from
+    the user's text) keyed as the library names them (``models.<name>.contract``,
+    ``test_cases.test_case``), for :meth:`~simcred.contracts.library.Library.from_dict`'s
+    ``built``."""
+    return {**{f"models.{n}.contract": c for n, c in learned_contracts(domains).items()},
+            f"test_cases.{TEST_CASE}": Contract(conditions, required(spec), TEST_CASE)}
 
 
 def learned_contracts(domains: dict[str, Domain]) -> dict[str, Contract]:

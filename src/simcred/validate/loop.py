@@ -183,8 +183,8 @@ def validate(spec: ValidationSpec, inputs: Inputs, *, source: str = "<memory>",
     domains = {n: learn_domain(spec, grid, reference, runs, n, rules[n])
                for n, runs in seen.candidates.items()}
     data = library_dict(spec, domains, units)
-    library = Library.from_dict(data, source="learned contracts",
-                                built=built_contracts(domains))
+    library = Library.from_dict(data, source="learned contracts", built=built_contracts(
+        spec, domains, empty.test_case(TEST_CASE).assumption))
     target = library.test_case(TEST_CASE)
     beyond_text = _beyond_grid(grid, target, library)
     verdicts = {n: _candidate_verdict(spec, n, d, relevant, library, target, beyond_text)
