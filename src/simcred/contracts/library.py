@@ -33,12 +33,12 @@ from typing import Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from simcred.contracts.algebra import Contract
+from simcred.contracts.expr import IDENTIFIER, LOGIC_WORDS
 from simcred.contracts.loader import LibraryError, load_yaml
 
 __all__ = ["Library", "LibraryError", "LibrarySpec", "ModelSpec", "ParameterSpec", "Port"]
 
-NAME = re.compile(r"(?!(and|or|not|implies|true|false)$)[A-Za-z_][A-Za-z0-9_]*"
-                  r"(\.[A-Za-z_][A-Za-z0-9_]*)*")
+NAME = re.compile(rf"(?!({'|'.join(LOGIC_WORDS)})$){IDENTIFIER}")
 MAX_COST = 1e12
 
 
