@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 from collections.abc import Mapping
@@ -100,6 +101,35 @@ def read_json(path: Path, error: type[SimcredError] = SimcredError) -> Any:
     except OSError as exc:
         raise error(f"{path}: cannot read ({exc.strerror or exc})") from None
     return loads(data, str(path), error)
+
+
+def json_key(name: str | None) -> dict[str, str | None]:
+    """Field metadata for :func:`fields_dict`: the field's key in the JSON (``None``: the field
+    is left out, e.g. an array the document does not dump).
+
+    >>> from dataclasses import dataclass, field
+    >>> @dataclass
+    ... class Row:
+    ...     units: int = field(metadata=json_key("units_per_side"))
+    ...     bands: tuple = (1, 2)
+    >>> fields_dict(Row(3))
+    {'units_per_side': 3, 'bands': [1, 2]}
+    """
+    return {"json": name}
+
+
+def fields_dict(record: Any) -> dict[str, Any]:
+    """A dataclass record as JSON-ready data, the convention for a record whose document is its
+    fields: each field in declaration order under its name (or its :func:`json_key`), tuples
+    as lists. A document with a deliberate layout of its own (nested groups, derived keys)
+    keeps a hand-written ``to_dict``."""
+    out: dict[str, Any] = {}
+    for f in dataclasses.fields(record):
+        key = f.metadata.get("json", f.name)
+        if key is not None:
+            value = getattr(record, f.name)
+            out[key] = list(value) if isinstance(value, tuple) else value
+    return out
 
 
 class JsonResult:

@@ -136,3 +136,20 @@ def test_compare_hidden_equals_the_code_before_the_speedup():
     assert r.statistic == pytest.approx(OLD_STATISTIC, rel=1e-12)
     assert np.allclose(r.transitions_observed.ravel(), OLD_TRANSITIONS, rtol=1e-12, atol=1e-15)
     assert np.allclose(r.null_distribution, OLD_NULL, rtol=1e-12, atol=0)
+
+
+def test_hidden_document_keeps_its_keys_and_order():
+    """The document comes from the fields (``simcred._json.fields_dict``, issue 27): the keys
+    and order it always had, no arrays."""
+    import numpy as np
+
+    from simcred.compare.hidden import HiddenComparison
+
+    empty = np.zeros(0)
+    result = HiddenComparison(0.5, 0.2, 0.05, False, 99, "b", 3, (1, 2), 0.1, 0.6, 0.7,
+                              empty, empty, empty, empty)
+    assert result.to_dict() == {
+        "method": "hmm", "statistic": 0.5, "pvalue": 0.2, "alpha": 0.05, "rejected": False,
+        "n_resamples": 99, "observed": "b", "n_states": 3, "lags": [1, 2], "dropout": 0.1,
+        "markov_pvalue": 0.6, "emission_pvalue": 0.7}
+    assert list(result.to_dict())[:3] == ["method", "statistic", "pvalue"]

@@ -376,3 +376,26 @@ def test_x_to_the_zero_is_an_exact_one():
     exact = {"x": np.array([Fraction(5)], dtype=object)}
     assert evaluate(parse("x ^ 0 / (x ^ 0 + x ^ 0 + x ^ 0) == 1/3"), exact)
     assert isinstance(evaluate(parse("x ^ 0 <= 1").left, exact), Fraction)
+
+
+def test_one_identifier_grammar_and_keyword_list():
+    """Issue 27: the parser's names, a library's names and a validation file's names share one
+    identifier pattern and one keyword list (``expr.IDENTIFIER``, ``expr.KEYWORDS``)."""
+    import importlib
+    import re
+
+    from simcred.contracts.expr import IDENTIFIER, KEYWORDS, LOGIC_WORDS
+    from simcred.contracts.library import NAME as LIBRARY_NAME
+    from simcred.validate.spec import NAME as FILE_NAME
+    from simcred.validate.spec import RESERVED
+
+    parse_module = importlib.import_module("simcred.contracts.parse")
+    assert f"NAME: /(?!({'|'.join(KEYWORDS)})\\b){IDENTIFIER}/" in parse_module.GRAMMAR
+    for name in ("v", "ego.v", "_a1.b_2", "deviation.gap"):
+        assert re.fullmatch(IDENTIFIER, name) and LIBRARY_NAME.fullmatch(name)
+        assert FILE_NAME.match(name)
+    for bad in ("1v", "ego.", "a..b", "a-b"):
+        assert not LIBRARY_NAME.fullmatch(bad) and not FILE_NAME.match(bad)
+    for word in LOGIC_WORDS:
+        assert not LIBRARY_NAME.fullmatch(word) and word in RESERVED
+    assert set(KEYWORDS) >= set(LOGIC_WORDS) and RESERVED - set(LOGIC_WORDS) == {"deviation"}

@@ -19,7 +19,7 @@ from simcred.traces import TraceSet
 from simcred.validate import read_inputs, read_validation, validate
 from simcred.validate.cells import OUTSIDE, Grid, segments
 from simcred.validate.domain import CellStatus
-from simcred.validate.learned import COMPONENT, TEST_CASE, number
+from simcred.validate.learned import COMPONENT, TEST_CASE, built_contracts, number
 
 from .conftest import write_universe
 
@@ -119,6 +119,19 @@ def test_library_api_matches_cli(tmp_path):
         guarantee = result.library["models"]["sim"]["contract"]["guarantee"]
         assert f"deviation.x <= {number(cell.bounds[0].upper)}" in guarantee
     assert yaml.safe_load(result.library_yaml()) == result.library
+    _the_file_says_what_was_built(result)
+
+
+def _the_file_says_what_was_built(result):
+    """The learned contracts are built as ASTs; contracts.yaml's text of them parses back to
+    the very same trees (issue 27: printed at the edge, never parsed back by the loop)."""
+    from_file = Library.from_dict(result.library, source="contracts.yaml")
+    target = from_file.test_case(TEST_CASE)
+    built = built_contracts(result.spec, result.domains, target.assumption)
+    assert built.pop(f"test_cases.{TEST_CASE}") == target
+    assert built and {k.split(".")[1] for k in built} == set(from_file.model_contracts)
+    for key, contract in built.items():
+        assert from_file.model_contracts[key.split(".")[1]] == contract
 
 
 @settings(max_examples=60, deadline=None)
@@ -231,6 +244,7 @@ def test_two_condition_variables(tmp_path):
                       (1, 1): "not valid"}
     assumption = result.library["models"]["sim"]["contract"]["assumption"]
     assert assumption == "(5 <= v <= 20 and 0 <= g <= 1) or (5 <= v <= 20 and 1 <= g <= 2)"
+    _the_file_says_what_was_built(result)
     out = tmp_path / "out"
     out.mkdir()
     html = write_validation_report(result, verdict_document(result, inputs), out).read_text()

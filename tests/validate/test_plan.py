@@ -79,3 +79,18 @@ def test_paired_candidate_plan_is_searched_from_its_own_pairs(tmp_path):
     assert searched.simulated_power >= 0.8 and searched.simulations == 20
     again = validate(spec, read_inputs(spec, base), planned=True).plan
     assert again.to_dict()["candidates"] == plan.to_dict()["candidates"]
+
+
+def test_plan_row_document_keeps_its_keys_and_order():
+    """PlanRow's document comes from its fields (``simcred._json.fields_dict``, issue 27) with
+    the keys and order verdict.json always had."""
+    from simcred.validate.plan import PlanRow
+
+    row = PlanRow("idm", 3, "10 ≤ v < 15", 40, "v", 0.1, 0.05, 0.01, 12, None)
+    assert row.to_dict() == {
+        "source": "idm", "cell": 3, "label": "10 ≤ v < 15", "units_per_side": 40,
+        "feature": "v", "tolerance": 0.1, "estimate": 0.05, "se": 0.01,
+        "needed_if_as_good_as_reference": 12, "needed_at_estimate": None}
+    assert list(row.to_dict()) == ["source", "cell", "label", "units_per_side", "feature",
+                                   "tolerance", "estimate", "se",
+                                   "needed_if_as_good_as_reference", "needed_at_estimate"]

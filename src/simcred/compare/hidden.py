@@ -27,13 +27,14 @@ state; dropouts are independent of the state.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from scipy import stats
 
+from simcred._json import fields_dict, json_key
 from simcred.compare.observed import SIDES, estimate_sensor
 from simcred.errors import OptionError
 from simcred.seeds import resolve_seed, stream
@@ -202,17 +203,13 @@ class HiddenComparison:
     dropout: float
     markov_pvalue: float
     emission_pvalue: float
-    transitions_observed: np.ndarray
-    transitions_full: np.ndarray
-    emissions: np.ndarray
-    null_distribution: np.ndarray
+    transitions_observed: np.ndarray = field(metadata=json_key(None))
+    transitions_full: np.ndarray = field(metadata=json_key(None))
+    emissions: np.ndarray = field(metadata=json_key(None))
+    null_distribution: np.ndarray = field(metadata=json_key(None))
 
     def to_dict(self) -> dict[str, Any]:
-        return {"method": "hmm", "statistic": self.statistic, "pvalue": self.pvalue,
-                "alpha": self.alpha, "rejected": self.rejected, "n_resamples": self.n_resamples,
-                "observed": self.observed, "n_states": self.n_states, "lags": list(self.lags),
-                "dropout": self.dropout, "markov_pvalue": self.markov_pvalue,
-                "emission_pvalue": self.emission_pvalue}
+        return {"method": "hmm", **fields_dict(self)}
 
 
 def _emissions(gt_states: list[np.ndarray], sd_symbols: list[np.ndarray], n_states: int,

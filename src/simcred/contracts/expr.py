@@ -101,6 +101,12 @@ class Temporal:
 Expr = Num | Quantity | Bool | Var | Arith | Compare | Logic | Temporal
 BOOLEAN = (Bool, Compare, Logic, Temporal)
 TEMPORAL_OPS = ("always", "eventually", "historically", "once", "previous", "until", "since")
+#: The identifier grammar, the one for every name the contracts and validate accept: a name, or
+#: dotted names (``ego.v``, ``deviation.gap``). The parser's names are never a keyword;
+#: a library refuses a name that is a logic word; validate reserves those and ``deviation``.
+IDENTIFIER = r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*"
+LOGIC_WORDS = ("and", "or", "not", "implies", "true", "false")
+KEYWORDS = LOGIC_WORDS + TEMPORAL_OPS
 
 # Limits that keep every later step (recursion, z3, exact arithmetic) bounded; see docs.
 MAX_TEXT = 10_000  # characters of one assertion

@@ -23,7 +23,8 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from fractions import Fraction
 from functools import cached_property
 from pathlib import Path
@@ -32,12 +33,12 @@ from typing import Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from simcred.contracts.algebra import Contract
+from simcred.contracts.expr import IDENTIFIER, LOGIC_WORDS
 from simcred.contracts.loader import LibraryError, load_yaml
 
 __all__ = ["Library", "LibraryError", "LibrarySpec", "ModelSpec", "ParameterSpec", "Port"]
 
-NAME = re.compile(r"(?!(and|or|not|implies|true|false)$)[A-Za-z_][A-Za-z0-9_]*"
-                  r"(\.[A-Za-z_][A-Za-z0-9_]*)*")
+NAME = re.compile(rf"(?!({'|'.join(LOGIC_WORDS)})$){IDENTIFIER}")
 MAX_COST = 1e12
 
 
@@ -131,10 +132,14 @@ class Port:
 
 @dataclass(frozen=True)
 class Library:
-    """A validated library; contracts are parsed against the declared variables."""
+    """A validated library; contracts are parsed against the declared variables, except those
+    a program built as ASTs and hands over in ``built`` (keyed by where the library names them,
+    ``models.<name>.contract``): they are taken as they are (their text in ``spec`` is what a
+    file of the library says; a program that builds both keeps them the same)."""
 
     spec: LibrarySpec
     source: str = "<memory>"
+    built: Mapping[str, Contract] = field(default_factory=dict, compare=False, repr=False)
 
     @classmethod
     def read(cls, path: str | Path) -> Library:
@@ -142,7 +147,8 @@ class Library:
         return cls.from_dict(load_yaml(Path(path)), source=str(path))
 
     @classmethod
-    def from_dict(cls, data, *, source: str = "<memory>") -> Library:
+    def from_dict(cls, data, *, source: str = "<memory>",
+                  built: Mapping[str, Contract] | None = None) -> Library:
         if not isinstance(data, dict):
             raise LibraryError(f"{source}: a library is a mapping with variables, components, "
                                "models, architecture, test_cases, contracts")
@@ -153,7 +159,7 @@ class Library:
             where = ".".join(str(p) for p in error["loc"] if not _is_type_tag(p))
             message = error["msg"].removeprefix("Value error, ")
             raise LibraryError(f"{source}: {where}: {message}") from None
-        library = cls(spec, source)
+        library = cls(spec, source, dict(built or {}))
         library.validate()
         return library
 
@@ -174,6 +180,8 @@ class Library:
 
     def _contract(self, spec: ContractSpec, where: str, name: str,
                   parameters: dict[str, ParameterSpec] | None = None) -> Contract:
+        if where in self.built:
+            return self.built[where]
         parameters = parameters or {}
         declared = {**self.spec.variables, **parameters}
         units = {**self.units, **{p: v.unit for p, v in parameters.items()}}

@@ -12,6 +12,7 @@ from lark import Lark, Token, Transformer, v_args
 from lark.exceptions import LarkError, UnexpectedInput
 
 from simcred.contracts.expr import (
+    IDENTIFIER,
     MAX_DEGREE,
     MAX_DEPTH,
     MAX_DIGITS,
@@ -34,9 +35,9 @@ from simcred.contracts.expr import (
     to_text,
     variables,
 )
+from simcred.contracts.expr import KEYWORDS as LANGUAGE_KEYWORDS
 
-KEYWORDS = ("and|or|not|implies|true|false|always|eventually|historically|once|previous|until"
-            "|since")
+KEYWORDS = "|".join(LANGUAGE_KEYWORDS)
 GRAMMAR = r"""
 ?start: implication
 ?implication: binary_temporal ("implies" implication)?
@@ -68,13 +69,13 @@ MUL: "*" | "/"
 FUNCTION.2: /(abs|min|max)(?=\s*\()/
 UNARY_TEMPORAL.2: /(always|eventually|historically|once)\b/
 BINARY_TEMPORAL.2: /(until|since)\b/
-NAME: /(?!(KEYWORDS)\b)[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*/
+NAME: /(?!(KEYWORDS)\b)IDENTIFIER/
 UNIT: /\[[^\[\]]*\]/ | /(?!(KEYWORDS)\b)/ UNIT_FACTOR (/[\/*]/ UNIT_FACTOR)*
 UNIT_FACTOR: /(%|[A-Za-z_°µΩΔ][A-Za-z0-9_°]*)(\^-?\d+)?/
 NUMBER: /\d+(\.\d*)?([eE][+-]?\d+)?|\.\d+([eE][+-]?\d+)?/
 %import common.WS
 %ignore WS
-""".replace("KEYWORDS", KEYWORDS)
+""".replace("KEYWORDS", KEYWORDS).replace("IDENTIFIER", IDENTIFIER)
 
 
 # -- parsing ------------------------------------------------------------------------------------

@@ -20,7 +20,7 @@ from fractions import Fraction
 
 import numpy as np
 
-from simcred.contracts.expr import decimal_text
+from simcred.contracts.expr import Compare, Expr, Num, Var, conjoin, decimal_text
 from simcred.traces import RUN_INFO, TraceSet, handed_over
 
 OUTSIDE = -1
@@ -75,6 +75,19 @@ class Grid:
         part of the cell no other cell shares."""
         return " and ".join(f"{_exact(lo)} < {self.variables[j]} < {_exact(hi)}"
                             for j, (lo, hi) in enumerate(self.bounds(flat)))
+
+    def box(self, flat: int | None = None, *, interior: bool = False) -> Expr:
+        """The cell ``flat`` (``None``: the whole grid, first to last edge) as a contract AST,
+        closed (the tree :meth:`assertion` parses to) or ``interior`` (that of :meth:`interior`);
+        numbers are the floats' shortest reprs, exactly."""
+        bounds = (tuple((e[0], e[-1]) for e in self.edges) if flat is None
+                  else self.bounds(flat))
+        op = "<" if interior else "<="
+        parts = []
+        for name, (lo, hi) in zip(self.variables, bounds, strict=True):
+            parts += [Compare(op, Num(_fraction(lo)), Var(name)),
+                      Compare(op, Var(name), Num(_fraction(hi)))]
+        return conjoin(*parts)
 
     def cells_of(self, traces: TraceSet) -> np.ndarray:
         """Flat cell index of every row of ``traces`` (``OUTSIDE`` beyond the edges)."""
@@ -147,8 +160,13 @@ def _num(value: float) -> str:
     return f"{value:g}"
 
 
+def _fraction(value: float) -> Fraction:
+    """The float's shortest repr, exactly."""
+    return Fraction(repr(float(value)))
+
+
 def _exact(value: float) -> str:
     """The float's shortest repr as a plain decimal, which the contracts' parser reads exactly
     (no exponent: ``1e-05`` becomes ``0.00001``)."""
-    text = decimal_text(Fraction(repr(float(value))))
+    text = decimal_text(_fraction(value))
     return text if not text.startswith("-") else f"({text})"

@@ -30,7 +30,6 @@ partner has no segment in the cell are left out (counted in the reason).
 
 from __future__ import annotations
 
-import zlib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
@@ -44,6 +43,7 @@ from simcred.compare.effect import FeatureEffect
 from simcred.compare.mmd import Test
 from simcred.errors import OptionError
 from simcred.regions.cells import SOURCE_RUN, Grid, Segments, segments
+from simcred.seeds import named_seed
 from simcred.traces import TraceSet, take
 
 
@@ -170,9 +170,9 @@ def cell_rule(alpha: float, family: int, *, pairs: str | None = None, groups: st
 
 
 def cell_seed(seed: int, candidate: str, cell: int) -> int:
-    """The seed of one comparison: independent of the order of candidates and cells."""
-    sequence = np.random.SeedSequence(seed, spawn_key=(zlib.crc32(candidate.encode()), cell))
-    return int(sequence.generate_state(1, np.uint64)[0] >> np.uint64(1))
+    """The seed of one comparison: independent of the order of candidates and cells
+    (:func:`simcred.seeds.named_seed` of the candidate and the cell)."""
+    return named_seed(seed, candidate, cell)
 
 
 def segment_key(key: str) -> str:

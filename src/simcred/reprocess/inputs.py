@@ -46,9 +46,9 @@ import pyarrow.parquet as pq
 from simcred._json import file_digest
 from simcred.errors import OptionError, TraceSetError
 from simcred.io import commonroad, longformat
-from simcred.io.a9 import read_a9
 from simcred.io.a9_lanes import lane_changer
-from simcred.io.measurement import INDEX, Measurement
+from simcred.io.formats import PARQUET_SUFFIXES as LONG_SUFFIXES
+from simcred.io.sources import detect_source, read_source
 from simcred.kinematics import TIME_TOLERANCE, Track
 from simcred.reprocess.road import lanelet_line, reference_line_file, to_frenet
 from simcred.reprocess.timebase import Drive, Recording, tracks_digest
@@ -62,7 +62,6 @@ COMMONROAD_FRAMES = ("ego", "lanelet")
 ROAD_TOLERANCE = 0.2  # rad: a long table's EGO must travel this close to +x (else no road frame)
 ROAD_FRAMES = ("given", "ego")  # long format without a reference path
 MIN_CHORD = 5.0  # m: an EGO that moves less than this gives the road direction by its heading
-LONG_SUFFIXES = (".parquet", ".pq")
 SHAPE_COLUMNS = ("length", "width", "type")  # optional per object: footprint (m) and type
 REQUIRED_SIGNALS = ("x", "y")
 OPTIONAL_SIGNALS = ("v", "heading")  # derived from the positions where a table has none
@@ -115,23 +114,21 @@ def read_measurement(path: str | Path, object_id: int | str | None = None, *,
     if frame is not None and suffix != ".xml":
         raise OptionError("--road-frame lanelet is for a CommonRoad scenario (a long table "
                           "takes --road-frame given|ego or --reference-path)")
-    if path.is_dir():
+    kind = detect_source(path, role="drive", long=long is not None)  # a .csv is A9 here
+    if kind == "measurement":
         _no_choice(path, object_id, ego, "a measurement directory")
-        return Drive.of_measurement(Measurement.read(path))
-    if suffix == ".xml":
+        return Drive.of_measurement(read_source(path, "measurement"))
+    if kind == "commonroad":
         if object_id is None:
             raise OptionError(f"{path}: a CommonRoad scenario needs --object ID (an obstacle "
                               "id, or 'all')")
         return commonroad_drive(path, object_id, ego, frame=frame or "ego")
-    if long is not None or suffix in LONG_SUFFIXES:
+    if kind == "long":
         return long_drive(path, long or LongColumns(), to=object_id, ego=ego, gt=gt)
-    if suffix == ".csv":
-        if ego is not None:
-            raise OptionError(f"{path}: an A9 recording's EGO is the recording car (--ego is "
-                              "for CommonRoad and long-format input)")
-        return a9_drive(path, None if object_id is None else _integer(object_id, "--object"))
-    raise TraceSetError(f"{path}: not a measurement (expected a directory with {INDEX}, an A9 "
-                        ".csv, a CommonRoad .xml or a long-format .csv/.parquet file)")
+    if ego is not None:  # an A9 recording
+        raise OptionError(f"{path}: an A9 recording's EGO is the recording car (--ego is "
+                          "for CommonRoad and long-format input)")
+    return a9_drive(path, None if object_id is None else _integer(object_id, "--object"))
 
 
 def _no_choice(path: Path, object_id, ego, what: str) -> None:
@@ -152,7 +149,7 @@ def _integer(value: int | str, option: str) -> int:
 
 def a9_drive(path: Path, object_id: int | None = None) -> Drive:
     """An A9 recording: SD only, the chosen object straightened onto the EGO's path."""
-    recording = read_a9(path)
+    recording = read_source(path, "a9")
     chosen = lane_changer(recording) if object_id is None else object_id
     sd = to_path_frame(recording.to_traceset(chosen, name=TO))
     metadata = {"source": str(path), "object": chosen, "kind": "A9 sensor data",

@@ -29,7 +29,6 @@ resolved by SUMO (``--collision.action none``): a negative gap stays in the outp
 from __future__ import annotations
 
 import atexit
-import hashlib
 import os
 import shutil
 import subprocess
@@ -45,6 +44,7 @@ import numpy as np
 from simcred.engine import Engine, Progress, engine
 from simcred.errors import MissingDependencyError, OptionError, TraceSetError
 from simcred.limits import check_count
+from simcred.seeds import sumo_episode_seed
 from simcred.traces import RUN_INFO, TIME, TraceSet, concat, take
 
 REQUIRED = ("gap", "v", "v_leader")
@@ -201,9 +201,9 @@ def _netconvert() -> str:
 
 
 def episode_seed(seed: int, run_id: str) -> int:
-    """SUMO's ``--seed`` for the episode ``run_id``: 31 bits of ``SeedSequence(seed, (hash,))``."""
-    key = int.from_bytes(hashlib.sha256(run_id.encode()).digest()[:8], "little")
-    return int(np.random.SeedSequence(seed, spawn_key=(key,)).generate_state(1)[0] & 0x7FFFFFFF)
+    """SUMO's ``--seed`` for the episode ``run_id``: 31 bits of ``SeedSequence(seed, (hash,))``
+    (:func:`simcred.seeds.sumo_episode_seed`)."""
+    return sumo_episode_seed(seed, run_id)
 
 
 @dataclass(frozen=True, slots=True)

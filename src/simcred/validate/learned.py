@@ -17,6 +17,11 @@ counts a cell for a test case only where the cell's interior meets it). The test
 its operating conditions and requires ``deviation.<feature> <= tolerance`` for each feature.
 Candidates without a valid cell have an empty domain; an empty assumption is vacuous (the
 library refuses it), so they are left out of the library and named in the verdict.
+
+The contracts are built as ASTs (:func:`learned_contracts`, :func:`required`) and handed to
+the library as they are (:meth:`~simcred.contracts.library.Library.from_dict`'s ``built``);
+their text in ``contracts.yaml`` is printed from the same trees (:func:`assertion_text`), never
+parsed back. Only the test case's conditions, the user's text, are parsed (once, as written).
 """
 
 from __future__ import annotations
@@ -26,7 +31,8 @@ from fractions import Fraction
 from typing import Any
 
 from simcred.compare.effect import rate_unit
-from simcred.contracts.expr import decimal_text
+from simcred.contracts.algebra import Contract
+from simcred.contracts.expr import Compare, Expr, Logic, Num, Var, conjoin, decimal_text, implies
 from simcred.contracts.library import NAME
 from simcred.validate.domain import CellResult, CellStatus, Domain
 from simcred.validate.spec import ValidationSpec
@@ -55,20 +61,16 @@ def library_dict(spec: ValidationSpec, domains: dict[str, Domain],
         variables[metric(feature)] = {"type": "real", "unit": rate_unit(units.get(feature)),
                                       "observed": False}
     models = {}
-    for name, domain in domains.items():
-        valid = domain.with_status(CellStatus.VALID)
-        if not valid:
-            continue
-        parts = domain_parts(domain)
-        assumption = " or ".join(f"({c})" for c in parts) if len(parts) > 1 else parts[0]
+    for name, contract in learned_contracts(domains).items():
+        domain = domains[name]
         models[name] = {
             "implements": COMPONENT,
             "cost": spec.candidates[name].cost,
-            "contract": {"assumption": assumption, "guarantee": guarantee(domain)},
-            "description": f"learned: {len(valid)} valid cells of {domain.grid.n_cells}",
+            "contract": {"assumption": assertion_text(contract.assumption),
+                         "guarantee": assertion_text(contract.guarantee)},
+            "description": f"learned: {len(domain.with_status(CellStatus.VALID))} valid cells "
+                           f"of {domain.grid.n_cells}",
         }
-    required = " and ".join(f"{metric(f)} <= {number(d)}"
-                            for f, d in spec.test_case.tolerance.items())
     return {
         "variables": variables,
         "components": {COMPONENT: {"inputs": list(spec.conditions),
@@ -76,11 +78,37 @@ def library_dict(spec: ValidationSpec, domains: dict[str, Domain],
         "models": models,
         "architecture": [COMPONENT],
         "test_cases": {TEST_CASE: {"assumption": spec.test_case.conditions,
-                                   "guarantee": required}},
+                                   "guarantee": assertion_text(required(spec))}},
     }
 
 
-def domain_parts(domain: Domain) -> list[str]:
+def built_contracts(spec: ValidationSpec, domains: dict[str, Domain],
+                    conditions: Expr) -> dict[str, Contract]:
+    """The learned contracts and the test case (``conditions``: its conditions as parsed from
+    the user's text) keyed as the library names them (``models.<name>.contract``,
+    ``test_cases.test_case``), for :meth:`~simcred.contracts.library.Library.from_dict`'s
+    ``built``."""
+    return {**{f"models.{n}.contract": c for n, c in learned_contracts(domains).items()},
+            f"test_cases.{TEST_CASE}": Contract(conditions, required(spec), TEST_CASE)}
+
+
+def learned_contracts(domains: dict[str, Domain]) -> dict[str, Contract]:
+    """Each candidate with a valid cell: its validity domain (module docs) as a contract."""
+    out = {}
+    for name, domain in domains.items():
+        if domain.with_status(CellStatus.VALID):
+            parts = domain_parts(domain)
+            assumption = Logic("or", tuple(parts)) if len(parts) > 1 else parts[0]
+            out[name] = Contract(assumption, guarantee(domain), name)
+    return out
+
+
+def required(spec: ValidationSpec) -> Expr:
+    """The test case's guarantee: each feature's deviation within its tolerance."""
+    return conjoin(*(_at_most(f, d) for f, d in spec.test_case.tolerance.items()))
+
+
+def domain_parts(domain: Domain) -> list[Expr]:
     """The valid cells as closed boxes; with one condition variable, runs of adjacent valid
     cells are merged into one interval (the same set, shorter text)."""
     valid = [c.cell for c in domain.with_status(CellStatus.VALID)]
@@ -88,26 +116,26 @@ def domain_parts(domain: Domain) -> list[str]:
                   else _runs(valid, lambda a, b: True))
 
 
-def guarantee(domain: Domain) -> str:
+def guarantee(domain: Domain) -> Expr:
     """The per-cell guarantee (module docs): the bounds alone if every valid cell showed the
     same, else one implication per run of adjacent valid cells with the same bounds."""
     valid = domain.with_status(CellStatus.VALID)
-    bounds = {c.cell: _bound_text(c) for c in valid}
+    bounds = {c.cell: _bound(c) for c in valid}
     if len(set(bounds.values())) == 1:
         return bounds[valid[0].cell]
     cells = [c.cell for c in valid]
     runs = ([[c] for c in cells] if len(domain.grid.variables) > 1
             else _runs(cells, lambda a, b: bounds[a] == bounds[b]))
-    return " and ".join(f"({box} implies {_grouped(bounds[run[0]])})"
-                        for box, run in zip(_boxes(domain, runs), runs, strict=True))
+    return Logic("and", tuple(implies(box, bounds[run[0]])
+                              for box, run in zip(_boxes(domain, runs), runs, strict=True)))
 
 
-def _bound_text(cell: CellResult) -> str:
-    return " and ".join(f"{metric(b.feature)} <= {number(b.upper)}" for b in cell.bounds)
+def _bound(cell: CellResult) -> Expr:
+    return conjoin(*(_at_most(b.feature, b.upper) for b in cell.bounds))
 
 
-def _grouped(text: str) -> str:
-    return f"({text})" if " and " in text else text
+def _at_most(feature: str, value: float) -> Expr:
+    return Compare("<=", Var(metric(feature)), Num(_exact(value)))
 
 
 def _runs(cells: list[int], same) -> list[list[int]]:
@@ -121,16 +149,70 @@ def _runs(cells: list[int], same) -> list[list[int]]:
     return runs
 
 
-def _boxes(domain: Domain, runs: list[list[int]]) -> list[str]:
+def _boxes(domain: Domain, runs: list[list[int]]) -> list[Expr]:
     """Each run of cells as one closed box (a run has one cell when there are several
     condition variables)."""
     grid = domain.grid
     if len(grid.variables) > 1:
-        return [grid.assertion(r[0]) for r in runs]
+        return [grid.box(r[0]) for r in runs]
     edges, name = grid.edges[0], grid.variables[0]
-    return [f"{number(edges[r[0]])} <= {name} <= {number(edges[r[-1] + 1])}" for r in runs]
+    return [conjoin(Compare("<=", Num(_exact(edges[r[0]])), Var(name)),
+                    Compare("<=", Var(name), Num(_exact(edges[r[-1] + 1])))) for r in runs]
 
 
-def number(value: float) -> str:
-    """A float as the exact decimal of its shortest repr."""
-    return decimal_text(Fraction(repr(float(value))))
+# -- the file's text of the learned assertions ----------------------------------------------------
+
+
+def assertion_text(e: Expr) -> str:
+    """A learned assertion as ``contracts.yaml`` writes it: boxes as chains (``10 <= v <= 15``;
+    a negative edge in parentheses where a box has several variables), disjuncts and
+    implications in parentheses."""
+    if isinstance(e, Logic) and e.op == "or":
+        return " or ".join(f"({assertion_text(a)})" for a in e.args)
+    if isinstance(e, Logic) and e.op == "and" and all(_is_implication(a) for a in e.args):
+        return " and ".join(f"({assertion_text(a)})" for a in e.args)
+    if _is_implication(e):
+        bound = assertion_text(e.args[1])
+        return f"{assertion_text(e.args[0])} implies " + (
+            f"({bound})" if " and " in bound else bound)
+    compares = e.args if isinstance(e, Logic) and e.op == "and" else (e,)
+    return " and ".join(_chains(compares))
+
+
+def _is_implication(e: Expr) -> bool:
+    return isinstance(e, Logic) and e.op == "implies"
+
+
+def _chains(compares: tuple[Expr, ...]) -> list[str]:
+    """``lo <= v``, ``v <= hi`` pairs as ``lo <= v <= hi``; a bound ``m <= u`` as it is."""
+    variables = {c.right.name for c in compares if isinstance(c.left, Num)}
+    text = _number if len(variables) <= 1 else _bracketed
+    out, i = [], 0
+    while i < len(compares):
+        c = compares[i]
+        if isinstance(c.left, Num):
+            upper = compares[i + 1]
+            out.append(f"{text(c.left)} {c.op} {c.right.name} {upper.op} {text(upper.right)}")
+            i += 2
+        else:
+            out.append(f"{c.left.name} {c.op} {number(c.right.value)}")
+            i += 1
+    return out
+
+
+def _number(n: Num) -> str:
+    return number(n.value)
+
+
+def _bracketed(n: Num) -> str:
+    return number(n.value) if n.value >= 0 else f"({number(n.value)})"
+
+
+def _exact(value: float) -> Fraction:
+    """A float as the exact value of its shortest repr."""
+    return Fraction(repr(float(value)))
+
+
+def number(value: float | Fraction) -> str:
+    """A float as the exact decimal of its shortest repr (a ``Fraction`` as its decimal)."""
+    return decimal_text(value if isinstance(value, Fraction) else _exact(value))

@@ -28,9 +28,9 @@ import yaml
 
 import simcred._display as _display
 from simcred.compare.observed import SensorModel
-from simcred.contracts.algebra import Contract, Status, valid
-from simcred.contracts.configure import configure, setup_refines
-from simcred.contracts.expr import Bool, negate, parse, to_text
+from simcred.contracts.algebra import Contract, Status, Verdict, valid
+from simcred.contracts.configure import Configuration, configure, setup_refines
+from simcred.contracts.expr import Bool, negate, to_text
 from simcred.contracts.library import Library
 from simcred.contracts.monitor import MonitorReport, monitor
 from simcred.errors import SimcredError
@@ -46,8 +46,7 @@ from simcred.validate.domain import (
     cell_settings,
     learn_domain,
 )
-from simcred.validate.learned import COMPONENT, TEST_CASE, library_dict
-from simcred.validate.learned import number as _exact_text
+from simcred.validate.learned import COMPONENT, TEST_CASE, built_contracts, library_dict
 from simcred.validate.observed import (
     Observation,
     observation_level,
@@ -91,12 +90,12 @@ class CandidateVerdict:
     verdict: str
     reasons: tuple[str, ...]
     relevant_cells: tuple[int, ...]
-    proof: dict[str, Any] | None
+    proof: Verdict | None  # the z3 refinement of the test case, typed until written
 
     def to_dict(self) -> dict[str, Any]:
         return {"candidate": self.candidate, "verdict": self.verdict, "reasons":
                 list(self.reasons), "test_case_cells": list(self.relevant_cells),
-                "refinement": self.proof}
+                "refinement": None if self.proof is None else _proof(self.proof)}
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -110,7 +109,7 @@ class Validation:
     verdict: str
     summary: str
     library: dict[str, Any]
-    configuration: dict[str, Any] | None
+    configuration: Configuration | None  # written by :func:`configuration_dict`
     uncovered: dict[str, list[str]]
     monitors: dict[str, MonitorReport]
     ranking: tuple[Ranked, ...] = ()
@@ -184,7 +183,8 @@ def validate(spec: ValidationSpec, inputs: Inputs, *, source: str = "<memory>",
     domains = {n: learn_domain(spec, grid, reference, runs, n, rules[n])
                for n, runs in seen.candidates.items()}
     data = library_dict(spec, domains, units)
-    library = Library.from_dict(data, source="learned contracts")
+    library = Library.from_dict(data, source="learned contracts", built=built_contracts(
+        spec, domains, empty.test_case(TEST_CASE).assumption))
     target = library.test_case(TEST_CASE)
     beyond_text = _beyond_grid(grid, target, library)
     verdicts = {n: _candidate_verdict(spec, n, d, relevant, library, target, beyond_text)
@@ -242,10 +242,10 @@ def _relevant_cells(grid: Grid, target: Contract, library: Library) -> tuple[int
     (``v <= 20``) does not reach the cell beyond it, as the learned contracts' closed cells say.
     Only a test case that meets no cell's interior (``v == 20``) counts the closed cells it
     touches."""
-    for text in (grid.interior, grid.assertion):
+    for interior in (True, False):
         out = []
         for cell in range(grid.n_cells):
-            box = parse(text(cell), declared=library.spec.variables)
+            box = grid.box(cell, interior=interior)
             disjoint = valid([box], negate(target.assumption), types=library.types)
             if disjoint.status is not Status.HOLDS:
                 out.append(cell)
@@ -254,13 +254,17 @@ def _relevant_cells(grid: Grid, target: Contract, library: Library) -> tuple[int
     return ()
 
 
-def _configuration(library: Library) -> dict[str, Any] | None:
-    """Configuration on the learned contracts, without solver models: z3's counterexamples
-    depend on the solver's history in the process, which would break byte-identical verdicts
-    (the reason is ours; the candidates' reasons say what is not covered)."""
-    if not library.spec.models:
+def _configuration(library: Library) -> Configuration | None:
+    """Configuration on the learned contracts (none without a learned model)."""
+    return configure(library, TEST_CASE) if library.spec.models else None
+
+
+def configuration_dict(found: Configuration | None) -> dict[str, Any] | None:
+    """verdict.json's configuration, without solver models: z3's counterexamples depend on the
+    solver's history in the process, which would break byte-identical verdicts (the reason is
+    ours; the candidates' reasons say what is not covered)."""
+    if found is None:
         return None
-    found = configure(library, TEST_CASE)
     reason = "" if found.status is Status.HOLDS else (
         "no candidate's learned contract refines the test case (see the candidates' reasons)"
         if found.status is Status.FAILS else "undecided (solver limit)")
@@ -278,10 +282,7 @@ def _proof(verdict) -> dict[str, Any]:
 
 def _beyond_grid(grid: Grid, target: Contract, library: Library) -> str:
     """'' if the test case's conditions lie inside the grid, else what reaches beyond it."""
-    box = parse(" and ".join(f"{lo} <= {v} <= {hi}" for v, lo, hi in
-                             ((v, _exact_text(e[0]), _exact_text(e[-1]))
-                              for v, e in zip(grid.variables, grid.edges, strict=True))),
-                declared=library.spec.variables)
+    box = grid.box()
     inside = valid([target.assumption], box, types=library.types)
     if inside.status is Status.HOLDS:
         return ""
@@ -301,11 +302,11 @@ def _candidate_verdict(spec: ValidationSpec, name: str, domain: Domain, relevant
     bad = [c for c in cells if c.status is CellStatus.NOT_VALID]
     proof = None
     if name in library.spec.models:
-        proof = _proof(setup_refines(library, {COMPONENT: name}, target))
+        proof = setup_refines(library, {COMPONENT: name}, target)
     if bad:
         return CandidateVerdict(name, NOT_VALID, tuple(f"not valid in {c.label}: {c.reason}"
                                                        for c in bad), relevant, proof)
-    if proof is not None and proof["verdict"] == "holds":
+    if proof is not None and proof.holds:
         return CandidateVerdict(name, VALID, (f"valid in all {len(cells)} cells of the test "
                                               "case; its learned contract refines the test "
                                               "case (z3)",), relevant, proof)
@@ -338,10 +339,10 @@ def _monitors(library: Library, inputs: Inputs) -> dict[str, MonitorReport]:
 
 
 def _overall(spec: ValidationSpec, verdicts: dict[str, CandidateVerdict],
-             configuration: dict[str, Any] | None, planned: bool) -> tuple[str, str]:
+             configuration: Configuration | None, planned: bool) -> tuple[str, str]:
     question = f"'{spec.test_case.conditions}'"
-    if configuration is not None and configuration["status"] == "holds":
-        chosen = configuration["setup"][COMPONENT]
+    if configuration is not None and configuration.status is Status.HOLDS:
+        chosen = configuration.setup[COMPONENT]
         return VALID, (f"VALID: {chosen} is valid for the test case {question} (the cheapest "
                        "candidate whose learned contract refines the test case)")
     if all(v.verdict == NOT_VALID for v in verdicts.values()):

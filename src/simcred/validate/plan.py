@@ -63,6 +63,7 @@ from typing import Any
 import numpy as np
 from scipy.stats import norm
 
+from simcred._json import fields_dict, json_key
 from simcred.compare import Comparison
 from simcred.regions.cells import Grid, Segments
 from simcred.regions.engine import (
@@ -96,20 +97,16 @@ class PlanRow:
     source: str
     cell: int
     label: str
-    units: int
+    units: int = field(metadata=json_key("units_per_side"))
     feature: str
     tolerance: float
     estimate: float
     se: float
-    if_perfect: int | None
-    needed: int | None
+    if_perfect: int | None = field(metadata=json_key("needed_if_as_good_as_reference"))
+    needed: int | None = field(metadata=json_key("needed_at_estimate"))
 
     def to_dict(self) -> dict[str, Any]:
-        return {"source": self.source, "cell": self.cell, "label": self.label,
-                "units_per_side": self.units, "feature": self.feature,
-                "tolerance": self.tolerance, "estimate": self.estimate, "se": self.se,
-                "needed_if_as_good_as_reference": self.if_perfect,
-                "needed_at_estimate": self.needed}
+        return fields_dict(self)
 
 
 @dataclass(frozen=True, slots=True)

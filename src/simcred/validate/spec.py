@@ -46,11 +46,12 @@ from pydantic import (
 
 from simcred.compare.method import Method
 from simcred.compare.observed import SensorModel
+from simcred.contracts.expr import IDENTIFIER, LOGIC_WORDS
 from simcred.contracts.loader import load_yaml
 from simcred.errors import OptionError, SimcredError
 
-NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*$")
-RESERVED = {"and", "or", "not", "implies", "true", "false", "deviation"}
+NAME = re.compile(IDENTIFIER + "$")
+RESERVED = {*LOGIC_WORDS, "deviation"}  # deviation.<feature>: the learned contracts' metrics
 MAX_CELLS = 400
 
 

@@ -14,7 +14,7 @@ from typing import Any
 
 from simcred._json import dumps, envelope, file_sha256
 from simcred._version import versions
-from simcred.validate.loop import MAX_VIOLATIONS, Inputs, Validation
+from simcred.validate.loop import MAX_VIOLATIONS, Inputs, Validation, configuration_dict
 
 
 def verdict_document(result: Validation, inputs: Inputs, *, validation_file: Path | None = None,
@@ -31,7 +31,7 @@ def verdict_document(result: Validation, inputs: Inputs, *, validation_file: Pat
         "grid": {"variables": list(result.grid.variables), "units": list(result.grid.units),
                  "edges": [list(e) for e in result.grid.edges]},
         "domains": {n: d.to_dict() for n, d in result.domains.items()},
-        "configuration": result.configuration,
+        "configuration": configuration_dict(result.configuration),
         "uncovered": result.uncovered,
         "monitors": {n: _monitor(m) for n, m in result.monitors.items()},
         "provenance": provenance(result, inputs, validation_file, date),
