@@ -22,6 +22,7 @@ import contextlib
 import logging
 import math
 import warnings
+from collections.abc import Collection
 from pathlib import Path
 
 import numpy as np
@@ -186,8 +187,8 @@ def _obstacle_kind(obstacle) -> dict:
 SAME_DIRECTION = math.pi / 4
 
 
-def follower(traces: TraceSet, obstacle: str, *, lane_width: float = LANE_WIDTH
-             ) -> tuple[str, str] | None:
+def follower(traces: TraceSet, obstacle: str, *, lane_width: float = LANE_WIDTH,
+             skip: Collection[str] = ()) -> tuple[str, str] | None:
     """The EGO for reprocessing ``obstacle`` as the traffic object: its follower.
 
     At every time step both are recorded, another run is *behind* the obstacle when, in the
@@ -207,15 +208,21 @@ def follower(traces: TraceSet, obstacle: str, *, lane_width: float = LANE_WIDTH
     obstacle : str
         The traffic object's run id.
     lane_width : float, default: 3.5
+    skip : collection of str, default: ()
+        Obstacle types (``metadata["obstacles"][id]["type"]``) that are never chosen, e.g. the
+        pedestrians and bicycles an ACC cannot drive: the follower is then the nearest run of
+        another type, and a pedestrian behind the obstacle does not hide the car behind it.
 
     Returns
     -------
     (run id, rule) or None
         ``rule`` is ``"follower in its lane"``, ``"nearest vehicle behind (another lane)"`` or
-        ``"nearest vehicle (none behind it in its direction)"``; None if no other run shares
-        two time steps with the obstacle.
+        ``"nearest vehicle (none behind it in its direction)"``; None if no other run (of a
+        type not skipped) shares two time steps with the obstacle.
     """
-    runs = {r: traces.run(i) for i, r in enumerate(traces.run_ids)}
+    kinds = traces.metadata.get("obstacles", {})
+    runs = {r: traces.run(i) for i, r in enumerate(traces.run_ids)
+            if r == obstacle or kinds.get(r[3:], {}).get("type") not in skip}
     to = runs[obstacle]
     for rule, lane in (("follower in its lane", lane_width / 2),
                        ("nearest vehicle behind (another lane)", math.inf)):
@@ -245,6 +252,8 @@ def _nearest(to: dict[str, np.ndarray], others: dict[str, dict[str, np.ndarray]]
 def _nearest_behind(to: dict[str, np.ndarray], others: dict[str, dict[str, np.ndarray]],
                     half_width: float) -> list[str]:
     """Per time step of ``to``, the run behind it with the smallest gap (absent if none)."""
+    if not others:  # the obstacle alone (or every other one skipped): no one behind it
+        return []
     t = to["t"]
     gap = np.full((len(others), len(t)), np.inf)
     names = list(others)
