@@ -9,6 +9,7 @@ included: the robust fit needs 2 samples.
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -129,6 +130,25 @@ def test_more_real_scenarios_reprocess_every_obstacle_with_the_acceptance():
     assert len(found) == 61 and not {k: o.reason for k, o in found.items() if o.status != "ok"}
     distances = _assert_acceptance(results, MORE)
     assert len(distances) >= 15 and max(distances) < 4.0
+
+
+LOCAL = os.environ.get("SIMCRED_REAL_COMMONROAD")  # a folder of recorded scenes not shipped
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not LOCAL, reason="SIMCRED_REAL_COMMONROAD names no folder of scenarios")
+def test_local_recorded_scenarios_meet_the_acceptance_or_are_refused_in_one_line():
+    """Recorded scenes whose licence keeps them out of the repository (highD, exiD, inD, SinD,
+    INTERACTION conversions; docs/reprocess.md): every obstacle either reprocesses and meets the
+    acceptance or is refused by an input check in one line, never an internal error."""
+    paths = sorted(Path(LOCAL).glob("*.xml"))
+    assert paths, f"{LOCAL}: no .xml scenario"
+    results: dict = {}
+    found = _reprocess_every_obstacle(paths, results)
+    for key, outcome in found.items():
+        assert outcome.status == "ok" or not outcome.reason.startswith("internal error"), \
+            (key, outcome.reason)
+    _assert_acceptance(results, paths)
 
 
 @pytest.mark.slow

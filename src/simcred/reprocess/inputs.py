@@ -176,10 +176,9 @@ def commonroad_drive(path: str | Path, obstacle: int | str, ego: int | str | Non
     The EGO is obstacle ``ego`` if given, else the TO's follower
     (:func:`simcred.io.commonroad.follower`) among the obstacles an ACC can drive (not a
     pedestrian or bicycle, :data:`NOT_DRIVEN`: a pedestrian behind the TO is passed over).
-    Both are cut to the time steps both have, and put
-    into the road frame of :func:`road_frame`. A CommonRoad planning problem's initial state is
-    not an EGO here: it is no recorded vehicle (in the NGSIM scenarios it replaces one), so
-    there would be nothing to compare its resimulation with.
+    Both are cut to the time steps both have, and put into the road frame of :func:`road_frame`.
+    A CommonRoad planning problem's initial state is not an EGO here: it is no recorded vehicle
+    (in the NGSIM scenarios it replaces one): nothing to compare its resimulation with.
     """
     path = Path(path)
     traces = commonroad.read(path) if traces is None else traces
