@@ -155,3 +155,23 @@ def test_a_long_tables_pedestrian_is_never_the_ego(tmp_path):
     with pytest.raises(SimcredError, match="object 'ego' is a pedestrian: it cannot be the EGO"):
         long_drive(_long_table(tmp_path / "d.csv", "pedestrian"),
                    LongColumns(object_column="object"))
+
+
+def test_the_follower_shares_at_least_two_time_steps_with_the_obstacle():
+    """A vehicle behind the TO in its lane at one time step only cannot be fitted with it: the
+    car behind it in the next lane all along is the EGO (was: the one-step car, then the
+    obstacle refused; 3 obstacles of the recorded SinD scenes)."""
+    from simcred.traces import TraceSet
+
+    t = np.round(np.arange(0, 1.05, 0.1), 10)  # obj2 shares only t = 1.0 with the TO
+
+    def run(x0, y, times):
+        return {"t": times, "x": x0 + 10 * times, "y": np.full(len(times), y),
+                "heading": np.zeros(len(times))}
+
+    traces = TraceSet.from_runs(
+        [run(20.0, 0.0, t), run(10.0, 0.0, np.array([1.0, 1.1])), run(5.0, 3.5, t)],
+        run_ids=["obj1", "obj2", "obj3"],
+        metadata={"obstacles": {k: {"type": "car"} for k in ("1", "2", "3")}})
+    assert commonroad.follower(traces, "obj1") == ("obj3",
+                                                   "nearest vehicle behind (another lane)")

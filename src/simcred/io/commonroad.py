@@ -191,7 +191,8 @@ def follower(traces: TraceSet, obstacle: str, *, lane_width: float = LANE_WIDTH,
              skip: Collection[str] = ()) -> tuple[str, str] | None:
     """The EGO for reprocessing ``obstacle`` as the traffic object: its follower.
 
-    At every time step both are recorded, another run is *behind* the obstacle when, in the
+    Only runs that share at least 2 time steps with the obstacle (what a fit needs) count. At
+    every time step both are recorded, another run is *behind* the obstacle when, in the
     obstacle's frame (x along its heading), it lies at x < 0 and drives in the same direction
     (headings within 45°); of those, the one with the smallest |x| is the obstacle's nearest
     follower at that step. The EGO is the run that is the nearest follower at the most steps
@@ -221,17 +222,18 @@ def follower(traces: TraceSet, obstacle: str, *, lane_width: float = LANE_WIDTH,
         type not skipped) shares two time steps with the obstacle.
     """
     kinds = traces.metadata.get("obstacles", {})
-    runs = {r: traces.run(i) for i, r in enumerate(traces.run_ids)
-            if r == obstacle or kinds.get(r[3:], {}).get("type") not in skip}
-    to = runs[obstacle]
+    to = traces.run(traces.run_ids.index(obstacle))
+    others = {r: c for r, c in ((r, traces.run(i)) for i, r in enumerate(traces.run_ids))
+              if r != obstacle and kinds.get(r[3:], {}).get("type") not in skip
+              and len(np.intersect1d(to["t"], c["t"])) >= 2}  # a fit needs 2 shared samples
     for rule, lane in (("follower in its lane", lane_width / 2),
                        ("nearest vehicle behind (another lane)", math.inf)):
-        nearest = _nearest_behind(to, {r: c for r, c in runs.items() if r != obstacle}, lane)
+        nearest = _nearest_behind(to, others, lane)
         if nearest:
             counts = {r: nearest.count(r) for r in dict.fromkeys(nearest)}
             best = max(counts.values())
-            return next(r for r in runs if counts.get(r) == best), rule
-    return _nearest(to, {r: c for r, c in runs.items() if r != obstacle})
+            return next(r for r in others if counts.get(r) == best), rule
+    return _nearest(to, others)
 
 
 def _nearest(to: dict[str, np.ndarray], others: dict[str, dict[str, np.ndarray]]
