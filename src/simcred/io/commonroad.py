@@ -22,6 +22,7 @@ import contextlib
 import logging
 import math
 import warnings
+from collections.abc import Collection
 from pathlib import Path
 
 import numpy as np
@@ -186,11 +187,12 @@ def _obstacle_kind(obstacle) -> dict:
 SAME_DIRECTION = math.pi / 4
 
 
-def follower(traces: TraceSet, obstacle: str, *, lane_width: float = LANE_WIDTH
-             ) -> tuple[str, str] | None:
+def follower(traces: TraceSet, obstacle: str, *, lane_width: float = LANE_WIDTH,
+             skip: Collection[str] = ()) -> tuple[str, str] | None:
     """The EGO for reprocessing ``obstacle`` as the traffic object: its follower.
 
-    At every time step both are recorded, another run is *behind* the obstacle when, in the
+    Only runs that share at least 2 time steps with the obstacle (what a fit needs) count. At
+    every time step both are recorded, another run is *behind* the obstacle when, in the
     obstacle's frame (x along its heading), it lies at x < 0 and drives in the same direction
     (headings within 45°); of those, the one with the smallest |x| is the obstacle's nearest
     follower at that step. The EGO is the run that is the nearest follower at the most steps
@@ -207,24 +209,31 @@ def follower(traces: TraceSet, obstacle: str, *, lane_width: float = LANE_WIDTH
     obstacle : str
         The traffic object's run id.
     lane_width : float, default: 3.5
+    skip : collection of str, default: ()
+        Obstacle types (``metadata["obstacles"][id]["type"]``) that are never chosen, e.g. the
+        pedestrians and bicycles an ACC cannot drive: the follower is then the nearest run of
+        another type, and a pedestrian behind the obstacle does not hide the car behind it.
 
     Returns
     -------
     (run id, rule) or None
         ``rule`` is ``"follower in its lane"``, ``"nearest vehicle behind (another lane)"`` or
-        ``"nearest vehicle (none behind it in its direction)"``; None if no other run shares
-        two time steps with the obstacle.
+        ``"nearest vehicle (none behind it in its direction)"``; None if no other run (of a
+        type not skipped) shares two time steps with the obstacle.
     """
-    runs = {r: traces.run(i) for i, r in enumerate(traces.run_ids)}
-    to = runs[obstacle]
+    kinds = traces.metadata.get("obstacles", {})
+    to = traces.run(traces.run_ids.index(obstacle))
+    others = {r: c for r, c in ((r, traces.run(i)) for i, r in enumerate(traces.run_ids))
+              if r != obstacle and kinds.get(r[3:], {}).get("type") not in skip
+              and len(np.intersect1d(to["t"], c["t"])) >= 2}  # a fit needs 2 shared samples
     for rule, lane in (("follower in its lane", lane_width / 2),
                        ("nearest vehicle behind (another lane)", math.inf)):
-        nearest = _nearest_behind(to, {r: c for r, c in runs.items() if r != obstacle}, lane)
+        nearest = _nearest_behind(to, others, lane)
         if nearest:
             counts = {r: nearest.count(r) for r in dict.fromkeys(nearest)}
             best = max(counts.values())
-            return next(r for r in runs if counts.get(r) == best), rule
-    return _nearest(to, {r: c for r, c in runs.items() if r != obstacle})
+            return next(r for r in others if counts.get(r) == best), rule
+    return _nearest(to, others)
 
 
 def _nearest(to: dict[str, np.ndarray], others: dict[str, dict[str, np.ndarray]]
@@ -245,6 +254,8 @@ def _nearest(to: dict[str, np.ndarray], others: dict[str, dict[str, np.ndarray]]
 def _nearest_behind(to: dict[str, np.ndarray], others: dict[str, dict[str, np.ndarray]],
                     half_width: float) -> list[str]:
     """Per time step of ``to``, the run behind it with the smallest gap (absent if none)."""
+    if not others:  # the obstacle alone (or every other one skipped): no one behind it
+        return []
     t = to["t"]
     gap = np.full((len(others), len(t)), np.inf)
     names = list(others)

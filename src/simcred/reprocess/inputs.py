@@ -171,19 +171,21 @@ def commonroad_drive(path: str | Path, obstacle: int | str, ego: int | str | Non
     """Obstacle ``obstacle`` as the TO of a CommonRoad scenario, with its EGO.
 
     The EGO is obstacle ``ego`` if given, else the TO's follower
-    (:func:`simcred.io.commonroad.follower`). Both are cut to the time steps both have, and put
-    into the road frame of :func:`road_frame`. A CommonRoad planning problem's initial state is
-    not an EGO here: it is no recorded vehicle (in the NGSIM scenarios it replaces one), so
-    there would be nothing to compare its resimulation with.
+    (:func:`simcred.io.commonroad.follower`) among the obstacles an ACC can drive (not a
+    pedestrian or bicycle, :data:`NOT_DRIVEN`: a pedestrian behind the TO is passed over).
+    Both are cut to the time steps both have, and put into the road frame of :func:`road_frame`.
+    A CommonRoad planning problem's initial state is not an EGO here: it is no recorded vehicle
+    (in the NGSIM scenarios it replaces one): nothing to compare its resimulation with.
     """
     path = Path(path)
     traces = commonroad.read(path) if traces is None else traces
     to_run = _obstacle_run(path, traces, obstacle, "--object")
     if ego is None:
-        chosen = commonroad.follower(traces, to_run)
+        chosen = commonroad.follower(traces, to_run, skip=NOT_DRIVEN)
         if chosen is None:
             raise TraceSetError(f"{path}: obstacle {obstacle} shares fewer than 2 time steps "
-                                "with every other obstacle: no EGO for it")
+                                f"with every other obstacle that is not a "
+                                f"{' or '.join(NOT_DRIVEN)}: no EGO for it")
         ego_run, rule = chosen
     else:
         ego_run, rule = _obstacle_run(path, traces, ego, "--ego"), "given (--ego)"
