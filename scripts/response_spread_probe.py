@@ -12,6 +12,8 @@ same data as ``scripts/response_bench.py`` (its seeds):
   identities carry only the dither and fit leftovers);
 * ``foldgu`` — as ``foldg``, but ``S_j`` on per-(state, unit) means of ``|r|``, each unit one
   observation in each state it visits;
+* ``eachg``  — as ``foldg``, but ``T_j`` and ``S_j`` each on their own in Tippett;
+* ``foldmax`` — as ``foldg``, with ``max(z(T_j), z(S_j))`` per noisy feature in place of the sum;
 * ``folda``  — as ``foldg``, with ``|r|`` itself adjusted on the covariates (global cubic and
   per-state fits, as the response is) before it is compared.
 
@@ -130,7 +132,14 @@ def probe_test(data, n_units, assignments, rng):
         z_s = spread(data, n_units, assignments, spread_rng)
         z_s = z_s * (data.residual.std(axis=0) >= NOISE_FLOOR * data.spread)
         z_l = level_z(data, n_units, assignments, rng)
-        parts = [z_l[:, j] + z_s[:, j] for j in range(n_features)]
+        if name == "eachg":  # every feature's T_j and every noisy feature's S_j on their own
+            noisy = np.flatnonzero(z_s.any(axis=0))
+            parts = [z_l[:, j] for j in range(n_features)] + [z_s[:, j] for j in noisy]
+        elif name == "foldmax":  # per feature the larger of z(T_j) and z(S_j)
+            parts = [np.maximum(z_l[:, j], z_s[:, j]) if z_s[:, j].any() else z_l[:, j]
+                     for j in range(n_features)]
+        else:
+            parts = [z_l[:, j] + z_s[:, j] for j in range(n_features)]
         if z_l.shape[1] > n_features:
             parts.append(z_l[:, n_features:].sum(axis=1))
         chain = tippett(*parts)

@@ -161,12 +161,15 @@ def test_spread_statistic_equals_literal_computation():
                                          rel=1e-10)
 
 
-def test_chain_adds_each_features_spread_to_its_level():
+def test_chain_takes_each_features_larger_of_level_and_spread():
+    """Literal: per feature max(z(T_j), z(S_j)) — T_j alone where S_j is 0 (below the noise
+    floor) — and the profile sum, Tippett over the assignments."""
     from simcred.compare.response import chain_statistic
 
     rng = np.random.default_rng(8)
     z, spread = rng.normal(size=(50, 6)), rng.normal(size=(50, 2))
-    columns = [z[:, 0] + spread[:, 0], z[:, 1] + spread[:, 1], z[:, 2:].sum(axis=1)]
+    spread[:, 1] = 0.0
+    columns = [np.maximum(z[:, 0], spread[:, 0]), z[:, 1], z[:, 2:].sum(axis=1)]
     literal = [-min(np.mean(c >= c[i]) for c in columns) for i in range(len(z))]
     assert np.allclose(chain_statistic(z, 2, spread), literal)
 

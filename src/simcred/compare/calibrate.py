@@ -41,6 +41,7 @@ from simcred.compare.result import (
 )
 from simcred.compare.run_counts import START, RunCounts
 from simcred.compare.runs import RunLevelOutcome, RunTestSpec, run_level_test
+from simcred.seeds import stream
 
 #: Seed-stream keys of the run-level test and its companions (spawn keys of the seed).
 RUNS_KEY, BASELINE_KEY, BOOTSTRAP_KEY, RELEVANCE_KEY = 2**40, 2**40 + 1, 2**40 + 2, 2**40 + 3
@@ -51,10 +52,6 @@ INTERVAL_LEVEL = 0.95
 
 def run_spec(options: ComparisonOptions, permutations: int | None = None) -> RunTestSpec:
     return options.run_spec(permutations)
-
-
-def stream(seed: int, *key: int) -> np.random.Generator:
-    return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=key))
 
 
 def pooled_counts(a: EncodedRuns, b: EncodedRuns, space: StateSpace) -> RunCounts:

@@ -41,11 +41,13 @@ adjusted residual is below ``NOISE_FLOOR`` of its raw spread has no noise of its
 kinematic identity: only the dither and fit leftovers, whose size differs between places a
 deterministic model drives): its spread is not compared.
 
-**Chain** = Tippett's combination [3] of ``z(T_j) + z(S_j)`` per feature and the sum of the
+**Chain** = Tippett's combination [3] of ``max(z(T_j), z(S_j))`` per feature and the sum of the
 profile ``T_k,j`` over ``k`` and ``j``, each standardised over the assignments: a change in one
 feature is not diluted by the features that do not change, and the profile statistic adds the
-changes of varying sign. Measured against the sum of ``T_j`` alone and other variants
-(calibration.md).
+changes of varying sign. The maximum (not the sum) keeps a change of level from being diluted
+by the spread, and one component per feature keeps Tippett's floor low (with P permutations
+and K components the smallest chain p-value is about K / (P + 1)). Measured against the sum
+of ``T_j`` alone and other variants (calibration.md).
 
 **Per-state statistics** (where it shows): ``T_s,j = m n/(m+n) · ‖d_s,j‖²``, standardised, max-T
 family-wise adjusted [4], and *reported only when the chain verdict rejects* (gatekeeping: no
@@ -332,9 +334,10 @@ def chain_statistic(z: np.ndarray, n_features: int, spread: np.ndarray | None = 
                     ) -> np.ndarray:
     """The chain statistic of every assignment from the standardised pooled statistics
     (P + 1, K · features) and spread statistics (P + 1, features): Tippett's combination of
-    each feature's ``T_j + S_j`` and the sum of the profile statistics (module docs); larger =
-    more extreme."""
-    level = [z[:, j] if spread is None else z[:, j] + spread[:, j] for j in range(n_features)]
+    each feature's ``max(T_j, S_j)`` (``T_j`` where ``S_j`` is 0: no noise of its own) and the
+    sum of the profile statistics (module docs); larger = more extreme."""
+    level = [z[:, j] if spread is None or not spread[:, j].any()
+             else np.maximum(z[:, j], spread[:, j]) for j in range(n_features)]
     if z.shape[1] == n_features:
         return tippett(*level)
     return tippett(*level, z[:, n_features:].sum(axis=1))
