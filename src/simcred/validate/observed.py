@@ -23,7 +23,6 @@ cell.
 
 from __future__ import annotations
 
-import zlib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -35,6 +34,7 @@ from simcred.errors import OptionError
 from simcred.regions import engine
 from simcred.regions.cells import Grid, segments
 from simcred.regions.engine import CellResult
+from simcred.seeds import named_stream
 from simcred.traces import TraceSet
 from simcred.validate.domain import cell_settings
 from simcred.validate.spec import ValidationFileError, ValidationSpec
@@ -108,11 +108,6 @@ def sensor_summary(sensor: SensorModel, source: str) -> dict[str, Any]:
             "fit": dict(sensor.fit), "signals": signals}
 
 
-def _stream(seed: int, name: str, which: int) -> np.random.Generator:
-    return np.random.default_rng(np.random.SeedSequence(
-        seed, spawn_key=(zlib.crc32(name.encode()), which)))
-
-
 def observation_level(spec: ValidationSpec, sensor: SensorModel, reference: TraceSet,
                       candidates: dict[str, TraceSet]) -> Observation:
     """The reference cropped by the sensor's largest delay, each candidate's ground truth pushed
@@ -120,7 +115,7 @@ def observation_level(spec: ValidationSpec, sensor: SensorModel, reference: Trac
     seed = spec.comparison.seed
     try:
         lost = delay_steps(sensor, reference, *candidates.values())
-        seen = {n: observe(t, sensor, seed=_stream(seed, n, OBSERVE_STREAM), crop_to=lost)
+        seen = {n: observe(t, sensor, seed=named_stream(seed, n, OBSERVE_STREAM), crop_to=lost)
                 for n, t in candidates.items()}
     except OptionError as exc:
         raise ValidationFileError(f"{KEY}: {exc}") from None
@@ -137,7 +132,7 @@ def with_sensor_alone(observation: Observation, spec: ValidationSpec, grid: Grid
     effects = {}
     for name, truth in observation.truths.items():
         own = observe(truth, observation.sensor, crop_to=observation.cropped,
-                      seed=_stream(spec.comparison.seed, name, EFFECT_STREAM))
+                      seed=named_stream(spec.comparison.seed, name, EFFECT_STREAM))
         truth = crop(truth, observation.cropped)
         truth_cells = segments(truth, grid, settings.min_length).by_cell
         own_cells = segments(own, grid, settings.min_length).by_cell
