@@ -98,6 +98,7 @@ class Driver:
     delay: int = 0  # steps: the IDM command uses the state `delay` steps ago
     late: Any = 0  # steps (per run): braking commands applied `late` steps late
     clip: tuple[float, float] | None = None  # applied acceleration clipped to [lo, hi]
+    gap_gain: float = 1.0  # the recorded gap × gap_gain (a sensor gain; the driver sees the truth)
 
 
 #: The stochastic human-like driver; per-run headway is drawn by :func:`human`.
@@ -284,6 +285,7 @@ def driving_set(rng: np.random.Generator, leaders: Mapping[str, np.ndarray], dri
         if start == "perturbed":  # gap × exp(N(0, 0.3))
             gap0 = gap0 * np.exp(0.3 * rng.normal(size=len(v0)))
     sim = simulate(rng, vl, gap0, v0, driver)
+    sim["gap"] = sim["gap"] * driver.gap_gain
     info = [_info(leaders, i, T=_scalar(driver.T, i), late=_scalar(driver.late, i),
                   **(extra[i] if extra else {})) for i in range(len(ids))]
     return to_traceset(sim, ids, info, source)
@@ -420,7 +422,8 @@ def segments(rng: np.random.Generator, runs: int = 20, segments: int = 4,
 DELAY_STEPS = 1  # 0.5 s
 LATE_STEPS = 2  # 1.0 s
 #: Defect kinds (magnitudes fixed in advance, not tuned): a Driver change given A's data.
-DEFECTS = ("none", "bias", "delay", "variance", "late_brake_10", "late_brake_50", "clip", "gain")
+DEFECTS = ("none", "bias", "delay", "variance", "late_brake_10", "late_brake_50", "clip", "gain",
+           "gap_gain")
 
 
 def _defective(rng: np.random.Generator, kind: str, base: Driver, runs: int,
@@ -443,6 +446,8 @@ def _defective(rng: np.random.Generator, kind: str, base: Driver, runs: int,
         return replace(base, clip=(float(lo), float(hi)))
     if kind == "gain":
         return replace(base, gain=0.9)
+    if kind == "gap_gain":
+        return replace(base, gap_gain=0.9)
     raise ValueError(f"unknown defect {kind!r}; known: {DEFECTS}")
 
 
@@ -460,6 +465,8 @@ def defect(rng: np.random.Generator, kind: str, runs: int = 40, paired: bool = T
       accelerations (this call's A); in the closed loop ~18 % of B's samples sit at a bound and
       ~1.3 % of B's runs end in a collision (gap < 0: the clipped brake is too weak);
     * ``gain``: the IDM command (not the noise) × 0.9;
+    * ``gap_gain``: B's recorded gap × 0.9 (a gain on one feature, as a miscalibrated sensor
+      would give; the driver acts on the true gap);
     * ``none``: no defect (control).
 
     paired=True: B replays A's scenarios (same leader windows, start states and run ids;

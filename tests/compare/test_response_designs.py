@@ -90,6 +90,11 @@ def test_defects(kind, paired):
     if kind == "clip":
         lo, hi = np.quantile(d.a.column("a"), [0.075, 0.925])
         assert d.b.column("a").min() >= lo - 1e-12 and d.b.column("a").max() <= hi + 1e-12
+    if kind == "gap_gain":  # recorded gap steps = 0.9 × the kinematic ones (the truth's)
+        gap, v, vl = (d.b.column(c).reshape(len(d.b.run_ids), -1)
+                      for c in ("gap", "v", "v_leader"))
+        step = (vl[:, :-1] - 0.5 * (v[:, :-1] + v[:, 1:])) * rd.DT
+        np.testing.assert_allclose(np.diff(gap, axis=1), 0.9 * step, atol=1e-9)
     if kind.startswith("late_brake"):
         share = 0.1 if kind.endswith("10") else 0.5
         assert np.mean(np.array(info(d.b, "late")) > 0) == share
