@@ -24,7 +24,7 @@ from simcred.reprocess.inputs import (
     road_frame,
 )
 from simcred.reprocess.pipeline import ReprocessConfig, reprocess
-from simcred.reprocess.timebase import Drive, Recording, align
+from simcred.reprocess.timebase import Drive, RecordedTracks, align
 from simcred.sim.experiments.cutin import CutInConfig, simulate
 from simcred.traces import TIME, TraceSet
 
@@ -43,8 +43,8 @@ def _thinned(traces: TraceSet, step: int, source: str) -> TraceSet:
     return TraceSet.from_runs([run], run_ids=["gt"], source=source)
 
 
-def _recording(tracks: dict[str, Track], source: str = "rec") -> Recording:
-    return Recording(source, tracks, "sha256:test")
+def _recording(tracks: dict[str, Track], source: str = "rec") -> RecordedTracks:
+    return RecordedTracks(source, tracks, "sha256:test")
 
 
 def _track(t) -> Track:

@@ -151,7 +151,7 @@ def reprocess(measurement: Measurement | Drive, config: ReprocessConfig | None =
     kinds = {"objects": recorded} if recorded else None  # types for the .xosc, stated
     for name, tracks in raw.items():
         say(f"fit {name}")
-        fits[name.fit()] = fit_scenario({o: (t.t, t.x, t.y) for o, t in tracks.items()},
+        fits[name.fit()] = fit_scenario(tracks,
                                         objects=list(objects), threshold=c.threshold,
                                         dimensions=dimensions, metadata=kinds)
     sensor_model = c.sensor_model if c.sensor_model is not None else (
