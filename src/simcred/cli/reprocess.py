@@ -1,4 +1,4 @@
-"""Commands of seed 002: reprocess, vary."""
+"""Commands of paper 002: reprocess, vary."""
 
 from __future__ import annotations
 

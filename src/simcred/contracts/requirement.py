@@ -1,4 +1,4 @@
-"""What the missing model(s) of a setup must satisfy, readable (seed 003, sec. V-B).
+"""What the missing model(s) of a setup must satisfy, readable (paper 003, sec. V-B).
 
 The quotient C_tc / (C_1 ⊗ … ⊗ C_k) of the test case by the composition of the given models
 (:func:`~simcred.contracts.configure.missing_model_requirement`, flat composition: its size is

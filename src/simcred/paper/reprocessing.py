@@ -1,4 +1,4 @@
-"""Seed 002 (Wagner, Groh et al. 2019) §§II-IV on the manufactured cut-in universe: the
+"""Paper 002 (Wagner, Groh et al. 2019) §§II-IV on the manufactured cut-in universe: the
 reprocessing pipeline, its error decomposition and the scenario-based sensor model, with the
 paper's findings checked as claims.
 """

@@ -1,4 +1,4 @@
-"""The reprocessing pipeline of Wagner, Groh et al. (seed 002) Fig. 1: measurement → fit →
+"""The reprocessing pipeline of Wagner, Groh et al. (paper 002) Fig. 1: measurement → fit →
 resimulation → refit → risk, reaction and the error of every step; and the variation campaign.
 
 Modules: ``representation`` (typed names GT, SD, rGT, rSD, [sb], fit(…)), ``pipeline``

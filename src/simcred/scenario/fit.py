@@ -14,7 +14,7 @@ section search and its stop rules), ``fit_problem`` (one step's least squares an
 References
 ----------
 [1] Wagner, Groh, Kühbeck, Knoll, Towards Cross-Verification and Use of Simulation in the
-    Assessment of Automated Driving (seed 002), sec. II-B, eq. (1), Fig. 3; sec. III.
+    Assessment of Automated Driving (paper 002), sec. II-B, eq. (1), Fig. 3; sec. III.
 """
 
 from __future__ import annotations
