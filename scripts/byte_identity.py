@@ -1,9 +1,10 @@
 """Byte identity of the comparison commands' outputs on two commits (issue 27, item 1).
 
 Runs the demo's comparison commands (scripts/demo.sh steps 1-4 and 10, at smaller sizes, plus
-the runs and response tests, ``--json`` to stdout and a few refused options) with the sources of
-each commit (``git worktree`` of the commit, ``PYTHONPATH=<tree>/src``) and compares the SHA-256
-of every output file, stdout and stderr included.
+the runs and response tests, ``--json`` to stdout and a few refused options), step 7's
+reprocessing (files and ``--json``), ``convert`` of a folder and of a file, and a quotient,
+with the sources of each commit (``git worktree`` of the commit, ``PYTHONPATH=<tree>/src``), and
+compares the SHA-256 of every output file, stdout and stderr included.
 
 Excluded from the hash: the elapsed time the commands print on stderr ("done in 1.3 s",
 replaced by "done in T") and the run's output folder in stdout/stderr (replaced by "OUT"). Every
@@ -69,6 +70,17 @@ COMMANDS = [
     ("estimate-sensor-help", ["estimate-sensor", "--help"]),
     ("cutin-runs", ["python", "examples/validate/cutin/make_runs.py", "--out", "{o}/cutin"]),
     ("validate-cutin", ["validate", "{o}/cutin/validation.yaml", "--out", "{o}/validate-cutin"]),
+    # beyond the comparison: conversion records, reprocessing (files and --json), the quotient
+    ("convert-dir", ["convert", "{d}/baseline", "{o}/baseline.parquet", "--json"]),
+    ("convert-file", ["convert", "{o}/baseline.parquet", "{o}/baseline-long.csv", "--json"]),
+    ("reprocess-a9", ["reprocess", "src/simcred/data/a9/trajectories_file.csv", "--out",
+                      "{o}/a9", "--threshold", "0.1"]),
+    ("reprocess-a9-json", ["reprocess", "src/simcred/data/a9/trajectories_file.csv", "--out",
+                           "{o}/a9-json", "--threshold", "0.1", "--json"]),
+    ("reprocess-ngsim", ["reprocess", "tests/data/commonroad-ngsim/USA_US101-3_3_T-1.xml",
+                         "--object", "394", "--out", "{o}/ngsim-394"]),
+    ("quotient", ["contracts", "quotient", "examples/contracts/figure2.yaml", "--test-case",
+                  "C_tc", "--given", "I1=M1", "--json"]),
 ]
 
 

@@ -405,3 +405,15 @@ def test_modules_and_functions_stay_short():
                 long_functions.append(f"{name}:{node.lineno} {node.name}: {_body_lines(node)}")
     assert not long_modules, long_modules
     assert not long_functions, long_functions
+
+
+def test_every_class_name_names_one_class():
+    """One class per name (issue 27: ``Status``, ``Sensor``, ``Campaign``, ``Recording`` and
+    ``Layout`` each named two or three different classes)."""
+    where: dict[str, list[str]] = {}
+    for path in sorted((SRC / "simcred").rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.ClassDef):
+                where.setdefault(node.name, []).append(
+                    f"{path.relative_to(SRC).as_posix()}:{node.lineno}")
+    assert not {name: places for name, places in where.items() if len(places) > 1}

@@ -1,4 +1,4 @@
-"""One object's motion over time: :class:`Track`, and the constants every seed-002 layer shares.
+"""One object's motion over time: :class:`Track`, and the constants every paper 002 layer shares.
 
 A track is the states of one object (an EGO, a traffic object) at increasing times: position
 ``x, y`` of its reference point (m), speed ``v`` (m/s), heading θ (rad, unwrapped: continuous, not
@@ -6,7 +6,7 @@ folded into (−π, π]) and, where known, acceleration a = v̇ (m/s²) and yaw 
 :class:`~simcred.traces.TraceSet` the track of object ``ego`` is the columns ``ego.x, ego.y,
 ego.v, ego.heading`` (:data:`MOTION_SIGNALS`), optionally ``ego.acceleration``, ``ego.yaw_rate``.
 
-The scenario description (seed 002, [1] eq. (1)) samples into tracks, the reprocessing pipeline
+The scenario description (paper 002, [1] eq. (1)) samples into tracks, the reprocessing pipeline
 compares tracks, the risk measures and the closed loop take the batched view
 (:class:`TrackBatch`: the same columns as arrays of any one shape, e.g. ``(runs, steps)``; and
 :meth:`Track.states`, :meth:`TrackBatch.states`: ``(..., 4)`` arrays of x, y, v, θ).

@@ -447,6 +447,20 @@ def concat(parts: Sequence[TraceSet], *, source: str | None = None,
     )
 
 
+def spans(starts: Any, ends: Any) -> tuple[np.ndarray, np.ndarray]:
+    """The rows of the ranges ``starts[i] .. ends[i]-1``, one after the other, and the offsets
+    of the runs they make: how every subset of a set's rows is cut (:func:`take`, a crop, a
+    cell's segments, a reader's tracks).
+
+    >>> rows, offsets = spans([4, 0], [6, 1])
+    >>> rows.tolist(), offsets.tolist()
+    ([4, 5, 0], [0, 2, 3])
+    """
+    starts, ends = np.asarray(starts, dtype=np.int64), np.asarray(ends, dtype=np.int64)
+    rows = np.concatenate([np.arange(a, b) for a, b in zip(starts, ends, strict=True)])
+    return rows, np.concatenate([[0], np.cumsum(ends - starts)])
+
+
 def take(traces: TraceSet, runs: Sequence[int], *, source: str | None = None) -> TraceSet:
     """The runs ``runs`` (indices, in that order, no repeats) of ``traces`` as a new set.
 
@@ -458,8 +472,7 @@ def take(traces: TraceSet, runs: Sequence[int], *, source: str | None = None) ->
     if len(np.unique(index)) != index.size or index.min() < 0 or index.max() >= traces.n_runs:
         raise TraceSetError(f"{traces.source}: run indices must be distinct and in "
                             f"[0, {traces.n_runs}), got {index.tolist()[:5]}...")
-    lo, hi = traces.offsets[index], traces.offsets[index + 1]
-    rows = np.concatenate([np.arange(a, b) for a, b in zip(lo, hi, strict=True)])
+    rows, offsets = spans(traces.offsets[index], traces.offsets[index + 1])
     ids = tuple(traces.run_ids[i] for i in index)
     metadata = dict(traces.metadata)
     if isinstance(metadata.get(RUN_INFO), Mapping):
@@ -468,7 +481,7 @@ def take(traces: TraceSet, runs: Sequence[int], *, source: str | None = None) ->
         signals=traces.signals,
         time=handed_over(traces.time[rows]),
         values=handed_over(traces.values[rows]),
-        offsets=np.concatenate([[0], np.cumsum(hi - lo)]),
+        offsets=offsets,
         run_ids=ids,
         metadata=metadata,
         source=traces.source if source is None else source,

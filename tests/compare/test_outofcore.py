@@ -12,9 +12,9 @@ import pytest
 
 from helpers import ar_set
 from simcred.compare import compare
-from simcred.compare.calibrate import pooled_counts
 from simcred.compare.outofcore import compare_datasets
 from simcred.compare.process import Prepared, common_space, comparison_options
+from simcred.compare.run_level import pooled_counts
 from simcred.errors import OptionError, TraceSetError
 from simcred.io.dataset import ParquetDataset, is_dataset, read_dataset
 from simcred.io.parquet import to_table

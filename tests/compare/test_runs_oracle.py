@@ -11,10 +11,10 @@ from hypothesis import strategies as st
 
 from helpers import ar_set, random_walk_set
 from simcred.compare import compare, kernels, run_counts, runs, side_counts
-from simcred.compare.calibrate import pooled_counts, run_spec
 from simcred.compare.kernels import Kernel, KernelOperator, pooled_bandwidth
 from simcred.compare.mmd import Estimator
 from simcred.compare.process import Prepared, common_space, comparison_options
+from simcred.compare.run_level import pooled_counts, run_spec
 
 FEATURES = ["x", "y"]
 

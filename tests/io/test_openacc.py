@@ -11,7 +11,7 @@ from simcred import data
 from simcred.errors import OptionError, TraceSetError
 from simcred.io.openacc import (
     EpisodeRules,
-    Recording,
+    OpenACCRecording,
     episodes,
     read_openacc,
     read_recording,
@@ -103,14 +103,14 @@ def test_to_parquet_round_trip_is_exact(tmp_path):
 # -- episode rules on a constructed recording (the oracle is the construction) -------------------
 
 
-def _recording(n=505, **changes) -> Recording:
+def _recording(n=505, **changes) -> OpenACCRecording:
     time = np.round(np.arange(n) * 0.1 + 100.0, 1)
     vl = np.full(n, 15.0)
     vf = 14.0 + 0.01 * np.arange(n)
     gap = np.full(n, 20.0)
     for key, (rows, value) in changes.items():
         {"vl": vl, "vf": vf, "gap": gap}[key][rows] = value
-    return Recording("test/rec", "2019-10-09", ("L", "F"), False, None, time,
+    return OpenACCRecording("test/rec", "2019-10-09", ("L", "F"), False, None, time,
                      {1: vl, 2: vf}, {1: gap})
 
 
@@ -133,12 +133,12 @@ def test_irregular_time_breaks_a_segment():
     rec = _recording(n=202)
     time = rec.time.copy()
     time[101:] += 0.5  # a 0.6 s step between rows 100 and 101
-    broken = Recording(rec.name, rec.date, rec.vehicles, rec.acc, rec.setting, time, rec.speed,
-                       rec.gap)
+    broken = OpenACCRecording(rec.name, rec.date, rec.vehicles, rec.acc, rec.setting, time,
+                              rec.speed, rec.gap)
     assert episodes([broken]).n_runs == 2
     time[100:] += 0.5  # now between rows 99 and 100: only [0, 100) and [100, 202)
-    broken = Recording(rec.name, rec.date, rec.vehicles, rec.acc, rec.setting, time, rec.speed,
-                       rec.gap)
+    broken = OpenACCRecording(rec.name, rec.date, rec.vehicles, rec.acc, rec.setting, time,
+                              rec.speed, rec.gap)
     assert episodes([broken]).n_runs == 1
 
 

@@ -41,6 +41,11 @@ def test_unknown_role_or_kind_is_one_line(tmp_path):
         io.read_source(A9, "nope")
 
 
+def test_io_read_names_read_source_for_a_data_set():
+    with pytest.raises(OptionError, match=r"'a9' is a data set.*read_source\(path, 'a9'\)"):
+        io.read(A9, format="a9")
+
+
 def test_data_sets_read_into_their_own_types(tmp_path):
     recording = io.read_source(A9, "a9")
     assert type(recording) is type(read_a9(A9))

@@ -12,7 +12,7 @@ import pytest
 from simcred.kinematics import Track
 from simcred.reprocess.pipeline import ReprocessConfig, reprocess
 from simcred.reprocess.reaction import ReactionCriteria, reaction, reaction_analysis
-from simcred.reprocess.timebase import Drive, Recording
+from simcred.reprocess.timebase import Drive, RecordedTracks
 
 STEP = 0.1
 T = np.round(np.arange(0.0, 8.0 + STEP / 2, STEP), 10)
@@ -26,7 +26,7 @@ def drive() -> Drive:
     ego = Track(T, 12.0 * T, np.full_like(T, Y_EGO), np.full_like(T, 12.0), np.zeros_like(T))
     to = Track(T, 40 + 13.0 * T, np.full_like(T, Y_EGO + 3.5), np.full_like(T, 13.0),
                np.zeros_like(T))
-    return Drive(Recording("street", {"ego": ego, "to": to}, "sha256:test"))
+    return Drive(RecordedTracks("street", {"ego": ego, "to": to}, "sha256:test"))
 
 
 @pytest.fixture(scope="module")

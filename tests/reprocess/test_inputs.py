@@ -24,7 +24,7 @@ from simcred.reprocess.inputs import (
     road_frame,
 )
 from simcred.reprocess.pipeline import ReprocessConfig, reprocess
-from simcred.reprocess.timebase import Drive, Recording, align
+from simcred.reprocess.timebase import Drive, RecordedTracks, align
 from simcred.sim.experiments.cutin import CutInConfig, simulate
 from simcred.traces import TIME, TraceSet
 
@@ -43,8 +43,8 @@ def _thinned(traces: TraceSet, step: int, source: str) -> TraceSet:
     return TraceSet.from_runs([run], run_ids=["gt"], source=source)
 
 
-def _recording(tracks: dict[str, Track], source: str = "rec") -> Recording:
-    return Recording(source, tracks, "sha256:test")
+def _recording(tracks: dict[str, Track], source: str = "rec") -> RecordedTracks:
+    return RecordedTracks(source, tracks, "sha256:test")
 
 
 def _track(t) -> Track:
@@ -61,6 +61,11 @@ def test_gt_at_a_lower_rate_is_compared_on_its_own_samples(short):
     np.testing.assert_array_equal(result.times, gt.run(0)[TIME])  # the coarser recording's
     assert result.input_report["time_base"] == "GT"
     assert result.input_report["steps"]["GT"] == pytest.approx(0.05)
+    # typed inside, the report a view of it: the time base without a second copy of the tracks
+    assert result.aligned.base == "GT" and result.aligned.times is result.times
+    assert not result.aligned.tracks
+    assert result.input_report == {"drive": dict(result.drive_metadata),
+                                   **result.aligned.to_dict()}
     # SD's samples include GT's, so linear interpolation onto them is exact
     run = short.sd.run(0)
     np.testing.assert_allclose(result.states["SD"]["to"].x, run["to.x"][::5], rtol=0, atol=1e-9)

@@ -13,7 +13,7 @@ from simcred.cli import run
 from simcred.errors import SimcredError
 from simcred.kinematics import Track
 from simcred.reprocess.inputs import LongColumns, long_drive
-from simcred.reprocess.timebase import Drive, Recording
+from simcred.reprocess.timebase import Drive, RecordedTracks
 from simcred.reprocess.units import check_units
 from simcred.scenario.fit import fit_scenario
 from simcred.sim.resimulation import time_grid
@@ -48,7 +48,7 @@ def _table(path: Path, columns: dict[str, dict[str, np.ndarray]], *, time_factor
 
 def _recording(columns: dict[str, dict[str, np.ndarray]]) -> Drive:
     tracks = {n: Track(T, c["x"], c["y"], c["v"], c["heading"]) for n, c in columns.items()}
-    return Drive(Recording("rec", tracks, "sha256:test"))
+    return Drive(RecordedTracks("rec", tracks, "sha256:test"))
 
 
 def _one_line_exit_2(args: list[str], capsys) -> str:

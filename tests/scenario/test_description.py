@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 from scipy.integrate import quad
 
 from simcred.errors import SimcredError
+from simcred.kinematics import Track
 from simcred.scenario import (
     ObjectTrack,
     ScenarioDescription,
@@ -225,6 +226,9 @@ def test_fit_scenario_from_traceset_and_from_triples(description: ScenarioDescri
     assert list(only.fits) == ["to"] and only.description.objects["to"].length == 5.0
     np.testing.assert_array_equal(only.description.objects["to"].speed.coefficients,
                                   result.fits["to"].track.speed.coefficients)
+    track = Track.from_columns(traces.run(0), "to")
+    tracked = fit_scenario({"to": track}, dimensions={"to": (5.0, 2.0)})
+    assert tracked.description.to_json() == only.description.to_json()
 
 
 t20 = np.linspace(0.0, 2.0, 21)

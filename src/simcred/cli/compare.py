@@ -1,4 +1,4 @@
-"""Commands of seed 000: compare, matrix, example."""
+"""Commands of paper 000: compare, matrix, example."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Commands of seed 003: contracts check|refines|configure|quotient, monitor."""
+"""Commands of paper 003: contracts check|refines|configure|quotient, monitor."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Commands of seed 002: reprocess, vary."""
+"""Commands of paper 002: reprocess, vary."""
 
 from __future__ import annotations
 
@@ -111,6 +111,7 @@ def reprocess(
     """Reprocess a drive: fit, resimulate, refit, assess; errors per step (Wagner, Groh et al.)."""
     from simcred.report.reprocessing import write_reprocessed
     from simcred.reprocess.inputs import LongColumns, read_measurement
+    from simcred.reprocess.output import summary_text
     from simcred.reprocess.pipeline import ReprocessConfig
     from simcred.reprocess.pipeline import reprocess as run_pipeline
     from simcred.sim.vehicles import vehicle_model
@@ -151,9 +152,9 @@ def reprocess(
             result = run_pipeline(drive, config, _steps("reprocessing"))
         except SimcredError as exc:  # a step's message names the object, not the input
             raise SimcredError(f"{_where(measurement, drive.metadata)}: {exc}") from None
-        summary = write_reprocessed(result, target.path)["summary"].read_text()
+        write_reprocessed(result, target.path)
     if as_json:
-        sys.stdout.write(summary)
+        sys.stdout.write(summary_text(result))
     elif not State.quiet:
         _print_input(result.input_report)
         _print_ad_function(result.ad_function)

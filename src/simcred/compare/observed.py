@@ -38,10 +38,11 @@ from typing import Any
 
 import numpy as np
 
+from simcred._json import fields_dict
 from simcred.compare.result import Comparison
 from simcred.errors import OptionError
 from simcred.seeds import resolve_seed, stream
-from simcred.traces import TraceSet, handed_over
+from simcred.traces import TraceSet, handed_over, spans
 
 OBSERVE_KEY, SENSOR_EFFECT_KEY = 2**42, 2**42 + 1
 SIDES = ("a", "b")
@@ -86,8 +87,7 @@ class SignalSensor:
         return int(round(self.delay / dt))
 
     def to_dict(self) -> dict[str, float]:
-        return {"offset": self.offset, "delay": self.delay, "noise_sd": self.noise_sd,
-                "dropout": self.dropout}
+        return fields_dict(self)
 
 
 def _signal_sensors(given: Mapping[str, Any], where: str) -> dict[str, SignalSensor]:
@@ -212,9 +212,7 @@ def crop(traces: TraceSet, steps: int) -> TraceSet:
     """Every run without its first ``steps`` samples."""
     if steps == 0:
         return traces
-    keep = np.concatenate([np.arange(traces.offsets[i] + steps, traces.offsets[i + 1])
-                           for i in range(traces.n_runs)])
-    offsets = np.r_[0, np.cumsum(traces.lengths - steps)]
+    keep, offsets = spans(traces.offsets[:-1] + steps, traces.offsets[1:])
     return TraceSet(traces.signals, handed_over(traces.time[keep]),
                     handed_over(traces.values[keep]), offsets, traces.run_ids,
                     dict(traces.metadata), traces.source, traces.run_sources)
@@ -265,9 +263,7 @@ def observe(traces: TraceSet, sensor: SensorModel, *, seed: int | np.random.Gene
             dropped[0] = False
             y[:, j] = _hold(seen, dropped)
         runs_values.append(y)
-    keep = np.concatenate([np.arange(traces.offsets[i] + lost, traces.offsets[i + 1])
-                           for i in range(traces.n_runs)])
-    offsets = np.r_[0, np.cumsum(traces.lengths - lost)]
+    keep, offsets = spans(traces.offsets[:-1] + lost, traces.offsets[1:])
     metadata = {**traces.metadata, "observed_through": sensor.to_dict()}
     return TraceSet(traces.signals, handed_over(traces.time[keep]),
                     handed_over(np.concatenate(runs_values)), offsets, traces.run_ids,

@@ -17,7 +17,7 @@ partitions of both sets:
    hash's value part.
 
 The pooled count matrix then goes through the same run-level test as in memory
-(:func:`~simcred.compare.calibrate.counts_comparison`). Memory: one partition, the sketches and
+(:func:`~simcred.compare.run_level.counts_comparison`). Memory: one partition, the sketches and
 tallies (about ``2 N / SKETCH_SIZE`` values per edge), the run ids and lengths, and the count
 matrix: 12 bytes per non-zero (run, state, successor) entry, plus 2 to 8 bytes per entry while
 the partitions' entries are sorted into it; then the run-level test's own arrays (among them
@@ -44,7 +44,6 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-from simcred.compare.calibrate import counts_comparison
 from simcred.compare.discretize import StateSpace, _check_size
 from simcred.compare.facts import SetFacts
 from simcred.compare.method import Method
@@ -52,6 +51,7 @@ from simcred.compare.quantiles import EdgePlan, Sketch, Tally
 from simcred.compare.resample import within_run_steps
 from simcred.compare.result import Comparison, InputInfo
 from simcred.compare.run_counts import RunCounts
+from simcred.compare.run_level import counts_comparison
 from simcred.engine import Progress
 from simcred.errors import OptionError
 from simcred.io.dataset import ParquetDataset, is_dataset

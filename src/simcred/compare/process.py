@@ -110,7 +110,7 @@ def compare(
     units = dict(zip(settings.features, feature_units(a, b, settings.features), strict=True))
     result = with_units(compare_prepared(*prepared, settings, progress, design, units), a, b)
     if method.relevance:
-        from simcred.compare.calibrate import feature_relevance
+        from simcred.compare.run_level import feature_relevance
 
         result = feature_relevance(result, *prepared)
     return result
@@ -201,7 +201,7 @@ def compare_prepared(
         return response_comparison(parts, design, space, options, (a.info, b.info),
                                    units or {})
     if Test(options.test) is Test.RUNS:
-        from simcred.compare.calibrate import run_level_comparison
+        from simcred.compare.run_level import run_level_comparison
 
         return run_level_comparison(runs_a, runs_b, space, options, (a.info, b.info))
     spec = options.spec

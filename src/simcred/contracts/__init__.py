@@ -1,4 +1,4 @@
-"""Assume-guarantee contracts of simulation models (Braun et al., seed 003).
+"""Assume-guarantee contracts of simulation models (Braun et al., paper 003).
 
 The public face: the assertion language (:func:`parse`), contracts and their algebra
 (:class:`Contract`, :func:`refines`, ...), libraries (:class:`Library`), configuration of the

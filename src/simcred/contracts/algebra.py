@@ -1,4 +1,4 @@
-"""Assume-guarantee contracts and their algebra (Braun et al., seed 003, sec. III; Benveniste et
+"""Assume-guarantee contracts and their algebra (Braun et al., paper 003, sec. III; Benveniste et
 al. 2018), decided with z3.
 
 A contract is C = (A, G) over declared variables; its saturation is (A, A → G). With saturated

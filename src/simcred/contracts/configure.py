@@ -1,4 +1,4 @@
-"""Configuration of the cheapest sufficiently valid simulation setup (seed 003, sec. V-B, V-C).
+"""Configuration of the cheapest sufficiently valid simulation setup (paper 003, sec. V-B, V-C).
 
 A setup picks one model per component of the architecture; it is sufficiently valid for a test
 case when the composition of the models' contracts refines the test case's contract.
@@ -320,7 +320,7 @@ def _choices(library: Library, components, fixed) -> dict[str, list[str]]:
 def missing_model_requirement(library: Library, test_case: str, given: dict[str, str]
                               ) -> Contract:
     """What the models not in ``given`` must satisfy together: the quotient C_tc / C_given
-    (seed 003 sec. V-B)."""
+    (paper 003 sec. V-B)."""
     target = library.test_case(test_case)
     for component, model in given.items():
         if library.spec.models.get(model) is None or \

@@ -191,7 +191,7 @@ class Library:
 
     @cached_property
     def model_contracts(self) -> dict[str, Contract]:
-        """Each model's contract: the conjunction of its viewpoints (seed 003 sec. III-A,
+        """Each model's contract: the conjunction of its viewpoints (paper 003 sec. III-A,
         C_tot; Benveniste et al. 2008, multiple viewpoints)."""
         from simcred.contracts.parameters import eliminate
 

@@ -1,4 +1,4 @@
-"""Monitors of contracts over recorded runs (seed 003, sec. V-D).
+"""Monitors of contracts over recorded runs (paper 003, sec. V-D).
 
 Every clause of a contract is evaluated over all rows of a :class:`TraceSet` at once (numpy):
 assumption clauses say where a model was used outside its validity domain; guarantee clauses are

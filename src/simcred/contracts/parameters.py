@@ -1,4 +1,4 @@
-"""Constant parameters of a model (seed 003 sec. III: a model's behaviour may depend on settings
+"""Constant parameters of a model (paper 003 sec. III: a model's behaviour may depend on settings
 that the contract states over; Benveniste et al. 2018, sec. 4, parametric contracts).
 
 A model declares parameters with ranges (``mu: {range: [0.5, 1.0]}``) and its contract may use

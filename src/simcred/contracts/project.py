@@ -4,7 +4,7 @@ A contract over more variables than a component's ports is turned into one over 
 A' = ∃ hidden. A and G' = ∀ hidden. (A → G). The result refines the original (A → A' and
 G' → (A → G) hold by construction), so a model satisfying it satisfies the original: it is a
 *sufficient* requirement over the ports. Used to state what a missing model must satisfy (the
-quotient, seed 003 sec. V-B). Projection needs quantifier elimination, which z3 does for linear
+quotient, paper 003 sec. V-B). Projection needs quantifier elimination, which z3 does for linear
 real arithmetic; elsewhere it may not, and :func:`project` returns None.
 
 Elimination (our design): first z3's QSAT-based recursive elimination (tactic ``qe_rec``;

@@ -7,7 +7,7 @@ whose guarantees contradict (``x == y + 1`` and ``y == x``). Such a "certificate
 So a certificate also needs the premises to be *realisable*:
 
 * **consistency of each model** — its saturated guarantee is receptive to its component's
-  inputs: for every input value some output value satisfies ``A → G`` (seed 003 sec. III;
+  inputs: for every input value some output value satisfies ``A → G`` (paper 003 sec. III;
   Benveniste et al. 2018, consistency) — at least for the inputs its setup can feed it;
 * **realisability of each feedback loop** — for every input from outside the loop, values of
   the loop's outputs exist that satisfy all its guarantees at once (``x == y + 1`` and

@@ -1,4 +1,4 @@
-"""What the missing model(s) of a setup must satisfy, readable (seed 003, sec. V-B).
+"""What the missing model(s) of a setup must satisfy, readable (paper 003, sec. V-B).
 
 The quotient C_tc / (C_1 ⊗ … ⊗ C_k) of the test case by the composition of the given models
 (:func:`~simcred.contracts.configure.missing_model_requirement`, flat composition: its size is
@@ -13,8 +13,9 @@ has 8 such clauses, which used to print as 8 lines of "depends on what that mode
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
+from simcred._json import fields_dict, json_key
 from simcred.contracts import readable
 from simcred.contracts.algebra import DEFAULT_TIMEOUT_MS, Contract, Status, valid
 from simcred.contracts.configure import (
@@ -35,18 +36,15 @@ class Requirement:
 
     test_case: str
     given: dict[str, str]
-    contract: Contract
-    projected: bool
+    contract: Contract = field(metadata=json_key(None))
+    projected: bool = field(metadata=json_key("projected_onto_ports"))
     assumption: str
     guarantee: str
     uncovered: list[dict]
     method: str
 
     def to_dict(self) -> dict:
-        return {"test_case": self.test_case, "given": self.given,
-                "projected_onto_ports": self.projected, "assumption": self.assumption,
-                "guarantee": self.guarantee, "uncovered": self.uncovered,
-                "method": self.method}
+        return fields_dict(self)
 
 
 def requirement(library: Library, test_case: str, given: dict[str, str], *,

@@ -2,9 +2,9 @@
 
 * names: variables are valid identifiers; models, test cases and free contracts have distinct
   names; components, architecture and models refer to what exists;
-* units and composability (seed 003 sec. III-D4): every port of a variable uses its unit, every
+* units and composability (paper 003 sec. III-D4): every port of a variable uses its unit, every
   variable is driven by at most one output, no component both reads and drives a variable;
-* port scope (seed 003 sec. III-D1: "the contract C = (A, G) is modeled over the ports P_M"):
+* port scope (paper 003 sec. III-D1: "the contract C = (A, G) is modeled over the ports P_M"):
   a model's assumption constrains only its component's inputs, its guarantee only the
   component's inputs and outputs; a test case speaks only about the architecture's ports, and
   its assumption only about what the architecture does not drive (the environment);

@@ -33,6 +33,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
+from simcred._json import dumps, envelope, fields_dict, file_digest
 from simcred.errors import OptionError, TraceSetError
 from simcred.io._paths import check_regular
 from simcred.io._xml import xml_root
@@ -92,7 +93,12 @@ def _named(format: str) -> Format:
     try:
         return FORMATS[format]
     except KeyError:
-        raise OptionError(f"unknown format {format!r} (formats: {', '.join(FORMATS)})") from None
+        from simcred.io.sources import DATASETS  # sources reads through this module
+
+        hint = (f"; {format!r} is a data set, read into its own type by "
+                f"simcred.io.read_source(path, {format!r})" if format in DATASETS else "")
+        raise OptionError(f"unknown format {format!r} (formats: {', '.join(FORMATS)}){hint}"
+                          ) from None
 
 
 def _suffix(path: Path) -> str:
@@ -161,7 +167,8 @@ def _check_options(fmt: Format, options: Mapping[str, Any], allowed: tuple[str, 
 
 
 def read(path: str | Path, *, format: str | None = None, **options: Any) -> TraceSet:
-    """Read a trace set in any supported format; ``options`` are the format's own.
+    """Read a trace set in any supported format; ``options`` are the format's own. Data sets
+    (A9, measurement, OpenACC) are read into their own types by :func:`simcred.io.read_source`.
 
     >>> import tempfile, pathlib
     >>> d = pathlib.Path(tempfile.mkdtemp())
@@ -211,23 +218,20 @@ class Conversion:
     signals: tuple[str, ...]
 
     def to_dict(self) -> dict[str, Any]:
-        from simcred._json import envelope
-
-        return envelope("conversion", {name: getattr(self, name) for name in self.__slots__})
+        return envelope("conversion", fields_dict(self))
 
     def to_json(self) -> str:
-        from simcred._json import dumps
-
         return dumps(self.to_dict())
 
 
 def content_sha256(path: Path) -> str:
-    """SHA-256 of a file, or of a directory's files (relative names and bytes, sorted)."""
+    """SHA-256 of a file (:func:`~simcred._json.file_digest`), or of a directory's files
+    (relative names and bytes, sorted)."""
+    if not path.is_dir():
+        return file_digest(path)
     h = hashlib.sha256()
-    files = sorted(p for p in path.rglob("*") if p.is_file()) if path.is_dir() else [path]
-    for file in files:
-        if path.is_dir():
-            h.update(str(file.relative_to(path)).encode() + b"\0")
+    for file in sorted(p for p in path.rglob("*") if p.is_file()):
+        h.update(str(file.relative_to(path)).encode() + b"\0")
         h.update(file.read_bytes())
     return "sha256:" + h.hexdigest()
 

@@ -48,7 +48,7 @@ from simcred.errors import OptionError, TraceSetError
 from simcred.io._columns import check_table, float_column
 from simcred.io._paths import local
 from simcred.io.levelx_scenes import scenes
-from simcred.traces import RUN_INFO, TraceSet, handed_over
+from simcred.traces import RUN_INFO, TraceSet, handed_over, spans
 
 TRACKS = re.compile(r"^(\d+)_tracks\.csv$")
 DIRECTIONS = ("normalise", "keep")
@@ -58,7 +58,7 @@ UNITS = {"x": "m", "y": "m", "vx": "m/s", "vy": "m/s", "ax": "m/s^2", "ay": "m/s
 
 
 @dataclass(frozen=True, slots=True)
-class Layout:
+class LevelxLayout:
     """Column names of one generation of the levelX files."""
 
     name: str
@@ -71,10 +71,10 @@ class Layout:
     corner: bool  # x, y are the bounding box corner (highD), not the centre
 
 
-HIGHD = Layout("highD", "id", "x", "y",
+HIGHD = LevelxLayout("highD", "id", "x", "y",
                (("vx", "xVelocity"), ("vy", "yVelocity"), ("ax", "xAcceleration"),
                 ("ay", "yAcceleration"), ("lane", "laneId")), "height", "width", corner=True)
-LEVELX = Layout("inD/rounD/exiD/uniD", "trackId", "xCenter", "yCenter",
+LEVELX = LevelxLayout("inD/rounD/exiD/uniD", "trackId", "xCenter", "yCenter",
                 (("vx", "xVelocity"), ("vy", "yVelocity"), ("ax", "xAcceleration"),
                  ("ay", "yAcceleration"), ("heading", "heading")), "width", "length",
                 corner=False)
@@ -213,14 +213,14 @@ def _cell(text: str | None) -> str | int | float | None:
 
 
 @dataclass(frozen=True, slots=True)
-class Recording:
+class LevelxRecording:
     """One recording read and checked, before it becomes runs: its rows ordered by track and
     frame, the direction already normalised; track ``ids[i]`` is rows
     ``starts[i]:starts[i] + counts[i]``."""
 
     name: str
     where: str  # the tracks file, for errors and as the source
-    layout: Layout
+    layout: LevelxLayout
     signals: tuple[str, ...]
     frame: np.ndarray  # int64, per row
     time: np.ndarray  # frame / frameRate, per row
@@ -232,7 +232,7 @@ class Recording:
     row: dict  # the recordingMeta row
 
 
-def _load(directory: Path, name: str, path: Path, direction: str) -> Recording:
+def _load(directory: Path, name: str, path: Path, direction: str) -> LevelxRecording:
     tracks = _csv(path)
     layout = LEVELX if LEVELX.x in tracks.column_names else HIGHD
     meta_path = directory / f"{name}_tracksMeta.csv"
@@ -267,19 +267,18 @@ def _load(directory: Path, name: str, path: Path, direction: str) -> Recording:
         upper_track = np.array([info[int(t)]["driving_direction"] == 1 for t in ids])
         turned = [signals.index(s) for s in TURNED]
         values[np.ix_(np.repeat(upper_track, counts), turned)] *= -1.0
-    return Recording(name, where, layout, signals, frame, frame / rate, values, ids, starts,
-                     counts, info, rec_row)
+    return LevelxRecording(name, where, layout, signals, frame, frame / rate, values, ids,
+                           starts, counts, info, rec_row)
 
 
-def _track_runs(rec: Recording) -> TraceSet:
+def _track_runs(rec: LevelxRecording) -> TraceSet:
     """Every track of ``rec`` with two frames or more a run; single-frame tracks counted."""
     keep = rec.counts >= 2
     if not keep.any():
         raise TraceSetError(f"{rec.where}: no track has two frames or more")
     ids, name = rec.ids, rec.name
     short = {f"{name}:{t}": int(c) for t, c in zip(ids[~keep], rec.counts[~keep], strict=True)}
-    rows = np.concatenate([np.arange(s, s + c) for s, c in
-                           zip(rec.starts[keep], rec.counts[keep], strict=True)])
+    rows, offsets = spans(rec.starts[keep], rec.starts[keep] + rec.counts[keep])
     metadata = {
         "format": rec.layout.name, "units": {s: UNITS[s] for s in rec.signals},
         RUN_INFO: {f"{name}:{t}": rec.info[int(t)] for t in ids[keep]},
@@ -287,11 +286,12 @@ def _track_runs(rec: Recording) -> TraceSet:
         **({"short_tracks": short} if short else {}),
     }
     return TraceSet(rec.signals, handed_over(rec.time[rows]), handed_over(rec.values[rows]),
-                    np.concatenate([[0], np.cumsum(rec.counts[keep])]),
+                    offsets,
                     tuple(f"{name}:{t}" for t in ids[keep]), metadata, source=rec.where)
 
 
-def _track_info(meta: pa.Table, layout: Layout, where: str, recording: str) -> dict[int, dict]:
+def _track_info(meta: pa.Table, layout: LevelxLayout, where: str, recording: str
+                ) -> dict[int, dict]:
     """Per track id: recording, track, class, width, length and (highD) driving direction."""
     ids = _ids(meta, layout.track, where)
     classes = _text_column(meta, "class", where)

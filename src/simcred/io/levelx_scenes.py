@@ -35,12 +35,12 @@ from simcred.limits import check_count
 from simcred.traces import RUN_INFO, TraceSet, handed_over
 
 if TYPE_CHECKING:  # the caller's loaded recordings (simcred.io.levelx imports this module)
-    from simcred.io.levelx import Recording
+    from simcred.io.levelx import LevelxRecording
 
 PRESENT = "present"
 
 
-def scenes(loaded: Sequence[Recording], units: Mapping[str, str], direction: str,
+def scenes(loaded: Sequence[LevelxRecording], units: Mapping[str, str], direction: str,
            source: str) -> TraceSet:
     """Every recording of ``loaded`` (same signals, in order) one run with its tracks as objects."""
     tracks = np.unique(np.concatenate([rec.ids for rec in loaded]))
@@ -74,7 +74,7 @@ def scenes(loaded: Sequence[Recording], units: Mapping[str, str], direction: str
     )
 
 
-def _frames(rec: Recording) -> tuple[np.ndarray, np.ndarray]:
+def _frames(rec: LevelxRecording) -> tuple[np.ndarray, np.ndarray]:
     """The recording's frames with a row of any track (ascending) and their times."""
     frame, first = np.unique(rec.frame, return_index=True)
     if len(frame) < 2:
@@ -83,7 +83,7 @@ def _frames(rec: Recording) -> tuple[np.ndarray, np.ndarray]:
     return frame, rec.time[first]
 
 
-def _fill(block: np.ndarray, rec: Recording, frame: np.ndarray, slots: np.ndarray,
+def _fill(block: np.ndarray, rec: LevelxRecording, frame: np.ndarray, slots: np.ndarray,
           width: int) -> None:
     """Write ``rec``'s rows into its run's ``block`` (frames × objects × signals, zeros): each
     row at its frame and its track's ``slots`` entry, ``present`` set to 1."""

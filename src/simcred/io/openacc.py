@@ -65,7 +65,7 @@ ATTRIBUTION = ("Contains data from OpenACC, © European Commission, Joint Resear
 
 
 @dataclass(frozen=True, slots=True, eq=False)
-class Recording:
+class OpenACCRecording:
     """One OpenACC file: metadata rows and the time, speed and gap columns (NaN = no data).
 
     Parameters
@@ -106,7 +106,7 @@ class Recording:
                 "setting": self.setting}
 
 
-def read_recording(path: str | Path, name: str | None = None) -> Recording:
+def read_recording(path: str | Path, name: str | None = None) -> OpenACCRecording:
     """Read an OpenACC CSV (original layout) or the shipped Parquet of one; see the module doc."""
     path = Path(path)
     name = name or f"{path.parent.name}/{path.stem}"
@@ -158,7 +158,7 @@ def _from_hundredths(column: pa.ChunkedArray) -> pa.Array:
 
 
 def _recording(path: Path, name: str, header: Mapping[str, list[str]], table: pa.Table
-               ) -> Recording:
+               ) -> OpenACCRecording:
     if "Time" not in table.column_names:
         raise TraceSetError(f"{path}: no column 'Time'")
     columns = {n: _float(table, n, path) for n in table.column_names}
@@ -188,7 +188,7 @@ def _recording(path: Path, name: str, header: Mapping[str, list[str]], table: pa
     if setting not in SETTINGS:
         raise TraceSetError(f"{path}: metadata row 'Distance_setting' must be S, L or empty, "
                             f"found {setting!r}")
-    return Recording(
+    return OpenACCRecording(
         name=name,
         date=_date(header.get("Date", []), path),
         vehicles=tuple(v for v in header.get("Vehicle_order", []) if v),
@@ -325,7 +325,7 @@ class CutReport:
 
 @dataclass(frozen=True, slots=True)
 class _Window:
-    recording: Recording
+    recording: OpenACCRecording
     leader: int
     start: int
 
@@ -349,7 +349,7 @@ def _segments(ok: np.ndarray, regular: np.ndarray) -> list[tuple[int, int]]:
     return out
 
 
-def _windows(rec: Recording, rules: EpisodeRules, counts: dict[str, int]) -> list[_Window]:
+def _windows(rec: OpenACCRecording, rules: EpisodeRules, counts: dict[str, int]) -> list[_Window]:
     n = rules.samples
     regular = np.abs(np.diff(rec.time) - rules.step) <= 1e-3
     lo_gap, hi_gap = rules.gap_range
@@ -394,7 +394,7 @@ def run_id(w: _Window) -> str:
             f"t{int(round(w.recording.time[w.start] * 10)):06d}")
 
 
-def episodes(recordings: Iterable[Recording], rules: EpisodeRules | None = None, *,
+def episodes(recordings: Iterable[OpenACCRecording], rules: EpisodeRules | None = None, *,
              source: str = "openacc") -> TraceSet:
     """Cut leader–follower episodes from ``recordings`` into one TraceSet (see the module doc).
 

@@ -1,8 +1,8 @@
 """Reproductions of the papers' experiments, with their qualitative claims checked.
 
-Modules, one per paper, by topic: ``markov_chains`` (seed 000: Neurohr et al. sec. VI),
-``reprocessing`` (seed 002: Wagner, Groh et al.: reprocessing the cut-in, its variations),
-``validity_contracts`` (seed 003: Braun et al. on the cut-in); ``claims`` (a claim: value against
+Modules, one per paper, by topic: ``markov_chains`` (paper 000: Neurohr et al. sec. VI),
+``reprocessing`` (paper 002: Wagner, Groh et al.: reprocessing the cut-in, its variations),
+``validity_contracts`` (paper 003: Braun et al. on the cut-in); ``claims`` (a claim: value against
 bound), ``all`` (all three and the combined claims). Names are imported on first use.
 """
 

@@ -1,4 +1,4 @@
-"""``simcred paper all``: the three seeds one after the other into one directory, and one
+"""``simcred paper all``: the three papers one after the other into one directory, and one
 ``claims.json`` that collects theirs, with the provenance of the whole run.
 
 Layout: ``paper000/``, ``paper002/`` (with ``variations/``), ``paper003/``, ``claims.json``.

@@ -1,4 +1,4 @@
-"""Seed 000 (Neurohr et al. 2023), sec. VI: the SimpleCar λ sweep (Figs. 5-7) and the T-junction
+"""Paper 000 (Neurohr et al. 2023), sec. VI: the SimpleCar λ sweep (Figs. 5-7) and the T-junction
 occlusion matrix (Table 3), regenerated in simcred's simulator, with the paper's claims checked.
 
 Both experiments are run twice: with the paper's bound test (the claims' reference, as published)

@@ -1,4 +1,4 @@
-"""Seed 002 (Wagner, Groh et al. 2019) §§II-IV on the manufactured cut-in universe: the
+"""Paper 002 (Wagner, Groh et al. 2019) §§II-IV on the manufactured cut-in universe: the
 reprocessing pipeline, its error decomposition and the scenario-based sensor model, with the
 paper's findings checked as claims.
 """
@@ -370,7 +370,7 @@ def run_variations(out: Path, result: Reprocessed, *, n: int = 300, seed: int = 
 
 
 @dataclass(frozen=True, slots=True, eq=False)
-class Seed002Run:
+class ReprocessingRun:
     """What ``paper 002`` produced: the claims, the reprocessing and the variation campaign."""
 
     claims: list[Claim]
@@ -387,7 +387,7 @@ class Seed002Run:
 
 
 def run_all(out: Path, *, seed: int = 0, variations: int = 300, runner: Engine | None = None,
-            progress_for=lambda _: None) -> Seed002Run:
+            progress_for=lambda _: None) -> ReprocessingRun:
     """``simcred paper 002``: reprocessing and variations, plus ``claims.json``. Its work is
     ``runner``'s tasks: four reprocessings, then the variations generated and resimulated in
     chunks (at least 7 chunks, each checkpointed when the command resumes)."""
@@ -405,5 +405,5 @@ def run_all(out: Path, *, seed: int = 0, variations: int = 300, runner: Engine |
                   "reprocess": asdict(done.result.config),
                   "variations": {"n": variations, "seed": campaign.variations.seed,
                                  **asdict(campaign.config)}})
-    return Seed002Run(claims, done.result, campaign, done.study)
+    return ReprocessingRun(claims, done.result, campaign, done.study)
 

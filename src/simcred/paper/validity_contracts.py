@@ -1,6 +1,6 @@
-"""Seed 003 (Braun et al.) on simcred's own cut-in: configure the cheapest valid simulation setup
+"""Paper 003 (Braun et al.) on simcred's own cut-in: configure the cheapest valid simulation setup
 for the test case, derive what a missing dynamics model must satisfy when ST is removed, and
-monitor the resimulated runs and the variations of seed 002 against the validity domains.
+monitor the resimulated runs and the variations of paper 002 against the validity domains.
 
 The library is ``vehicle.yaml`` (SimpleCar/KS/ST, ideal vs scenario-based sensor, the AD
 function; test case ``cutin``), shipped as ``simcred.data``'s ``contracts/vehicle.yaml`` (the

@@ -21,7 +21,7 @@ from fractions import Fraction
 import numpy as np
 
 from simcred.contracts.expr import Compare, Expr, Num, Var, conjoin, decimal_text
-from simcred.traces import RUN_INFO, TraceSet, handed_over
+from simcred.traces import RUN_INFO, TraceSet, handed_over, spans
 
 OUTSIDE = -1
 #: The per-run fact of a segment that names the run it was cut from.
@@ -141,8 +141,7 @@ def segments(traces: TraceSet, grid: Grid, min_length: int) -> Segments:
 
 def _subset(traces: TraceSet, parts: Sequence[tuple[int, int, str]], cell: int, grid: Grid
             ) -> TraceSet:
-    rows = np.concatenate([np.arange(a, b) for a, b, _ in parts])
-    lengths = [b - a for a, b, _ in parts]
+    rows, offsets = spans([a for a, _, _ in parts], [b for _, b, _ in parts])
     info = traces.metadata.get(RUN_INFO)
     info = info if isinstance(info, Mapping) else {}
     facts = {}
@@ -152,7 +151,7 @@ def _subset(traces: TraceSet, parts: Sequence[tuple[int, int, str]], cell: int, 
         facts[name] = {**(own if isinstance(own, Mapping) else {}), SOURCE_RUN: run}
     return TraceSet(traces.signals, handed_over(traces.time[rows]),
                     handed_over(traces.values[rows]),
-                    np.concatenate([[0], np.cumsum(lengths)]), tuple(n for _, _, n in parts),
+                    offsets, tuple(n for _, _, n in parts),
                     {**traces.metadata, RUN_INFO: facts}, f"{traces.source} [{grid.label(cell)}]")
 
 

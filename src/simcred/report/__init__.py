@@ -1,6 +1,6 @@
 """Figures (matplotlib) and the self-contained HTML report; imports the domain, never the reverse.
 
-Modules: ``figures`` (seed-000 heatmap and state map), ``markov_chains`` (Figs. 5-7),
+Modules: ``figures`` (paper 000 heatmap and state map), ``markov_chains`` (Figs. 5-7),
 ``reprocessing`` (Figs. 3-8, and writing a reprocessing or variation result with its figures),
 ``html`` (the report of ``simcred paper all``). Names are imported on first use (matplotlib is
 slow to import).

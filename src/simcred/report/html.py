@@ -1,7 +1,7 @@
 """The self-contained HTML report of a ``simcred paper all`` directory (``simcred report DIR``).
 
-One page, ``DIR/index.html``: the overall claims score, one section per seed paper (what was run,
-the claims, the figures, and for seed 003 the configuration, the quotient and the monitors'
+One page, ``DIR/index.html``: the overall claims score, one section per paper (what was run,
+the claims, the figures, and for paper 003 the configuration, the quotient and the monitors'
 findings) and the run's provenance. Every figure is embedded as a ``data:image/png`` URI and the
 CSS is inline, so the file can be mailed or attached as it is; it refers to no URL.
 
@@ -32,7 +32,7 @@ MAX_LIST_ITEMS = 12  # longer lists in the provenance are abbreviated (full valu
 
 @dataclass(frozen=True, slots=True)
 class Seed:
-    """What the report knows about one seed paper: its method and its figures, in order."""
+    """What the report knows about one paper: its method and its figures, in order."""
 
     key: str
     title: str
@@ -335,7 +335,7 @@ def _figure(folder: Path, relative: str, caption: str) -> dict:
 
 
 def _findings(folder: Path) -> dict:
-    """Seed 003's findings.json: configuration, quotient and monitors, each possibly absent."""
+    """Paper 003's findings.json: configuration, quotient and monitors, each possibly absent."""
     document, problem = _read_json(folder / "findings.json")
     if problem is None and not isinstance(document, dict):
         problem = "findings.json is not a JSON object"

@@ -1,4 +1,4 @@
-"""Figures of the seed-000 experiments: Fig. 5 (inputs and paths), Figs. 6/7 (distance vs λ)."""
+"""Figures of the paper 000 experiments: Fig. 5 (inputs and paths), Figs. 6/7 (distance vs λ)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Figures of the reprocessing pipeline (seed 002, [1] Figs. 3-7).
+"""Figures of the reprocessing pipeline (paper 002, [1] Figs. 3-7).
 
 Colours follow [1]: EGO blue, TO green; GT solid, resimulations dashed.
 """

@@ -1,4 +1,4 @@
-"""The reprocessing pipeline of Wagner, Groh et al. (seed 002) Fig. 1: measurement → fit →
+"""The reprocessing pipeline of Wagner, Groh et al. (paper 002) Fig. 1: measurement → fit →
 resimulation → refit → risk, reaction and the error of every step; and the variation campaign.
 
 Modules: ``representation`` (typed names GT, SD, rGT, rSD, [sb], fit(…)), ``pipeline``
@@ -15,7 +15,7 @@ from simcred.reprocess.output import write
 from simcred.reprocess.pipeline import ReprocessConfig, Reprocessed, reprocess
 from simcred.reprocess.reaction import Reaction, ReactionCriteria, reaction
 from simcred.reprocess.representation import GT, SD, Rep, SensorKind, Source
-from simcred.reprocess.timebase import Drive, Gap, Recording, align
+from simcred.reprocess.timebase import Drive, Gap, RecordedTracks, Recording, align
 from simcred.reprocess.vary import (
     Outcome,
     VariationCampaign,
@@ -34,6 +34,7 @@ __all__ = [
     "LongColumns",
     "Outcome",
     "Reaction",
+    "RecordedTracks",
     "Recording",
     "ReactionCriteria",
     "Rep",

@@ -19,11 +19,11 @@ References
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 
 import numpy as np
 
-from simcred._json import JsonResult
+from simcred._json import JsonResult, fields_dict
 from simcred.kinematics import Track
 
 QUANTITIES = ("d", "v", "heading")
@@ -63,7 +63,7 @@ class ErrorStats(JsonResult):
                    float(values.max()), float(values.mean()), float(values.std()), len(values))
 
     def to_dict(self) -> dict[str, float]:
-        return asdict(self)
+        return fields_dict(self)
 
 
 def wrap(angle: np.ndarray) -> np.ndarray:

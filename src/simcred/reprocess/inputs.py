@@ -51,7 +51,7 @@ from simcred.io.formats import PARQUET_SUFFIXES as LONG_SUFFIXES
 from simcred.io.sources import detect_source, read_source
 from simcred.kinematics import TIME_TOLERANCE, Track
 from simcred.reprocess.road import lanelet_line, reference_line_file, to_frenet
-from simcred.reprocess.timebase import Drive, Recording, tracks_digest
+from simcred.reprocess.timebase import Drive, RecordedTracks, tracks_digest
 from simcred.scenario.fit import MIN_SAMPLES
 from simcred.scenario.frenet import to_path_frame
 from simcred.traces import TIME, TraceSet
@@ -154,7 +154,7 @@ def a9_drive(path: Path, object_id: int | None = None) -> Drive:
     sd = to_path_frame(recording.to_traceset(chosen, name=TO))
     metadata = {"source": str(path), "object": chosen, "kind": "A9 sensor data",
                 **recording.metadata(), "rows": sd.metadata.get("rows")}
-    return Drive(Recording.of_traceset(sd), None, metadata)
+    return Drive(RecordedTracks.of_traceset(sd), None, metadata)
 
 
 # -- CommonRoad ----------------------------------------------------------------------------------
@@ -216,7 +216,7 @@ def commonroad_drive(path: str | Path, obstacle: int | str, ego: int | str | Non
                 "ego": int(ego_run[3:]), "ego_choice": rule, "frame": placed,
                 "objects": objects}
     digest = tracks_digest(tracks, file_digest(path), selection)
-    return Drive(Recording(str(path), tracks, digest), None, metadata)
+    return Drive(RecordedTracks(str(path), tracks, digest), None, metadata)
 
 
 def _obstacle_run(path: Path, traces: TraceSet, obstacle: int | str, option: str) -> str:
@@ -320,7 +320,7 @@ def long_drive(path: str | Path, columns: LongColumns = LongColumns(), *,
     return Drive(sd, gt_recording, metadata)
 
 
-def _long_frame(path: Path, sd: Recording, rule: str) -> dict[str, Any] | None:
+def _long_frame(path: Path, sd: RecordedTracks, rule: str) -> dict[str, Any] | None:
     """The rigid road frame to rotate into (``road_frame="ego"``), None to keep the table's;
     a one-line refusal when the EGO does not travel along +x and no rotation was asked."""
     if rule == "ego":
@@ -335,13 +335,13 @@ def _long_frame(path: Path, sd: Recording, rule: str) -> dict[str, Any] | None:
     return None
 
 
-def _moved(recording: Recording, tracks: Mapping[str, Track]) -> Recording:
+def _moved(recording: RecordedTracks, tracks: Mapping[str, Track]) -> RecordedTracks:
     """``recording`` with its tracks in another frame (same source, digest and dropouts)."""
-    return Recording(recording.source, dict(tracks), recording.digest, recording.dropouts)
+    return RecordedTracks(recording.source, dict(tracks), recording.digest, recording.dropouts)
 
 
 def _long_recording(path: Path, columns: LongColumns, names: tuple[str, str]
-                    ) -> tuple[Recording, list[str]]:
+                    ) -> tuple[RecordedTracks, list[str]]:
     """The EGO and the TO of one table, and the optional signals derived from positions."""
     by_object = columns.object_column is not None
     header = _column_names(path)
@@ -370,7 +370,7 @@ def _long_recording(path: Path, columns: LongColumns, names: tuple[str, str]
             key = _run_label(run_id) if columns.run_column is not None else path.stem
         tracks[role] = _with_derived(run, role, str(path))
         dropouts[role] = int(dropped.get(key, 0))
-    return Recording(str(path), tracks, tracks_digest(tracks, file_digest(path)),
+    return RecordedTracks(str(path), tracks, tracks_digest(tracks, file_digest(path)),
                      dropouts), derived
 
 

@@ -95,10 +95,10 @@ def _line(exc: BaseException) -> str:
 
 
 def _summary(result: Reprocessed, out: Path) -> dict[str, Any]:
-    drive = result.input_report.get("drive", {})
+    drive = result.drive_metadata
     return {"ego": drive.get("ego"), "ego_choice": drive.get("ego_choice"),
-            "directory": out.name, "samples": result.input_report.get("samples"),
-            "gaps": len(result.input_report.get("gaps", [])),
+            "directory": out.name, "samples": len(result.times),
+            "gaps": 0 if result.aligned is None else len(result.aligned.gaps),
             "reactions": {k: r.manoeuvre for k, r in result.reactions.items()},
             "reactions_not_measurable": [k for k, r in result.reactions.items()
                                          if not r.measurable],

@@ -31,8 +31,10 @@ def write(result: Reprocessed, directory: str | Path) -> dict[str, Path]:
     """Write everything; returns the main files by role."""
     out = Path(directory)
     out.mkdir(parents=True, exist_ok=True)
+    summary = out / "reprocess.json"
+    summary.write_text(summary_text(result))
     files = {
-        "summary": _json(out / "reprocess.json", "reprocess", result.to_dict(), result.inputs),
+        "summary": summary,
         "errors": _json(out / "errors.json", "errors", {
             sensor: {step: {obj: {q: s.to_dict() for q, s in by_q.items()}
                             for obj, by_q in by_obj.items()}
@@ -56,6 +58,11 @@ def write(result: Reprocessed, directory: str | Path) -> dict[str, Path]:
                                             ego=result.config.ego)
     validate_openscenario(files["openscenario"])
     return files
+
+
+def summary_text(result: Reprocessed) -> str:
+    """``reprocess.json``'s text (what ``simcred reprocess --json`` prints)."""
+    return dumps(envelope("reprocess", result.to_dict(), inputs=result.inputs))
 
 
 def _json(path: Path, kind: str, body: dict[str, Any], inputs: dict[str, str]) -> Path:

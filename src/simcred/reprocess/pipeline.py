@@ -101,7 +101,15 @@ class Reprocessed(JsonResult):
     sensor_model: OffsetDelaySensor | None
     inputs: dict[str, str] = field(default_factory=dict)  # GT / SD -> content hash
     ad_function: dict[str, Any] = field(default_factory=dict)  # the resimulations' parameters
-    input_report: dict[str, Any] = field(default_factory=dict)  # time base, gaps, provenance
+    aligned: Aligned | None = None  # the time base and its gaps (without the tracks)
+    drive_metadata: dict[str, Any] = field(default_factory=dict)  # the drive's provenance
+
+    @property
+    def input_report(self) -> dict[str, Any]:
+        """``reprocess.json``'s ``input``: the drive's provenance, time base and every gap."""
+        if self.aligned is None:
+            return {}
+        return {"drive": dict(self.drive_metadata), **self.aligned.to_dict()}
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -151,7 +159,7 @@ def reprocess(measurement: Measurement | Drive, config: ReprocessConfig | None =
     kinds = {"objects": recorded} if recorded else None  # types for the .xosc, stated
     for name, tracks in raw.items():
         say(f"fit {name}")
-        fits[name.fit()] = fit_scenario({o: (t.t, t.x, t.y) for o, t in tracks.items()},
+        fits[name.fit()] = fit_scenario(tracks,
                                         objects=list(objects), threshold=c.threshold,
                                         dimensions=dimensions, metadata=kinds)
     sensor_model = c.sensor_model if c.sensor_model is not None else (
@@ -182,7 +190,8 @@ def reprocess(measurement: Measurement | Drive, config: ReprocessConfig | None =
     return Reprocessed(c, times, states, descriptions, fits, resims, errors, reactions,
                        _analysis(states, reactions, c), risk, sensor_model,
                        {name: r.digest for name, r in drive.recordings().items()},
-                       input_report=_input_report(drive, aligned), ad_function=ad_report)
+                       ad_function=ad_report, aligned=replace(aligned, tracks={}),
+                       drive_metadata=dict(drive.metadata))
 
 
 def _ad_function(description: ScenarioDescription, c: ReprocessConfig
@@ -211,11 +220,6 @@ def footprints(drive: Drive, objects: tuple[str, ...]) -> dict[str, tuple[float,
     given = drive.metadata.get("objects", {})
     return {o: (float(given[o]["length"]), float(given[o]["width"])) for o in objects
             if "length" in given.get(o, {}) and "width" in given.get(o, {})}
-
-
-def _input_report(drive: Drive, aligned: Aligned) -> dict[str, Any]:
-    """``reprocess.json``'s ``input``: the drive's provenance, time base and every gap."""
-    return {"drive": dict(drive.metadata), **aligned.to_dict()}
 
 
 def _sensors(name: Rep, model: OffsetDelaySensor | None

@@ -1,7 +1,7 @@
 """A drive as the pipeline reads it, and the common time base its representations are compared on.
 
 A :class:`Drive` is one or two recordings of the same drive (SD, and GT if there is one), each
-a :class:`Recording`: every object's samples at its own times. Objects may be sampled at
+a :class:`RecordedTracks`: every object's samples at its own times. Objects may be sampled at
 different times and rates, and may miss samples (dropouts: rows whose values were missing or
 NaN are removed by the readers and counted). :func:`align` makes the comparison explicit:
 
@@ -41,7 +41,7 @@ LONG_GAPS = ("error", "longest")
 
 
 @dataclass(frozen=True, slots=True, eq=False)
-class Recording:
+class RecordedTracks:
     """One source of a drive (GT or SD): each object's samples at its own, increasing times.
 
     ``dropouts`` counts, per object, the samples a reader removed because a value was missing
@@ -54,7 +54,7 @@ class Recording:
     dropouts: Mapping[str, int] = field(default_factory=dict)
 
     @classmethod
-    def of_traceset(cls, traces: TraceSet) -> Recording:
+    def of_traceset(cls, traces: TraceSet) -> RecordedTracks:
         """A one-run trace set with ``<object>.<x|y|v|heading>`` signals (every object shares
         the run's times)."""
         run = traces.run(0)
@@ -77,20 +77,24 @@ class Recording:
                                f"{', '.join(self.tracks) or 'none'})")
 
 
+#: The earlier name of :class:`RecordedTracks` (kept for callers; one class per name).
+Recording = RecordedTracks
+
+
 @dataclass(frozen=True, slots=True, eq=False)
 class Drive:
     """SD and (optionally) GT of one drive, with free-form metadata (provenance)."""
 
-    sd: Recording
-    gt: Recording | None = None
+    sd: RecordedTracks
+    gt: RecordedTracks | None = None
     metadata: Mapping[str, Any] = field(default_factory=dict)
 
     @classmethod
     def of_measurement(cls, measurement: Measurement) -> Drive:
-        gt = None if measurement.gt is None else Recording.of_traceset(measurement.gt)
-        return cls(Recording.of_traceset(measurement.sd), gt, dict(measurement.metadata))
+        gt = None if measurement.gt is None else RecordedTracks.of_traceset(measurement.gt)
+        return cls(RecordedTracks.of_traceset(measurement.sd), gt, dict(measurement.metadata))
 
-    def recordings(self) -> dict[str, Recording]:
+    def recordings(self) -> dict[str, RecordedTracks]:
         return {"SD": self.sd} | ({} if self.gt is None else {"GT": self.gt})
 
 

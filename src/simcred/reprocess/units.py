@@ -31,7 +31,7 @@ import numpy as np
 from simcred.errors import SimcredError
 from simcred.kinematics import Track
 from simcred.reprocess.decomposition import wrap
-from simcred.reprocess.timebase import Drive, Recording
+from simcred.reprocess.timebase import Drive, RecordedTracks
 
 MIN_STEP = 1e-3  # s
 MAX_STEP = 2.0  # s
@@ -53,7 +53,7 @@ def check_units(drive: Drive, objects: Sequence[str]) -> None:
                 _check_motion(recording.source, name, recording.tracks[name])
 
 
-def _check_step(recording: Recording) -> None:
+def _check_step(recording: RecordedTracks) -> None:
     step = recording.step()
     if MIN_STEP <= step <= MAX_STEP:
         return

@@ -1,4 +1,4 @@
-"""Scenario description of Wagner, Groh et al. (seed 002) sec. II-B and its local variation (V).
+"""Scenario description of Wagner, Groh et al. (paper 002) sec. II-B and its local variation (V).
 
 An object is a start position and two cubic splines of time, speed v(t) and heading θ(t); its
 positions follow from eq. (1) by one fixed quadrature, so that the description is unambiguous.

@@ -6,7 +6,7 @@ vectors at τ_0 and τ_n. :func:`influence` says how far a fix point's displacem
 References
 ----------
 [1] Wagner, Groh, Kühbeck, Knoll, Towards Cross-Verification and Use of Simulation in the
-    Assessment of Automated Driving (seed 002), sec. V.
+    Assessment of Automated Driving (paper 002), sec. V.
 """
 
 from __future__ import annotations

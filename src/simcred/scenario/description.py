@@ -14,7 +14,7 @@ agree to rounding, and the scheme agrees with the exact integral of eq. (1) to f
 References
 ----------
 [1] Wagner, Groh, Kühbeck, Knoll, Towards Cross-Verification and Use of Simulation in the
-    Assessment of Automated Driving (seed 002), sec. II-B, eq. (1).
+    Assessment of Automated Driving (paper 002), sec. II-B, eq. (1).
 """
 
 from __future__ import annotations

@@ -14,7 +14,7 @@ section search and its stop rules), ``fit_problem`` (one step's least squares an
 References
 ----------
 [1] Wagner, Groh, Kühbeck, Knoll, Towards Cross-Verification and Use of Simulation in the
-    Assessment of Automated Driving (seed 002), sec. II-B, eq. (1), Fig. 3; sec. III.
+    Assessment of Automated Driving (paper 002), sec. II-B, eq. (1), Fig. 3; sec. III.
 """
 
 from __future__ import annotations
@@ -27,6 +27,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from simcred.errors import OptionError, SimcredError
+from simcred.kinematics import Track
 from simcred.scenario.description import ScenarioDescription
 from simcred.scenario.fit_problem import SHORT_SMOOTHING, SHORT_TRACK, measured_speed
 from simcred.scenario.fit_result import ScenarioFit, StopReason, TrackFit
@@ -241,9 +242,9 @@ def fit_scenario(
     Parameters
     ----------
     traces : mapping or TraceSet
-        Either ``{name: (t, x, y)}``; or one run ``{"t": ..., "<name>.x": ..., "<name>.y": ...}``
-        (e.g. ``TraceSet.run(i)``); or a :class:`~simcred.traces.TraceSet`, of which run ``run``
-        is used.
+        Either ``{name: (t, x, y)}`` or ``{name: Track}``; or one run ``{"t": ...,
+        "<name>.x": ..., "<name>.y": ...}`` (e.g. ``TraceSet.run(i)``); or a
+        :class:`~simcred.traces.TraceSet`, of which run ``run`` is used.
     objects : sequence of str, optional
         Objects to fit; default all (for a run: every ``<name>`` with both ``.x`` and ``.y``).
     run : int, default: 0
@@ -290,7 +291,7 @@ def _series(traces: Mapping[str, Any] | TraceSet, objects: Sequence[str] | None,
         return _series_of_run(traces.run(run), objects, f"{traces.source}: run "
                                                           f"'{traces.run_ids[run]}'")
     if not isinstance(traces, Mapping) or not traces:
-        raise SimcredError("traces must be a non-empty mapping {name: (t, x, y)} or a run "
+        raise SimcredError("traces must be a non-empty mapping {name: Track or (t, x, y)} or a run "
                            "{'t': ..., '<name>.x': ..., '<name>.y': ...}")
     if TIME in traces:
         return _series_of_run(traces, objects, "run")
@@ -300,10 +301,15 @@ def _series(traces: Mapping[str, Any] | TraceSet, objects: Sequence[str] | None,
         if name not in traces:
             raise SimcredError(f"object '{name}' is not in the traces (have: "
                                f"{', '.join(map(str, traces))})")
+        value = traces[name]
+        if isinstance(value, Track):
+            out[name] = (value.t, value.x, value.y)
+            continue
         try:
-            t, x, y = traces[name]
+            t, x, y = value
         except (TypeError, ValueError):
-            raise SimcredError(f"object '{name}': expected a (t, x, y) triple") from None
+            raise SimcredError(f"object '{name}': expected a Track or a (t, x, y) triple"
+                               ) from None
         out[name] = (t, x, y)
     return out
 

@@ -23,7 +23,7 @@ Later steps start from the previous solution projected onto the new basis.
 References
 ----------
 [1] Wagner, Groh, Kühbeck, Knoll, Towards Cross-Verification and Use of Simulation in the
-    Assessment of Automated Driving (seed 002), sec. II-B, eq. (1).
+    Assessment of Automated Driving (paper 002), sec. II-B, eq. (1).
 """
 
 from __future__ import annotations

@@ -12,7 +12,7 @@ fits positions by plain least squares and says nothing about noisy or broken dat
 References
 ----------
 [1] Wagner, Groh, Kühbeck, Knoll, Towards Cross-Verification and Use of Simulation in the
-    Assessment of Automated Driving (seed 002), sec. II-B.
+    Assessment of Automated Driving (paper 002), sec. II-B.
 """
 
 from __future__ import annotations

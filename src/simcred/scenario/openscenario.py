@@ -10,7 +10,7 @@ xmlschema against the XSDs shipped with it.
 References
 ----------
 [1] Wagner, Groh, Kühbeck, Knoll, Towards Cross-Verification and Use of Simulation in the
-    Assessment of Automated Driving (seed 002), sec. II-B.
+    Assessment of Automated Driving (paper 002), sec. II-B.
 [2] scenariogeneration (pyoscx), https://github.com/pyoscx/scenariogeneration.
 [3] ASAM OpenSCENARIO 1.x: FollowTrajectoryAction, Timing (time = value · scale + offset).
 """

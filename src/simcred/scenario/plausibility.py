@@ -6,7 +6,7 @@ II-B asks for a description "physically realistic"; the bounds are simcred's).
 References
 ----------
 [1] Wagner, Groh, Kühbeck, Knoll, Towards Cross-Verification and Use of Simulation in the
-    Assessment of Automated Driving (seed 002), sec. V.
+    Assessment of Automated Driving (paper 002), sec. V.
 """
 
 from __future__ import annotations

@@ -8,7 +8,7 @@ description is unambiguous.
 References
 ----------
 [1] Wagner, Groh, Kühbeck, Knoll, Towards Cross-Verification and Use of Simulation in the
-    Assessment of Automated Driving (seed 002), sec. II-B, eq. (1).
+    Assessment of Automated Driving (paper 002), sec. II-B, eq. (1).
 """
 
 from __future__ import annotations

@@ -26,7 +26,7 @@ Deviations from [1], which leaves these open:
 References
 ----------
 [1] Wagner, Groh, Kühbeck, Knoll, Towards Cross-Verification and Use of Simulation in the
-    Assessment of Automated Driving (seed 002), sec. V; sec. II-B (the fit).
+    Assessment of Automated Driving (paper 002), sec. V; sec. II-B (the fit).
 """
 
 from __future__ import annotations

@@ -5,7 +5,7 @@
 References
 ----------
 [1] Wagner, Groh, Kühbeck, Knoll, Towards Cross-Verification and Use of Simulation in the
-    Assessment of Automated Driving (seed 002), sec. V.
+    Assessment of Automated Driving (paper 002), sec. V.
 """
 
 from __future__ import annotations

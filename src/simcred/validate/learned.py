@@ -3,7 +3,7 @@
 One component ``simulation`` reads the operating-condition variables and drives one validity
 metric per feature with a tolerance, ``deviation.<feature>`` (the response deviation of
 :mod:`simcred.compare.effect`, in the feature's unit per second). Each candidate with at least
-one valid cell becomes a model of it (seed 003: the model's contract is its validity domain)::
+one valid cell becomes a model of it (paper 003: the model's contract is its validity domain)::
 
     assumption = cell_1 or cell_2 or ...              (the valid cells, closed intervals)
     guarantee  = (cell_1 implies deviation.v <= u_1) and ...

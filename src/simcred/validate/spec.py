@@ -59,18 +59,18 @@ class ValidationFileError(SimcredError):
     """A malformed validation file; the message names the file and the key."""
 
 
-class _Strict(BaseModel):
+class _StrictSpec(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
 
-class RunsSpec(_Strict):
+class RunsSpec(_StrictSpec):
     """A trace set on disk: ``path`` plus reader options (:func:`simcred.io.read`)."""
 
     path: str = Field(min_length=1)
     options: dict[str, str | int | float | bool] = Field(default_factory=dict)
 
 
-class ObservedSpec(_Strict):
+class ObservedSpec(_StrictSpec):
     """The reference is a sensor's recording of the process the candidates write as ground truth
     (docs/observed.md, the observation-model route): each candidate is pushed through ``sensor``
     before its cells are compared. ``sensor`` is a JSON file (declared, or written by ``simcred
@@ -108,7 +108,7 @@ class ReferenceSpec(RunsSpec):
         return out
 
 
-class RelativeTolerance(_Strict):
+class RelativeTolerance(_StrictSpec):
     """A tolerance relative to the reference's own spread: ``relative`` times the deviation
     between random halves of the reference's units (drivers, recordings, or runs), measured over
     the test case's cells (:mod:`simcred.validate.tolerance`)."""
@@ -130,7 +130,7 @@ def _tolerance_value(name: Any, value: Any) -> float | RelativeTolerance:
     return float(value)
 
 
-class TestCaseSpec(_Strict):
+class TestCaseSpec(_StrictSpec):
     """The test case: its operating conditions and, per response feature, the largest response
     deviation it tolerates (in the feature's unit per second, e.g. m/s² for a speed), absolute
     or relative to the reference's own spread."""
@@ -158,7 +158,7 @@ OUT_PLACEHOLDER = "{out}"
 WRITER_OPTIONS = ("--out", "-o", "--overwrite", "--resume")
 
 
-class SimulateSpec(_Strict):
+class SimulateSpec(_StrictSpec):
     """A simcred simulator command that writes the candidate's runs: ``command`` is the argument
     list of ``simcred`` (no shell; it must start with ``simulate``), in which ``{base}`` stands
     for the validation file's folder; ``validate`` runs it with ``--out DIR/runs/NAME`` (the
@@ -209,7 +209,7 @@ def without_placed_output(command: list[str]) -> list[str]:
     return kept
 
 
-class CandidateSpec(_Strict):
+class CandidateSpec(_StrictSpec):
     """A candidate: its runs on disk, or a simulator command that makes them."""
 
     runs: RunsSpec | None = None
@@ -224,7 +224,7 @@ class CandidateSpec(_Strict):
         return self
 
 
-class ConditionSpec(_Strict):
+class ConditionSpec(_StrictSpec):
     """One operating-condition variable: a signal of the runs, its unit and its cell edges."""
 
     unit: str = Field(default="dimensionless", max_length=64)
@@ -278,7 +278,7 @@ FILE_FIELDS: dict[str, tuple[Any, Any]] = {
 }
 
 
-class _MethodKeys(_Strict):
+class _MethodKeys(_StrictSpec):
     """Each key checked by :class:`Method` on its own (the error names the key)."""
 
     @field_validator("*")
@@ -305,7 +305,7 @@ replicates of the deviation's bounds, ``seed``, ``resample`` (s), ``history``, `
 :attr:`ValidationSpec.method` makes the method."""
 
 
-def _comparison_spec() -> type[_Strict]:
+def _comparison_spec() -> type[_StrictSpec]:
     fields = dict(FILE_FIELDS)
     fields.update((f.name, (Any, f.default)) for f in dataclasses.fields(Method)
                   if f.name not in NOT_IN_FILE and f.name not in FILE_FIELDS)
@@ -316,13 +316,13 @@ def _comparison_spec() -> type[_Strict]:
 ComparisonSpec = _comparison_spec()
 
 
-class UnitKeySpec(_Strict):
+class UnitKeySpec(_StrictSpec):
     """A per-run key: ``run_id`` or a per-run fact (``metadata["run_info"]`` key) of the runs."""
 
     by: str = Field(min_length=1, max_length=200)
 
 
-class MinDataSpec(_Strict):
+class MinDataSpec(_StrictSpec):
     """Least data per side (reference and candidate) in a cell: units of the design (runs,
     groups or pair members) and samples; below it the cell is unknown."""
 
@@ -330,14 +330,14 @@ class MinDataSpec(_Strict):
     samples: int = Field(default=100, ge=2)
 
 
-class SegmentSpec(_Strict):
+class SegmentSpec(_StrictSpec):
     """Runs cross cells: each run is cut into maximal segments inside one cell; segments shorter
     than ``min_length`` samples are dropped."""
 
     min_length: int = Field(default=10, ge=2)
 
 
-class ValidationSpec(_Strict):
+class ValidationSpec(_StrictSpec):
     name: str = Field(default="validation", max_length=200)
     test_case: TestCaseSpec
     reference: ReferenceSpec

@@ -1,4 +1,4 @@
-"""Cut-in and brake on a two-lane highway: the manufactured universe of seed 002 ([1] §III).
+"""Cut-in and brake on a two-lane highway: the manufactured universe of paper 002 ([1] §III).
 
 "Reality" is the higher-fidelity vehicle model (CommonRoad ST) for the EGO, the real sensor
 (:class:`~simcred.sim.sensors.TrackerSensor`: 1.4 m offset along the line of sight, velocity and
