@@ -9,8 +9,10 @@ benchmarks/compare.py, B's level shifted by 0.05), run ids equal across the sets
 
 * ``runs`` — the run-level test (reference, ratio 1.00);
 * ``response`` unpaired (runs design), paired (``pair_by="run_id"``) and grouped
-  (``group_by="driver"``), each with ``bootstrap=200``; and the unpaired one with the default
-  500 bootstrap replicates.
+  (``group_by="driver"``), each with ``bootstrap=200``; the unpaired one with the default
+  500 bootstrap replicates; and, as an extra row (not the target's case), the paired one with
+  ``bootstrap=1``: the API has no switch for the effect's interval (``bootstrap=0`` means the
+  default 500), one replicate is as near to off as it gets (estimate and p-value stay).
 
 Target (issue): the paired and grouped tests within 2× of the runs test; peak memory reported.
 Times are best-of-k wall-clock seconds of the ``compare`` call alone (data generation and hashing
@@ -55,6 +57,8 @@ CASES: dict[str, tuple[dict, str]] = {
     "grouped": ({"test": "response", "group_by": "driver", "bootstrap": 200},
                 f"response, group_by=driver ({DRIVERS} per set), bootstrap 200"),
     "response-500": ({"test": "response"}, "response, unpaired, bootstrap 500 (default)"),
+    "paired-b1": ({"test": "response", "pair_by": "run_id", "bootstrap": 1},
+                  "extra: response, pair_by=run_id, bootstrap 1 (interval ~off)"),
 }
 
 
