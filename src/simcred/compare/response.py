@@ -208,8 +208,8 @@ def kernel_sums(data: Transitions, n_units: int, rng: np.random.Generator) -> Ke
     """Dithered residuals → Fourier features (and sizes ``|r_j|``, :func:`size_values`, where a
     response has noise of its own) → per-(state, unit) sums, state by state and chunk by chunk
     in one pass (the feature matrix of all transitions never exists). The features are
-    integers, so every sum here is exact (in any order): pair sums by ``reduceat``, written
-    straight into the unit matrix (:class:`_Target`)."""
+    integers, so every sum here is exact (in any order): pair sums are one sparse product per
+    chunk, written straight into the unit matrix (:class:`_Target`)."""
     spread = data.spread if data.spread is not None else np.zeros(data.residual.shape[1])
     residual = data.residual + RESOLUTION * spread * rng.normal(size=data.residual.shape)
     feature_map = _FourierMap(residual, rng)
@@ -231,12 +231,14 @@ def kernel_sums(data: Transitions, n_units: int, rng: np.random.Generator) -> Ke
             target.put(b, 0, p0, p1, count)
         for first, last in _chunks(pairs.starts, p0, p1):
             lo, hi = pairs.starts[first], pairs.starts[last]
-            ends = pairs.starts[first:last] - lo
+            ends = pairs.starts[first:last + 1] - lo
+            indicator = sp.csr_matrix((np.ones(hi - lo), np.arange(hi - lo), ends),
+                                      shape=(last - first, hi - lo))  # pair × transition
             for k, phi in enumerate(feature_map(residual[lo:hi])):
-                kernel.put(b, 1 + k * FOURIER, first, last, np.add.reduceat(phi, ends), phi)
+                kernel.put(b, 1 + k * FOURIER, first, last, indicator @ phi, phi)
             if sizes is not None:
                 values = size_values(residual[lo:hi], scale)
-                sizes.put(b, 1, first, last, np.add.reduceat(values, ends), values)
+                sizes.put(b, 1, first, last, indicator @ values, values)
     count = kernel.totals[:, :1]
     variance = kernel.squares / count - (kernel.totals[:, 1:] / count) ** 2
     variances = np.maximum(variance.reshape(n_blocks, -1, FOURIER).sum(axis=2), 0.0) / LEVELS**2

@@ -30,6 +30,17 @@ DENSE_SHARE = 2 / 3
 CHUNK = 1 << 16
 
 
+def unique_inverse(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``np.unique(values, return_inverse=True)`` of a 1-D array, by counting instead of
+    sorting where the values are non-negative integers whose range is at most about four
+    times their number (state codes, unit × state keys): same values, same dtypes."""
+    if values.size and values.dtype.kind in "iu" and values.min() >= 0 \
+            and values.max() < 4 * values.size + 1024:
+        present = np.bincount(values) > 0
+        return np.flatnonzero(present).astype(values.dtype), (np.cumsum(present) - 1)[values]
+    return np.unique(values, return_inverse=True)
+
+
 def unit_matrix(unit: np.ndarray, block: np.ndarray, rows: Callable[[slice], np.ndarray],
                 width: int, n_units: int, n_blocks: int) -> np.ndarray | sp.csc_matrix:
     """The (n_blocks · width) × n_units matrix with ``rows(part)[i, c]`` at row ``block[i] ·
