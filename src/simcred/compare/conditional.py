@@ -51,6 +51,7 @@ from simcred.compare.runs import (
     run_level_test,
 )
 from simcred.compare.transitions import transitions
+from simcred.compare.unit_sums import unique_inverse
 from simcred.seeds import stream
 
 #: Seed-stream keys (spawn keys of the comparison seed).
@@ -186,7 +187,7 @@ def _scenario_counts(parts, design: Design, history: int) -> RunCounts:
 
 
 def _count_block(codes: np.ndarray, unit: np.ndarray, n_units: int):
-    states, index = np.unique(codes, return_inverse=True)
+    states, index = unique_inverse(codes)
     matrix = sp.csr_matrix((np.ones(len(codes)), (index, unit)), shape=(len(states), n_units))
     matrix.sum_duplicates()
     return matrix, states

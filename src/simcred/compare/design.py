@@ -171,7 +171,7 @@ def _grouped(a: TraceSet, b: TraceSet, key: str) -> Design:
     unit_of_run, labels = [], []
     for side, traces in (("A", a), ("B", b)):
         keys = unit_keys(traces, key, "group-by")
-        names = sorted(set(keys), key=keys.index)  # order of first appearance
+        names = list(dict.fromkeys(keys))  # order of first appearance
         index = {name: len(labels) + i for i, name in enumerate(names)}
         unit_of_run += [index[k] for k in keys]
         labels += [f"{side}:{name}" for name in names]
@@ -184,10 +184,10 @@ def _grouped(a: TraceSet, b: TraceSet, key: str) -> Design:
 
 def _paired(a: TraceSet, b: TraceSet, key: str) -> Design:
     keys_a, keys_b = unit_keys(a, key, "pair-by"), unit_keys(b, key, "pair-by")
-    names = sorted(set(keys_a), key=keys_a.index)  # pairs in order of first appearance in A
+    names = list(dict.fromkeys(keys_a))  # pairs in order of first appearance in A
     set_a, set_b = set(keys_a), set(keys_b)
     missing_b = [k for k in names if k not in set_b]
-    missing_a = sorted({k for k in keys_b if k not in set_a}, key=keys_b.index)
+    missing_a = list(dict.fromkeys(k for k in keys_b if k not in set_a))
     if missing_b or missing_a:
         where, k = (b.source, missing_b[0]) if missing_b else (a.source, missing_a[0])
         raise OptionError(f"pair-by {key!r}: {where} has no partner for {k!r} "

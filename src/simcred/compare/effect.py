@@ -88,7 +88,7 @@ from scipy.stats import norm
 from simcred.compare.design import Design, DesignKind
 from simcred.compare.runs import exceedance_pvalues
 from simcred.compare.transitions import Transitions
-from simcred.compare.unit_sums import unit_matrix
+from simcred.compare.unit_sums import unique_inverse, unit_matrix
 from simcred.errors import OptionError
 
 #: A state enters the effect when it holds at least this share of EACH side's transitions ...
@@ -351,7 +351,7 @@ class _Sums:
         side, cluster = entries.side[take], entries.cluster[take]
         n_states, n_clusters = int(keep.sum()), entries.n_clusters
         j = entries.first.shape[1]
-        key, inverse = np.unique(cluster * n_states + state, return_inverse=True)
+        key, inverse = unique_inverse(cluster * n_states + state)
         x = np.zeros((len(key), 2, 1 + 2 * j))  # per (state, cluster) and side: N, S1, S2
         x[inverse, side] = np.hstack([entries.count[take, None], entries.first[take],
                                       entries.second[take]])  # (state, unit) occurs once

@@ -80,7 +80,8 @@ from simcred.compare.paired_runs import tippett
 from simcred.compare.run_counts import RunCounts
 from simcred.compare.runs import OneSided, exceedance_pvalues, row_max, standardise
 from simcred.compare.side_counts import SideCounts, is_paired
-from simcred.compare.transitions import Transitions, state_means
+from simcred.compare.transitions import Transitions
+from simcred.compare.unit_sums import DENSE_SHARE, DenseSides
 
 #: The comparison's resolution: residuals get N(0, (RESOLUTION · spread)²) noise, spread = the
 #: pooled standard deviation of the raw response.
@@ -134,13 +135,15 @@ class ResponseOutcome:
 class KernelSums:
     """Per (state, unit) sums of ``[1, features]`` (a RunCounts of blocks of width
     ``1 + J · FOURIER``), per state the pooled feature variance ``v_s,j``, the bandwidths; the
-    same for the residuals' sizes ``[1, |r_j|]`` (:func:`size_sums`)."""
+    same for the residuals' sizes ``[1, |r_j|]`` (:func:`size_values`), None where no response
+    has noise of its own (``noisy``: per response, None without a spread)."""
 
     counts: RunCounts
     variances: np.ndarray
     bandwidth: tuple[float, ...]
-    sizes: RunCounts
-    size_variances: np.ndarray
+    sizes: RunCounts | None
+    size_variances: np.ndarray | None
+    noisy: np.ndarray | None = None
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -193,56 +196,116 @@ class _FourierMap:
         return out
 
 
+def noisy_responses(data: Transitions) -> np.ndarray | None:
+    """Per response feature, whether its adjusted residual has noise of its own (at least
+    ``NOISE_FLOOR`` of the raw response's spread, module docs); None without that spread."""
+    if data.spread is None:
+        return None
+    return data.residual.std(axis=0) >= NOISE_FLOOR * data.spread
+
+
 def kernel_sums(data: Transitions, n_units: int, rng: np.random.Generator) -> KernelSums:
-    """Dithered residuals → Fourier features → per-(state, unit) sums, state by state and chunk
-    by chunk (the feature matrix of all transitions never exists). The features are integers,
-    so every sum here is exact (in any order): pair sums are one sparse product per chunk,
-    written straight into the unit matrix."""
+    """Dithered residuals → Fourier features (and sizes ``|r_j|``, :func:`size_values`, where a
+    response has noise of its own) → per-(state, unit) sums, state by state and chunk by chunk
+    in one pass (the feature matrix of all transitions never exists). The features are
+    integers, so every sum here is exact (in any order): pair sums are one sparse product per
+    chunk, written straight into the unit matrix (:class:`_Target`)."""
     spread = data.spread if data.spread is not None else np.zeros(data.residual.shape[1])
     residual = data.residual + RESOLUTION * spread * rng.normal(size=data.residual.shape)
     feature_map = _FourierMap(residual, rng)
+    noisy = noisy_responses(data)
     pairs = _Pairs.of(data)
-    n_blocks = len(pairs.blocks)
-    width = 1 + residual.shape[1] * FOURIER
-    layout = _Layout(pairs, width, n_units)
-    totals = np.zeros((n_blocks, width))
-    squares = np.zeros((n_blocks, width - 1))
+    n_blocks, n_features = len(pairs.blocks), residual.shape[1]
+    peak = 2 * int(np.ceil(LEVELS * np.sqrt(2.0))) * int(np.diff(pairs.starts).max(initial=0))
+    kernel = _Target(pairs, 1 + n_features * FOURIER, n_units, peak)
+    sizes, scale = None, None
+    if noisy is not None and noisy.any():
+        scale = np.abs(residual).std(axis=0)
+        scale = np.where(scale > 0, scale, 1.0)
+        sizes = _Target(pairs, 1 + n_features, n_units, None)
+    first_pair = np.r_[0, np.cumsum(np.bincount(pairs.block, minlength=n_blocks))]
     for b in range(n_blocks):
-        p0, p1 = int(layout.first[b]), int(layout.first[b + 1])
-        view = layout.view(b)  # (width, pairs of block b)
-        view[0] = np.diff(pairs.starts[p0:p1 + 1])
-        first = p0
-        while first < p1:
-            last = int(np.searchsorted(pairs.starts, pairs.starts[first] + CHUNK, side="right"))
-            last = min(max(last - 1, first + 1), p1)
+        p0, p1 = int(first_pair[b]), int(first_pair[b + 1])
+        count = np.diff(pairs.starts[p0:p1 + 1]).astype(np.float64)[:, None]
+        for target in (kernel, sizes) if sizes is not None else (kernel,):
+            target.put(b, 0, p0, p1, count)
+        for first, last in _chunks(pairs.starts, p0, p1):
             lo, hi = pairs.starts[first], pairs.starts[last]
             ends = pairs.starts[first:last + 1] - lo
             indicator = sp.csr_matrix((np.ones(hi - lo), np.arange(hi - lo), ends),
                                       shape=(last - first, hi - lo))  # pair × transition
             for k, phi in enumerate(feature_map(residual[lo:hi])):
-                here = slice(1 + k * FOURIER, 1 + (k + 1) * FOURIER)
-                view[here, first - p0:last - p0] = (indicator @ phi).T
-                squares[b, here.start - 1:here.stop - 1] += np.einsum("ij,ij->j", phi, phi)
-            first = last
-        totals[b] = view.sum(axis=1)
-    count = totals[:, :1]
-    variance = squares / count - (totals[:, 1:] / count) ** 2
+                kernel.put(b, 1 + k * FOURIER, first, last, indicator @ phi, phi)
+            if sizes is not None:
+                values = size_values(residual[lo:hi], scale)
+                sizes.put(b, 1, first, last, indicator @ values, values)
+    count = kernel.totals[:, :1]
+    variance = kernel.squares / count - (kernel.totals[:, 1:] / count) ** 2
     variances = np.maximum(variance.reshape(n_blocks, -1, FOURIER).sum(axis=2), 0.0) / LEVELS**2
-    return KernelSums(layout.counts(), variances, tuple(feature_map.bandwidth),
-                      *size_sums(data, residual, n_units))
+    size_variances = None
+    if sizes is not None:
+        mean = sizes.totals[:, 1:] / count
+        size_variances = np.maximum((sizes.squares / count - mean**2) / LEVELS**2, 0.0)
+    return KernelSums(kernel.counts(), variances, tuple(feature_map.bandwidth),
+                      None if sizes is None else sizes.counts(), size_variances, noisy)
 
 
-def size_sums(data: Transitions, residual: np.ndarray, n_units: int
-              ) -> tuple[RunCounts, np.ndarray]:
-    """Per (state, unit) sums of ``[1, |r_j|]`` (each ``|r_j|`` in units of its pooled standard
-    deviation, rounded to 1 / LEVELS: integer sums) and per state their pooled variance."""
-    size = np.abs(residual)
-    scale = size.std(axis=0)
-    values = np.rint(LEVELS * size / np.where(scale > 0, scale, 1.0))
-    sums = unit_sums(data, np.column_stack([np.ones(len(values)), values]), n_units)
-    mean = state_means(data.state, values)
-    variances = (state_means(data.state, values**2) - mean**2) / LEVELS**2
-    return sums, np.maximum(variances, 0.0)
+def size_values(residual: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """``|r_j|`` in units of its pooled standard deviation ``scale`` (of all transitions'),
+    rounded to 1 / LEVELS: integers, so their sums are exact."""
+    return np.rint(LEVELS * np.abs(residual) / scale)
+
+
+def _chunks(starts: np.ndarray, p0: int, p1: int):
+    """(first, last) pair ranges of pairs p0:p1 of about ``CHUNK`` transitions each."""
+    first = p0
+    while first < p1:
+        last = int(np.searchsorted(starts, starts[first] + CHUNK, side="right"))
+        last = min(max(last - 1, first + 1), p1)
+        yield first, last
+        first = last
+
+
+class _Target:
+    """The (blocks · width) × units matrix of per-(state, unit) sums being written: dense
+    where at least ``DENSE_SHARE`` of the positions hold a value (float32 where ``peak``
+    bounds every entry and every difference of two entries below 2**24: exact), else the
+    CSR arrays of :class:`_Layout`; and per block the column sums and sums of squares over
+    the transitions."""
+
+    def __init__(self, pairs: _Pairs, width: int, n_units: int, peak: int | None) -> None:
+        n_blocks = len(pairs.blocks)
+        self.pairs, self.width, self.n_units = pairs, width, n_units
+        self.totals = np.zeros((n_blocks, width))
+        self.squares = np.zeros((n_blocks, width - 1))
+        self.layout, self.matrix = None, None
+        if len(pairs.unit) >= DENSE_SHARE * n_units * n_blocks:
+            dtype = np.float32 if peak is not None and peak < 2**24 else np.float64
+            self.matrix = np.zeros((n_blocks * width, n_units), dtype)
+        else:
+            self.layout = _Layout(pairs, width, n_units)
+
+    def put(self, b: int, column: int, first: int, last: int, sums: np.ndarray,
+            values: np.ndarray | None = None) -> None:
+        """Pair sums (pairs first:last of block b, k) at columns column:column + k; ``values``:
+        the transitions' values they sum (for the squares; None for the count column)."""
+        k = sums.shape[1]
+        if self.matrix is not None:
+            row = b * self.width + column
+            self.matrix[row:row + k, self.pairs.unit[first:last]] = sums.T
+        else:
+            p0 = self.layout.first[b]
+            self.layout.view(b)[column:column + k, first - p0:last - p0] = sums.T
+        self.totals[b, column:column + k] += sums.sum(axis=0)
+        if values is not None:
+            self.squares[b, column - 1:column - 1 + k] += np.einsum("ij,ij->j", values, values)
+
+    def counts(self) -> RunCounts:
+        if self.layout is not None:
+            return self.layout.counts()
+        n_blocks = len(self.pairs.blocks)
+        return RunCounts(self.matrix, self.pairs.blocks, np.arange(n_blocks + 1) * self.width,
+                         np.zeros(n_blocks * self.width, dtype=np.int64))
 
 
 class _Layout:
@@ -319,11 +382,10 @@ def response_test(data: Transitions, n_units: int, assignments: np.ndarray,
 def spread_statistics(kernel: KernelSums, data: Transitions, assignments: np.ndarray
                       ) -> np.ndarray | None:
     """(P + 1, features) standardised spread statistics ``S_j``, 0 for a response below the
-    noise floor; None when no response has noise of its own (module docs)."""
-    if data.spread is None:
-        return None
-    noisy = data.residual.std(axis=0) >= NOISE_FLOOR * data.spread
-    if not noisy.any():
+    noise floor; None when no response has noise of its own (module docs; ``kernel`` holds
+    the size sums only then, :func:`kernel_sums`)."""
+    noisy = kernel.noisy
+    if noisy is None or not noisy.any():
         return None
     _, pooled, _, _ = assignment_statistics(kernel.sizes, assignments, len(data.response),
                                             kernel.size_variances, dims=1)
@@ -364,9 +426,10 @@ def assignment_statistics(sums: RunCounts, assignments: np.ndarray, n_features: 
     (P + 1, K · features) pooled studentised ``T_k,j`` (k = 0: ``T_j``; then one block of
     features per profile contrast, :func:`contrasts`), and the observed m, n per block.
     ``dims``: columns per response feature in ``sums`` (``FOURIER``; 1 for the sizes)."""
-    product = SideCounts(sums, paired=is_paired(assignments))
+    sides = DenseSides if isinstance(sums.matrix, np.ndarray) else SideCounts
+    product = sides(sums, paired=is_paired(assignments))
     width = 1 + n_features * dims
-    totals = np.asarray(sums.matrix.sum(axis=1)).ravel()
+    totals = np.asarray(sums.matrix.sum(axis=1, dtype=np.float64)).ravel()
     share = totals[0::width] / max(totals[0::width].sum(), 1.0)
     weights = contrasts(share, profile) * share  # (K, blocks)
     per_state = np.empty((len(assignments), len(sums.blocks), n_features))

@@ -15,10 +15,30 @@ from collections.abc import Callable
 import numpy as np
 import scipy.sparse as sp
 
+from simcred.compare.run_counts import RunCounts
+from simcred.compare.side_counts import (
+    CHUNK_BUDGET,
+    SPARSE_RATIO,
+    SideCounts,
+    _block_chunks,
+    _exact_slices,
+)
+
 #: Fill share from which the matrix is dense: 8 bytes a position against 12 a stored value.
 DENSE_SHARE = 2 / 3
 #: Entries written at once into a dense matrix (their rows: a few MB).
 CHUNK = 1 << 16
+
+
+def unique_inverse(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``np.unique(values, return_inverse=True)`` of a 1-D array, by counting instead of
+    sorting where the values are non-negative integers whose range is at most about four
+    times their number (state codes, unit × state keys): same values, same dtypes."""
+    if values.size and values.dtype.kind in "iu" and values.min() >= 0 \
+            and values.max() < 4 * values.size + 1024:
+        present = np.bincount(values) > 0
+        return np.flatnonzero(present).astype(values.dtype), (np.cumsum(present) - 1)[values]
+    return np.unique(values, return_inverse=True)
 
 
 def unit_matrix(unit: np.ndarray, block: np.ndarray, rows: Callable[[slice], np.ndarray],
@@ -41,3 +61,33 @@ def unit_matrix(unit: np.ndarray, block: np.ndarray, rows: Callable[[slice], np.
     indices = (block[order][:, None] * width + np.arange(width)).ravel()
     return sp.csr_matrix((values[order].ravel(), indices, indptr),
                          shape=(n_units, n_blocks * width)).T
+
+
+class DenseSides(SideCounts):
+    """:class:`~simcred.compare.side_counts.SideCounts` of a dense integer-valued (columns ×
+    units) matrix (``RunCounts.matrix`` an ndarray, float32 only where its entries and their
+    pairwise differences are exact): the same chunks of state blocks (a block's columns count
+    as dense where the block's count row is nonzero for at least 1/``SPARSE_RATIO`` of the
+    units, as the sparse layout's stored entries would), every product through BLAS on
+    slices of units that keep it exact."""
+
+    def __init__(self, counts: RunCounts, paired: bool = False) -> None:
+        self.matrix = counts.matrix
+        n_runs = self.matrix.shape[1]
+        self.paired = paired
+        visits = np.count_nonzero(self.matrix[counts.bounds[:-1]], axis=1)
+        heavy = visits * SPARSE_RATIO >= n_runs
+        per_block = np.where(heavy, np.diff(counts.bounds), 0)
+        self.chunks = _block_chunks(counts.bounds, per_block,
+                                    max(1, CHUNK_BUDGET // max(n_runs, 1)))
+
+    def rows(self, lo: int, hi: int) -> tuple:
+        """Columns lo:hi as :meth:`SideCounts.rows` gives them, all dense."""
+        rows = self.matrix[lo:hi]
+        base = None
+        if self.paired:
+            half = rows.shape[1] // 2
+            base = rows[:, :half].sum(axis=1, dtype=np.float64)
+            rows = rows[:, half:] - rows[:, :half]
+        rows, slices = _exact_slices(rows)
+        return np.arange(hi - lo), rows, slices, base, np.zeros(0, dtype=np.int64), None
