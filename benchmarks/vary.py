@@ -34,7 +34,7 @@ from rich.table import Table
 from simcred.engine import Engine, engine
 from simcred.kinematics import Track
 from simcred.reprocess.pipeline import reprocess
-from simcred.reprocess.vary import VaryConfig, _max_risks, _resimulate_chunk
+from simcred.reprocess.vary import VaryConfig, _max_risks, _resimulate_chunk, jobs, task_size
 from simcred.risk import PredictionSet, VehicleStates, risk
 from simcred.scenario.variation import generate_variations
 from simcred.sim.experiments import cutin
@@ -51,13 +51,12 @@ TARGET = 10.0
 
 def generate_and_resimulate(description, config: VaryConfig, runner: Engine) -> np.ndarray:
     """The campaign's generation, resimulation and assessment; each variation's max risk."""
+    config = replace(config, chunk_size=task_size(config, runner))
     variations = generate_variations(description, config.n, config.seed, options=config.options,
                                      limits=config.limits, runner=runner,
                                      chunk_size=config.chunk_size)
-    jobs = [(k, [v.description for v in variations.variations[k:k + config.chunk_size]])
-            for k in range(0, len(variations.variations), config.chunk_size)]
     indices = [v.index for v in variations.variations]
-    parts = runner.map(_resimulate_chunk, jobs, shared_values={
+    parts = runner.map(_resimulate_chunk, jobs(variations, config), shared_values={
         "config": config, "sensor": None, "indices": indices, "original": description})
     return np.array([o.max_risk for _, outcomes in parts for o in outcomes])
 
@@ -84,6 +83,7 @@ def parts(description, config: VaryConfig) -> dict[str, object]:
     """Seconds of the generation alone and of the assessment alone (each path), serial, and
     how far each path's maxima lie from the before path's."""
     start = time.perf_counter()
+    config = replace(config, chunk_size=task_size(config, Engine()))
     variations = generate_variations(description, config.n, config.seed, options=config.options,
                                      limits=config.limits, chunk_size=config.chunk_size)
     generation = time.perf_counter() - start
