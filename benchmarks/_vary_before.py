@@ -4,7 +4,8 @@ copies of the functions that changed, patched in for the duration of :func:`befo
 What it restores: 11 "keep" nodes; the brake/kickdown check without its longitudinal prefilter;
 the scan evaluating starts past the planned collision; the colliding predictions scanned all
 together (no tiers); frames along +x turned; every coarse scene assessed in full; bisection
-groups of 10 samples; the refit's local accelerations one window at a time. The maxima are the
+groups of 10 samples; the refit's local accelerations one window at a time; tasks (and
+resimulation batches) of 50 variations in-process too. The maxima are the
 same as now with 11 nodes (the benchmark checks it).
 """
 
@@ -18,7 +19,7 @@ import numpy as np
 import simcred.risk.ttr as ttr_module
 import simcred.risk.ttr_search as search_module
 import simcred.scenario.fit_support as support_module
-from simcred.reprocess.vary import VaryConfig
+from simcred.reprocess.vary import AUTO_CHUNK_SIZE, VaryConfig
 from simcred.risk import PredictionSet
 from simcred.risk.prediction import PredictedPath, heading_vector, rectangles_overlap
 from simcred.risk.prediction import travel_distance as travel
@@ -79,7 +80,8 @@ def bisect_before(*args, group_size=None, **kwargs):
 
 @contextmanager
 def before_path(config: VaryConfig):
-    """Yields ``config`` with 11 nodes; in this process the code paths above are patched in."""
+    """Yields ``config`` with 11 nodes and tasks of 50 variations (in-process too); in this
+    process the code paths above are patched in."""
     patches = ((search_module, "_hits_longitudinal", hits_longitudinal_before),
                (ttr_module, "scan_ttr", scan_before), (ttr_module, "bisect_ttr", bisect_before),
                (ttr_module, "_TIERS", ()), (ttr_module, "_identity", lambda frame: False),
@@ -89,7 +91,7 @@ def before_path(config: VaryConfig):
     for module, name, value in patches:
         setattr(module, name, value)
     try:
-        yield replace(config, predictions=PredictionSet())
+        yield replace(config, predictions=PredictionSet(), chunk_size=AUTO_CHUNK_SIZE)
     finally:
         for module, name, value in saved:
             setattr(module, name, value)

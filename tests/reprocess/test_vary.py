@@ -44,6 +44,26 @@ def test_serial_and_dask_give_byte_identical_results(description, serial, tmp_pa
         assert a[key].read_bytes() == b[key].read_bytes(), key
 
 
+def test_one_in_process_batch_gives_the_chunked_results_byte_for_byte(description, serial,
+                                                                     tmp_path):
+    """chunk_size None: in-process the whole campaign is one task (one resimulation batch, one
+    max_risk call); results do not depend on the chunks. Other engines get chunks of 50."""
+    from simcred.engine import Engine
+    from simcred.reprocess.vary import AUTO_CHUNK_SIZE, task_size
+
+    config = VaryConfig(n=N, seed=3)
+    assert config.chunk_size is None and task_size(config, Engine()) == N
+    assert task_size(VaryConfig(n=N, chunk_size=3), Engine()) == 3
+    assert task_size(config, object.__new__(type("Other", (Engine,), {}))) == AUTO_CHUNK_SIZE
+    whole = run_campaign(description, config)
+    assert whole.config.chunk_size == N
+    assert whole.runs.equals(serial.runs) and whole.reference_runs.equals(serial.reference_runs)
+    a = write_campaign(serial, tmp_path / "chunks")
+    b = write_campaign(whole, tmp_path / "whole")
+    for key in ("summary", "variations", "comparison"):
+        assert a[key].read_bytes() == b[key].read_bytes(), key
+
+
 def test_every_kept_variation_is_resimulated_and_assessed(serial):
     kept = [v.index for v in serial.variations.variations]
     assert [o.index for o in serial.outcomes] == kept

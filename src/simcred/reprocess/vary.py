@@ -50,6 +50,8 @@ from simcred.traces import TIME, TraceSet, concat, handed_over
 
 REFERENCE = "original"
 CAMPAIGN_NODES = 5
+#: ``VaryConfig.chunk_size`` on Dask or a checkpointed engine when it is None
+AUTO_CHUNK_SIZE = 50
 
 
 @dataclass(frozen=True, slots=True)
@@ -63,7 +65,10 @@ class VaryConfig:
     risk_dt: float = 0.1
     ego: str = "ego"
     to: str = "to"
-    chunk_size: int = 50
+    # variations per task (generation and resimulation); None: all in one task in-process
+    # (a batch of n resimulates in one closed loop, 2.2x faster than chunks of 50; results do
+    # not depend on the chunks), AUTO_CHUNK_SIZE on Dask or checkpointed
+    chunk_size: int | None = None
     max_deviation: float = 1.0  # m: corridor around the original TO path (≈ 3 σ of the offsets)
     lane_width: float = LANE_WIDTH
     compare_bins: int = 8
@@ -159,6 +164,7 @@ def run_campaign(description: ScenarioDescription, config: VaryConfig | None = N
     """Generate, resimulate and assess the variations of ``description`` (see the module)."""
     c = VaryConfig() if config is None else config
     runner = runner or Engine()
+    c = replace(c, chunk_size=task_size(c, runner))
     variations = generate_variations(description, c.n, c.seed, to=c.to, ego=c.ego,
                                      options=c.options, limits=c.limits, runner=runner,
                                      chunk_size=c.chunk_size,
@@ -168,19 +174,32 @@ def run_campaign(description: ScenarioDescription, config: VaryConfig | None = N
         raise SimcredError(f"all {variations.generated} variations of object '{c.to}' were "
                            f"rejected ({reasons}); nothing to resimulate (the original itself: "
                            f"{', '.join(variations.original_reasons) or 'plausible'})")
-    jobs = [(-1, [description])] + [
-        (k, [v.description for v in variations.variations[k:k + c.chunk_size]])
-        for k in range(0, len(variations.variations), c.chunk_size)]
-    indices = [v.index for v in variations.variations]
-    parts = runner.map(_resimulate_chunk, jobs, shared_values={
-        "config": c, "sensor": sensor, "indices": indices, "original": description},
-        progress=progress_for("resimulating variations"))
+    parts = runner.map(_resimulate_chunk, [(-1, [description])] + jobs(variations, c),
+                       shared_values={"config": c, "sensor": sensor, "original": description,
+                                      "indices": [v.index for v in variations.variations]},
+                       progress=progress_for("resimulating variations"))
     reference_runs, reference = parts[0]
     outcomes = tuple(o for _, chunk in parts[1:] for o in chunk)
     runs = concat([p[0] for p in parts[1:]]) if len(parts) > 1 else reference_runs
     comparison = _compare_to_original(runs, reference_runs, c)
     return VariationCampaign(c, variations, reference[0], outcomes, runs, reference_runs,
                              comparison)
+
+
+def task_size(c: VaryConfig, runner: Engine) -> int:
+    """``c.chunk_size``, or where it is None: ``c.n`` in-process (one task, one batch),
+    :data:`AUTO_CHUNK_SIZE` on any other engine (Dask, checkpointed)."""
+    if c.chunk_size is not None:
+        return c.chunk_size
+    return max(1, c.n) if type(runner) is Engine else AUTO_CHUNK_SIZE
+
+
+def jobs(variations: VariationSet, c: VaryConfig) -> list[tuple[int, list[ScenarioDescription]]]:
+    """The resimulation tasks of the kept variations: (first position, descriptions) of each
+    chunk of ``c.chunk_size`` (an int here)."""
+    kept = variations.variations
+    return [(k, [v.description for v in kept[k:k + c.chunk_size]])
+            for k in range(0, len(kept), c.chunk_size)]
 
 
 def _resimulate_chunk(job: tuple[int, list[ScenarioDescription]]
