@@ -257,7 +257,7 @@ def vary(
     risk. The crossing is detected from the description (the first crossing of a boundary of
     the EGO's lane) unless given."""
     from simcred.report.reprocessing import write_variations
-    from simcred.reprocess.vary import VaryConfig, run_campaign
+    from simcred.reprocess.vary import VaryConfig, run_campaign, summary_text
     from simcred.scenario.description import ScenarioDescription
     from simcred.sim.vehicles import vehicle_model
 
@@ -272,9 +272,9 @@ def vary(
             campaign = run_campaign(original, VaryConfig(n=n, seed=seed, vehicle=vehicle,
                                                          options=options),
                                     runner=runner, progress_for=progress)
-        summary = write_variations(campaign, target.path)["summary"].read_text()
+        write_variations(campaign, target.path)
     if as_json:
-        sys.stdout.write(summary)
+        sys.stdout.write(summary_text(campaign))
     elif not State.quiet:
         _print_campaign(campaign.summary())
         say(f"wrote variations.json, variation_set.json, runs.parquet and "

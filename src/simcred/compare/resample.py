@@ -17,7 +17,7 @@ import numpy as np
 
 from simcred.errors import OptionError
 from simcred.limits import check_count
-from simcred.traces import TraceSet
+from simcred.traces import TraceSet, spans
 
 #: Relative difference of median sample periods above which two sets count as different.
 PERIOD_RTOL = 1e-3
@@ -59,24 +59,24 @@ def resample(traces: TraceSet, dt: float) -> TraceSet:
 
     The grid's size is checked against the step and row limits before anything is allocated.
     """
-    spans = traces.time[traces.offsets[1:] - 1] - traces.time[traces.offsets[:-1]]
-    steps = np.floor(spans / dt + 1e-9) + 1
+    durations = traces.time[traces.offsets[1:] - 1] - traces.time[traces.offsets[:-1]]
+    steps = np.floor(durations / dt + 1e-9) + 1
     longest = int(np.argmax(steps))
     check_count(int(steps[longest]), "steps",
                 f"resample period {dt:g} s: steps of run '{traces.run_ids[longest]}'")
     check_count(int(steps.sum()), "rows", f"resample period {dt:g} s: rows of {traces.source}")
-    times, values, lengths = [], [], []
+    counts = steps.astype(np.int64)
+    step, offsets = spans(np.zeros_like(counts), counts)  # each run's steps 0, 1, ...
+    times, values = [], []
     for i in range(traces.n_runs):
         lo, hi = traces.offsets[i], traces.offsets[i + 1]
         t = traces.time[lo:hi]
-        grid = t[0] + dt * np.arange(int(steps[i]))
+        grid = t[0] + dt * step[offsets[i]:offsets[i + 1]]
         if len(grid) < 2:
             raise OptionError(f"{traces.source}: run '{traces.run_ids[i]}' lasts "
                               f"{t[-1] - t[0]:.6g} s, less than one resample period {dt:g} s")
         times.append(grid)
         values.append(np.column_stack([np.interp(grid, t, traces.values[lo:hi, j])
                                        for j in range(len(traces.signals))]))
-        lengths.append(len(grid))
-    return TraceSet(traces.signals, np.concatenate(times), np.vstack(values),
-                    np.concatenate([[0], np.cumsum(lengths)]), traces.run_ids,
-                    traces.metadata, traces.source)
+    return TraceSet(traces.signals, np.concatenate(times), np.vstack(values), offsets,
+                    traces.run_ids, traces.metadata, traces.source)

@@ -9,7 +9,7 @@
    consistent, so it needs no refit: the maximum TTR risk (every ``risk_dt``), the EGO's reaction
    and manoeuvre, and whether the TO still cuts in (its centre enters the EGO's lane).
 4. Validity (beyond [1], which leaves it open): the varied TO trajectories are compared with the
-   original's by the seed-000 comparison (Markov chains over the TO's (x, y), permutation test),
+   original's by paper 000's comparison (Markov chains over the TO's (x, y), permutation test),
    and every variation whose TO path leaves a corridor of ``max_deviation`` around the original,
    or that changes the scenario's category, is flagged.
 
@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from simcred._json import JsonResult
+from simcred._json import JsonResult, dumps, envelope
 from simcred.compare import compare
 from simcred.compare.result import Comparison
 from simcred.engine import Engine, shared
@@ -46,7 +46,7 @@ from simcred.scenario.variation import (
 from simcred.sim.driver import DriverConfig
 from simcred.sim.resimulation import resimulate
 from simcred.sim.sensors import Sensor
-from simcred.traces import TIME, TraceSet, concat, handed_over
+from simcred.traces import TIME, TraceSet, concat, handed_over, spans
 
 REFERENCE = "original"
 CAMPAIGN_NODES = 5
@@ -59,7 +59,7 @@ class VaryConfig:
     """Options of the campaign (defaults: [1] Fig. 8's 300 variations)."""
 
     n: int = 300
-    seed: int = 0  # as every seed-002 command; paper 002 passes its seed + 1
+    seed: int = 0  # as every paper-002 command; paper 002 passes its seed + 1
     vehicle: str = "ks"
     dt: float = 0.01
     risk_dt: float = 0.1
@@ -103,7 +103,7 @@ class Outcome(JsonResult):
         """Inside the corridor around the original TO path and in the original's category."""
         return self.max_deviation <= config.max_deviation and self.same_category(reference)
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> dict[str, Any]:  # deliberate: the reaction flattened to reaction_*
         return {"index": self.index, "max_risk": self.max_risk, "cuts_in": self.cuts_in,
                 "max_deviation": self.max_deviation, **{
                     f"reaction_{k}": v for k, v in self.reaction.to_dict().items()}}
@@ -133,7 +133,7 @@ class VariationCampaign(JsonResult):
     def to_dict(self) -> dict[str, Any]:
         return self.summary()
 
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> dict[str, Any]:  # deliberate: derived statistics, nested groups
         c, v = self.config, self.variations
         risks = self.max_risks
         valid = [o.valid(c, self.reference) for o in self.outcomes]
@@ -247,16 +247,15 @@ def _assess(ego: Track, to: Track, index: int, peak: float,
 
 
 def _compare_to_original(runs: TraceSet, reference: TraceSet, c: VaryConfig) -> Comparison:
-    """Seed-000 distance between the varied TO trajectories and as many copies of the original's
+    """Paper 000's distance between the varied TO trajectories and as many copies of the original's
     (the original is one deterministic trajectory)."""
     features = [f"{c.to}.{s}" for s in MOTION_SIGNALS[:2]]
     step = max(1, int(round(c.risk_dt / c.dt)))
     varied = _subsample(runs, features, step)
     one = _subsample(reference, features, step)
-    copies = TraceSet(one.signals, handed_over(np.tile(one.time, runs.n_runs)),
-                      handed_over(np.tile(one.values, (runs.n_runs, 1))),
-                      np.arange(runs.n_runs + 1) * one.n_rows,
-                      tuple(f"original_{i}" for i in range(runs.n_runs)), {}, "original")
+    rows, offsets = spans(np.zeros(runs.n_runs), np.full(runs.n_runs, one.n_rows))
+    copies = TraceSet(one.signals, handed_over(one.time[rows]), handed_over(one.values[rows]),
+                      offsets, tuple(f"original_{i}" for i in range(runs.n_runs)), {}, "original")
     return compare(varied, copies, features=features, bins=c.compare_bins,
                    test="permutation", seed=c.seed)
 
@@ -275,6 +274,11 @@ def risk_percentile_claim_values(campaign: VariationCampaign) -> tuple[float, fl
     return float(p5), campaign.reference.max_risk, float(p95)
 
 
+def summary_text(campaign: VariationCampaign) -> str:
+    """``variations.json``'s text (what ``simcred vary --json`` prints)."""
+    base = "sha256:" + hashlib.sha256(campaign.variations.base.to_json().encode()).hexdigest()
+    return dumps(envelope("variation_campaign", campaign.summary(), inputs={"description": base}))
+
 
 def write_campaign(campaign: VariationCampaign, directory) -> dict[str, Any]:
     """``variations.json`` (summary), ``variation_set.json`` (every variation: records and kept
@@ -282,7 +286,6 @@ def write_campaign(campaign: VariationCampaign, directory) -> dict[str, Any]:
     ``comparison.json``; :func:`simcred.report.reprocessing.write_variations` adds Fig. 8."""
     from pathlib import Path
 
-    from simcred._json import dumps, envelope
     from simcred.io import parquet
 
     out = Path(directory)
@@ -290,9 +293,7 @@ def write_campaign(campaign: VariationCampaign, directory) -> dict[str, Any]:
     files = {"summary": out / "variations.json", "variations": out / "variation_set.json",
              "runs": out / "runs.parquet", "reference": out / "reference.parquet",
              "comparison": out / "comparison.json"}
-    base = "sha256:" + hashlib.sha256(campaign.variations.base.to_json().encode()).hexdigest()
-    files["summary"].write_text(dumps(envelope("variation_campaign", campaign.summary(),
-                                               inputs={"description": base})))
+    files["summary"].write_text(summary_text(campaign))
     campaign.variations.write(files["variations"])
     parquet.write(campaign.runs, files["runs"])
     parquet.write(campaign.reference_runs, files["reference"])

@@ -21,19 +21,19 @@ References
 [1] S. Wagner, K. Groh, T. Kuehbeck, M. Doerfel, A. Knoll, "Using Time-To-React Based on
     Naturalistic Traffic Object Behavior for Scenario-Based Risk Assessment of Automated Driving",
     IEEE Intelligent Vehicles Symposium (IV), 2018, pp. 1521-1528.
-[2] Seed paper 002 (reprocessing pipeline for simulation-based assessment of automated driving),
+[2] Paper 002 (reprocessing pipeline for simulation-based assessment of automated driving),
     section II-D "Risk Assessment".
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from simcred._json import JsonResult
+from simcred._json import JsonResult, fields_dict, json_key
 from simcred.errors import OptionError, SimcredError
 from simcred.risk.prediction import (
     EvasionSet,
@@ -68,7 +68,7 @@ _TIERS = (0.01, 0.001)
 _NESTED_COARSE = True
 
 
-@dataclass(frozen=True, slots=True, eq=False)
+@dataclass(frozen=True, slots=True, eq=False, kw_only=True)
 class RiskResult(JsonResult):
     """Risk of many scenes, with the per-prediction TTRs it is made of.
 
@@ -103,23 +103,25 @@ class RiskResult(JsonResult):
         ``"ttr"``: Time-To-React after [1].
     """
 
+    # in to_dict's order (fields_dict): the settings, then per scene: risk, smallest TTR,
+    # dominant (object, prediction); the per-prediction arrays and the configuration left out
+    method: str = "ttr"
+    resolution: float
+    prediction_names: tuple[str, ...]
+    maneuver_names: tuple[str, ...]
     risk: np.ndarray
-    risk_per_object: np.ndarray
-    contribution: np.ndarray
-    ttr: np.ndarray
-    maneuver: np.ndarray
-    collision_time: np.ndarray
     ttr_min: np.ndarray
     dominant_object: np.ndarray
     dominant_prediction: np.ndarray
-    prediction_names: tuple[str, ...]
-    maneuver_names: tuple[str, ...]
-    resolution: float
-    predictions: PredictionSet
-    evasion: EvasionSet
-    lanes: Lanes
-    reaction: ReactionTime
-    method: str = "ttr"
+    risk_per_object: np.ndarray = field(metadata=json_key(None))
+    contribution: np.ndarray = field(metadata=json_key(None))
+    ttr: np.ndarray = field(metadata=json_key(None))
+    maneuver: np.ndarray = field(metadata=json_key(None))
+    collision_time: np.ndarray = field(metadata=json_key(None))
+    predictions: PredictionSet = field(metadata=json_key(None))
+    evasion: EvasionSet = field(metadata=json_key(None))
+    lanes: Lanes = field(metadata=json_key(None))
+    reaction: ReactionTime = field(metadata=json_key(None))
 
     def __repr__(self) -> str:
         scenes, objects, predictions = self.ttr.shape
@@ -128,13 +130,7 @@ class RiskResult(JsonResult):
                 f"max risk {peak})")
 
     def to_dict(self) -> dict[str, Any]:
-        """Per scene: risk, smallest TTR, dominant (object, prediction); and the settings."""
-        return {"method": self.method, "resolution": self.resolution,
-                "prediction_names": list(self.prediction_names),
-                "maneuver_names": list(self.maneuver_names),
-                "risk": self.risk, "ttr_min": self.ttr_min,
-                "dominant_object": self.dominant_object,
-                "dominant_prediction": self.dominant_prediction}
+        return fields_dict(self)
 
     @property
     def dominant_maneuver(self) -> np.ndarray:
