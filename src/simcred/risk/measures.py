@@ -75,10 +75,8 @@ def time_to_collision(ego: VehicleStates, objects: VehicleStates) -> np.ndarray:
 
     Parameters
     ----------
-    ego : VehicleStates
-        Shape (scenes,).
-    objects : VehicleStates
-        Shape (scenes,) or (scenes, objects).
+    ego, objects : VehicleStates
+        As for :func:`time_headway`.
 
     Returns
     -------
