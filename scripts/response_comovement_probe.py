@@ -1,5 +1,9 @@
 """Probe (not shipped in the test): a co-movement component for the response test's chain.
 
+Written against the chain before the co-movement component (the results in calibration.md ran
+at commit 925d22a, where ``state_unit_sums`` was ``response.unit_sums`` and ``_rebuild`` called
+``response.spread_statistics``): at later commits ``shipped`` already holds the co-movement.
+
 A 0.5 s reaction delay or late braking shows less in any one response's law given the state than
 in how two responses move *together*: in a car-following set the residual of the relative speed
 ``dv`` given the state is the leader's change over the step (exogenous), and a driver who reacts

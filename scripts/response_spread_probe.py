@@ -1,5 +1,9 @@
 """Probe (not shipped in the test): a spread component for the response test's chain.
 
+Written against the chain of commit 5e7c0df (session 11; run it there, where
+``state_unit_sums`` was ``response.unit_sums``): the package has moved on (the co-movement
+component, compare/state_sums.py).
+
 The unpaired response test loses to the energy peer on variance and clip defects
 (docs/calibration.md). This probe adds a Levene-type statistic — per state the A–B difference of
 the mean absolute adjusted response ``|r|`` (dithered as the test dithers), pooled and
