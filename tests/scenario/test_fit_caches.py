@@ -120,3 +120,36 @@ def test_spikes_are_the_literal_bytes_cold_and_warm():
     literal = _spikes_literal(t, x, y)
     assert fit_robust.spikes(t, x, y).tobytes() == literal.tobytes()
     assert fit_robust.spikes(t, x, y).tobytes() == literal.tobytes()
+
+
+def test_spline_least_squares_cached_is_the_literal_solution():
+    _clear()
+    spline._least_squares_cached.cache_clear()
+    t, x, _ = _track(3)
+    w = np.linspace(0.5, 2.0, t.size)
+    for weights in (None, w):
+        basis = BSpline.design_matrix(t, spline_knots(0.0, 12.0, 5), 3).toarray()
+        b, v = (basis, x) if weights is None else (basis * np.sqrt(w)[:, None], x * np.sqrt(w))
+        literal = np.linalg.lstsq(b, v, rcond=None)[0]
+        for _ in range(2):
+            s = Spline.least_squares(t, x, t0=0.0, t1=12.0, sections=5, weights=weights)
+            assert s.coefficients.tobytes() == literal.tobytes()
+    assert spline._least_squares_cached.cache_info().hits == 2
+
+
+def test_object_track_states_cached_are_fresh_copies_of_the_literal_states():
+    from simcred.scenario import description as description_module
+
+    description_module._states_cached.cache_clear()
+    track = ObjectTrack(1.0, 2.0, Spline(0.0, 6.0, [5.0, 9.0, 14.0, 3.0, 8.0]),
+                        Spline(0.0, 6.0, [0.0, 0.4, -0.3, 2.0, 0.1]))
+    t = np.linspace(0.0, 6.0, 601)
+    literal = track._states(t.copy())
+    first, second = track.states(t), track.states(t)
+    assert description_module._states_cached.cache_info().hits == 1
+    for name in description_module._STATE_COLUMNS:
+        assert getattr(first, name).tobytes() == getattr(literal, name).tobytes()
+        assert getattr(second, name).tobytes() == getattr(literal, name).tobytes()
+        assert getattr(first, name).flags.writeable
+    first.x[:] = 0.0  # a caller's copy: the next call is unaffected
+    assert track.states(t).x.tobytes() == literal.x.tobytes()

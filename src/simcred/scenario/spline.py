@@ -133,16 +133,36 @@ class Spline:
         every coefficient down.
         """
         t = np.asarray(t, dtype=np.float64)
-        basis = _design(float(t0), float(t1), sections, np.clip(t, t0, t1))
         values = np.asarray(values, dtype=np.float64)
         if weights is not None:
-            root = np.sqrt(np.asarray(weights, dtype=np.float64))
-            basis, values = basis * root[:, None], values * root
-        coefficients = np.linalg.lstsq(basis, values, rcond=None)[0]
-        return cls(t0, t1, coefficients)
+            weights = np.asarray(weights, dtype=np.float64)
+        if cls is not Spline or t.size > _CACHED_VALUES or values.shape != t.shape:
+            return cls(t0, t1, _lstsq(t, values, float(t0), float(t1), sections, weights))
+        # The fit smooths the same positions several times (speed, initial guess, reversals).
+        return _least_squares_cached(
+            float(t0), float(t1), sections, t.shape, t.tobytes(), values.tobytes(),
+            None if weights is None else weights.tobytes())
 
     def _in_span(self, t: ArrayLike) -> np.ndarray:
         return in_span(t, self.t0, self.t1)
+
+
+def _lstsq(t: np.ndarray, values: np.ndarray, t0: float, t1: float, sections: int,
+           weights: np.ndarray | None) -> np.ndarray:
+    basis = _design(t0, t1, sections, np.clip(t, t0, t1))
+    if weights is not None:
+        root = np.sqrt(weights)
+        basis, values = basis * root[:, None], values * root
+    return np.linalg.lstsq(basis, values, rcond=None)[0]
+
+
+@lru_cache(maxsize=16)
+def _least_squares_cached(t0: float, t1: float, sections: int, shape: tuple[int, ...],
+                          times: bytes, values: bytes, weights: bytes | None) -> Spline:
+    """:meth:`Spline.least_squares` of recent data (splines are immutable: shared)."""
+    return Spline(t0, t1, _lstsq(np.frombuffer(times).reshape(shape), np.frombuffer(values),
+                                 t0, t1, sections,
+                                 None if weights is None else np.frombuffer(weights)))
 
 
 def spline_knots(t0: float, t1: float, sections: int) -> np.ndarray:
