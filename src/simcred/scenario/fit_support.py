@@ -56,12 +56,14 @@ def local_acceleration(t: np.ndarray, x: np.ndarray, y: np.ndarray, noise: float
     for rows, near, inverse, project in _windows(np.asarray(t, dtype=np.float64)):
         cx = (project @ x[near][..., None])[..., 0]
         cy = (project @ y[near][..., None])[..., 0]
-        for j, i in enumerate(rows):
-            speed = math.hypot(cx[j, 1], cy[j, 1])
-            if speed < 1e-6:
-                continue
-            accel[i] = 2 * (cx[j, 1] * cx[j, 2] + cy[j, 1] * cy[j, 2]) / speed
-            error[i] = 2 * sigma * math.sqrt(max(inverse[j, 2, 2], 0.0))
+        # math.hypot as in the loop (np.hypot may round differently); the rest elementwise,
+        # the same operations in the same order.
+        speed = np.array([math.hypot(a, b) for a, b in zip(cx[:, 1].tolist(),
+                                                           cy[:, 1].tolist(), strict=True)])
+        ok = ~(speed < 1e-6)  # NaN too, as in the loop
+        j, i = np.flatnonzero(ok), rows[ok]
+        accel[i] = 2 * (cx[j, 1] * cx[j, 2] + cy[j, 1] * cy[j, 2]) / speed[j]
+        error[i] = 2 * sigma * np.sqrt(np.maximum(inverse[j, 2, 2], 0.0))
     return accel, error
 
 
