@@ -5,8 +5,14 @@ What it restores: 11 "keep" nodes; the brake/kickdown check without its longitud
 the scan evaluating starts past the planned collision; the colliding predictions scanned all
 together (no tiers); frames along +x turned; every coarse scene assessed in full; bisection
 groups of 10 samples; the refit's local accelerations one window at a time; tasks (and
-resimulation batches) of 50 variations in-process too. The maxima are the
-same as now with 11 nodes (the benchmark checks it).
+resimulation batches) of 50 variations in-process too; and no caches of the refit and the
+resimulation's sampling (:func:`without_caches`). The maxima are the same as now with 11 nodes
+(the benchmark checks it).
+
+:func:`without_caches` alone is the campaign as it was just before the refit caches (issue 24,
+the refit and resimulation speed-ups: docs/benchmarks.md): bases, quadratures, pseudo-inverses,
+least-squares splines, plausibility rates and object states computed anew at every call (their
+uncached code paths, the same numbers).
 """
 
 from __future__ import annotations
@@ -18,7 +24,12 @@ import numpy as np
 
 import simcred.risk.ttr as ttr_module
 import simcred.risk.ttr_search as search_module
+import simcred.scenario.description as description_module
+import simcred.scenario.fit_constraints as constraints_module
+import simcred.scenario.fit_robust as robust_module
 import simcred.scenario.fit_support as support_module
+import simcred.scenario.plausibility as plausibility_module
+import simcred.scenario.spline as spline_module
 from simcred.reprocess.vary import AUTO_CHUNK_SIZE, VaryConfig
 from simcred.risk import PredictionSet
 from simcred.risk.prediction import PredictedPath, heading_vector, rectangles_overlap
@@ -78,6 +89,33 @@ def bisect_before(*args, group_size=None, **kwargs):
     return search_module.bisect_ttr(*args, **kwargs)
 
 
+_NO_CACHES = ((spline_module, "_CACHED_VALUES", -1), (robust_module, "_CACHED_SAMPLES", -1),
+              (support_module, "_CACHED_SAMPLES", -1), (description_module, "_CACHED_STATES", -1),
+              (constraints_module, "_CACHED_GRID", -1),
+              (plausibility_module, "_default_rates",
+               plausibility_module._default_rates.__wrapped__))
+
+
+@contextmanager
+def _patched(patches):
+    saved = [(module, name, getattr(module, name)) for module, name, _ in patches]
+    for module, name, value in patches:
+        setattr(module, name, value)
+    try:
+        yield
+    finally:
+        for module, name, value in saved:
+            setattr(module, name, value)
+
+
+@contextmanager
+def without_caches():
+    """The refit and the resimulation's sampling without their caches (every size above the
+    cached ones' limits; the plausibility rates sampled anew)."""
+    with _patched(_NO_CACHES):
+        yield
+
+
 @contextmanager
 def before_path(config: VaryConfig):
     """Yields ``config`` with 11 nodes and tasks of 50 variations (in-process too); in this
@@ -87,11 +125,5 @@ def before_path(config: VaryConfig):
                (ttr_module, "_TIERS", ()), (ttr_module, "_identity", lambda frame: False),
                (ttr_module, "_NESTED_COARSE", False),
                (support_module, "local_acceleration", support_module._local_acceleration_loop))
-    saved = [(module, name, getattr(module, name)) for module, name, _ in patches]
-    for module, name, value in patches:
-        setattr(module, name, value)
-    try:
+    with _patched(patches + _NO_CACHES):
         yield replace(config, predictions=PredictionSet(), chunk_size=AUTO_CHUNK_SIZE)
-    finally:
-        for module, name, value in saved:
-            setattr(module, name, value)

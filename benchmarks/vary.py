@@ -9,7 +9,10 @@ run first). References in the same run, serially, on the same variations:
 * **before** issue 24 point 6: the campaign as it was (``max_risk`` with the default 11 "keep"
   nodes and the search and refit code of then: ``benchmarks/_vary_before.py`` patches reference
   copies in); the ratio before / now;
-* the **literal** assessment, ``risk(...).risk.max()`` run by run with 11 nodes (timed alone).
+* the **literal** assessment, ``risk(...).risk.max()`` run by run with 11 nodes (timed alone);
+* **uncached**: the campaign as it is now but without the refit's and the resimulation's
+  caches (``_vary_before.without_caches``: the code of just before them, the same numbers, which
+  the benchmark checks); the ratio uncached / now, serial, in wall and CPU seconds.
 
 Every variation's maximum risk is compared with the before path's: the largest change in
 decades (the campaign now takes 5 nodes, docs/variation.md) and, with 11 nodes, identity of the
@@ -46,7 +49,7 @@ from simcred.traces import TIME
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 from _timing import best_of, machine, save_results  # noqa: E402
-from _vary_before import before_path  # noqa: E402
+from _vary_before import before_path, without_caches  # noqa: E402
 
 TARGET = 10.0
 
@@ -127,6 +130,9 @@ def main() -> None:
     with before_path(config) as old_config:
         before, before_cpu, old_risks = _wall_and_cpu(
             lambda: generate_and_resimulate(description, old_config, Engine()), 1)
+    with without_caches():
+        uncached, uncached_cpu, uncached_risks = _wall_and_cpu(
+            lambda: generate_and_resimulate(description, config, Engine()), repeats)
     serial, serial_cpu, new_risks = _wall_and_cpu(
         lambda: generate_and_resimulate(description, config, Engine()), repeats)
     split = parts(description, config)
@@ -140,7 +146,11 @@ def main() -> None:
                "before_serial_s": before, "ratio_before_to_now_serial": before / serial,
                "before_serial_cpu_s": before_cpu, "serial_cpu_s": serial_cpu,
                "ratio_before_to_now_serial_cpu": before_cpu / serial_cpu,
-               "max_change_decades_campaign": _decades(new_risks, old_risks), **split}
+               "max_change_decades_campaign": _decades(new_risks, old_risks),
+               "uncached_serial_s": uncached, "uncached_serial_cpu_s": uncached_cpu,
+               "ratio_uncached_to_now_serial": uncached / serial,
+               "ratio_uncached_to_now_serial_cpu": uncached_cpu / serial_cpu,
+               "identical_to_uncached": bool(np.array_equal(uncached_risks, new_risks)), **split}
     rows = (("before (issue 24 point 6), serial", before), ("serial (1 process)", serial),
             ("Dask, 2 workers", dask))
     for label, seconds in rows:
@@ -155,7 +165,9 @@ def main() -> None:
           f"risk: {results['max_change_decades_campaign']:.4f} decades ({new_risks.size} "
           f"variations)")
     print(f"CPU time of this process, serial: before {before_cpu:.2f} s, now {serial_cpu:.2f} s "
-          f"({before_cpu / serial_cpu:.2f}x)")
+          f"({before_cpu / serial_cpu:.2f}x); without the refit caches {uncached_cpu:.2f} s CPU, "
+          f"{uncached:.2f} s wall ({uncached_cpu / serial_cpu:.2f}x CPU, {uncached / serial:.2f}x "
+          f"wall; maxima identical: {results['identical_to_uncached']})")
     print(f"alone, serial: generation {split['generation_s']:.2f} s; assessment now "
           f"{split['assessment_s']:.2f} s, with 11 nodes {split['assessment_11_nodes_s']:.2f} s "
           f"(identical to before: {split['11_nodes_identical_to_before']}), before "

@@ -2,9 +2,10 @@
 
 Runs the demo's comparison commands (scripts/demo.sh steps 1-4 and 10, at smaller sizes, plus
 the runs and response tests, ``--json`` to stdout and a few refused options), step 7's
-reprocessing (files and ``--json``), ``convert`` of a folder and of a file, and a quotient,
-with the sources of each commit (``git worktree`` of the commit, ``PYTHONPATH=<tree>/src``), and
-compares the SHA-256 of every output file, stdout and stderr included.
+reprocessing (files and ``--json``), the cut-in's (with GT: eqs. (4)-(7) in its analysis),
+``convert`` of a folder and of a file, and a quotient, with the sources of each commit (``git
+worktree`` of the commit, ``PYTHONPATH=<tree>/src``), and compares the SHA-256 of every output
+file, stdout and stderr included.
 
 Excluded from the hash: the elapsed time the commands print on stderr ("done in 1.3 s",
 replaced by "done in T") and the run's output folder in stdout/stderr (replaced by "OUT"). Every
@@ -77,6 +78,9 @@ COMMANDS = [
                       "{o}/a9", "--threshold", "0.1"]),
     ("reprocess-a9-json", ["reprocess", "src/simcred/data/a9/trajectories_file.csv", "--out",
                            "{o}/a9-json", "--threshold", "0.1", "--json"]),
+    # the cut-in has GT: reprocess.json's analysis (eqs. (4)-(7), [sb]) is not empty
+    ("simulate-cutin", ["--quiet", "simulate", "cutin", "--out", "{o}/cutin-measurement"]),
+    ("reprocess-cutin", ["reprocess", "{o}/cutin-measurement", "--out", "{o}/reprocess-cutin"]),
     ("reprocess-ngsim", ["reprocess", "tests/data/commonroad-ngsim/USA_US101-3_3_T-1.xml",
                          "--object", "394", "--out", "{o}/ngsim-394"]),
     ("quotient", ["contracts", "quotient", "examples/contracts/figure2.yaml", "--test-case",

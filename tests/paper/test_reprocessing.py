@@ -51,11 +51,11 @@ def test_no_claim_recovers_what_the_universe_planted(checked):
 
 def test_the_default_universe_reproduces_eqs_4_to_7(checked):
     a, claims = checked.result.analysis, by_id(checked.claims)
-    assert a["t_offset"] == pytest.approx(a["sensor_offset_d"] / a["ego_speed"])
-    assert a["t_offset"] == pytest.approx(1.4 / (100 / 3.6), rel=0.1)  # eq. (5): ≈ 0.05 s
+    assert a.ideal.t_offset == pytest.approx(a.sensor_offset_d / a.ego_speed)
+    assert a.ideal.t_offset == pytest.approx(1.4 / (100 / 3.6), rel=0.1)  # eq. (5): ≈ 0.05 s
     for claim in (*REACTION, "dynamic_error_explains_shift", "static_offset_explains_little"):
         assert claims[claim].passed, claims[claim]
-    assert claims["reaction_shift_eq4"].value == pytest.approx(a["dt_react_GT_rGT"])
+    assert claims["reaction_shift_eq4"].value == pytest.approx(a.ideal.dt_react_gt_rgt)
 
 
 def test_claims_report_not_reproduced_findings_as_failed(checked):
@@ -77,7 +77,7 @@ def test_without_the_cut_in_trigger_the_reaction_shift_claim_fails():
 def test_without_a_sensor_delay_there_is_no_shift_and_eqs_4_and_6_fail():
     claims, result = reaction_claims_of(replace(UNIVERSE, sensor=TrackerSensor(window=0.02)))
     assert not claims["reaction_shift_eq4"].passed and not claims["reaction_shift_eq6"].passed
-    assert abs(result.analysis["dt_react_GT_rGT"]) < 0.1
+    assert abs(result.analysis.ideal.dt_react_gt_rgt) < 0.1
 
 
 def noise_free(sensor):

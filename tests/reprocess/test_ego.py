@@ -87,10 +87,10 @@ def test_eqs_4_to_7_leave_out_a_reaction_that_is_not_measurable():
     early = reaction(TT, np.zeros_like(TT), np.full_like(TT, 20.0), np.zeros_like(TT),
                      np.where(TT >= 0.2, -5.0, 0.0))
     both = reaction_analysis({"GT": ok, "rGT": ok, "rSD": ok}, 1.0, 20.0)
-    assert both["dt_react_GT_rGT"] == 0.0 and both["dt_react_rGT_rSD"] == 0.0
+    assert both.dt_react_gt_rgt == 0.0 and both.dt_react_rgt_rsd == 0.0
     out = reaction_analysis({"GT": ok, "rGT": early, "rSD": ok}, 1.0, 20.0)
-    assert out["dt_react_GT_rGT"] is None and out["dt_react_rGT_rSD"] is None
-    assert out["ratio_eq6"] is None and out["t_offset"] == pytest.approx(0.05)
+    assert out.dt_react_gt_rgt is None and out.dt_react_rgt_rsd is None
+    assert out.ratio_eq6 is None and out.t_offset == pytest.approx(0.05)
     assert math.isnan(early.time) is False and early.measurable is False
 
 

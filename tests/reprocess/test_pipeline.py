@@ -20,7 +20,13 @@ from simcred.io.measurement import Measurement
 from simcred.kinematics import Track
 from simcred.reprocess.decomposition import STEPS, ErrorStats, decompose, state_errors, wrap
 from simcred.reprocess.pipeline import reprocess
-from simcred.reprocess.reaction import Reaction, ReactionCriteria, reaction, reaction_analysis
+from simcred.reprocess.reaction import (
+    Reaction,
+    ReactionCriteria,
+    ReactionTiming,
+    reaction,
+    reaction_analysis,
+)
 from simcred.scenario.frenet import path_coordinates
 from simcred.sim.experiments.cutin import CutInConfig, simulate
 
@@ -143,18 +149,19 @@ def at(time, manoeuvre="brake"):
 def test_reaction_analysis_eqs_4_to_7():
     result = reaction_analysis({"GT": at(3.76), "rGT": at(3.5), "rSD": at(3.56)},
                                sensor_offset=1.4, ego_speed=28.0)
-    assert result["dt_react_GT_rGT"] == pytest.approx(0.26)  # eq. (4): positive, rGT earlier
-    assert result["t_offset"] == pytest.approx(0.05)  # eq. (5): 1.4 m / 28 m/s
-    assert result["ratio_eq6"] == pytest.approx(5.2)  # eq. (6)
-    assert result["dt_react_rGT_rSD"] == pytest.approx(0.06)  # eq. (7)
+    assert result.dt_react_gt_rgt == pytest.approx(0.26)  # eq. (4): positive, rGT earlier
+    assert result.t_offset == pytest.approx(0.05)  # eq. (5): 1.4 m / 28 m/s
+    assert result.ratio_eq6 == pytest.approx(5.2)  # eq. (6)
+    assert result.dt_react_rgt_rsd == pytest.approx(0.06)  # eq. (7)
 
 
 def test_reaction_analysis_reports_undefined_terms_as_none():
     result = reaction_analysis({"GT": at(3.0), "rGT": at(math.nan, "none")}, sensor_offset=0.0,
                                ego_speed=28.0)
-    assert result == {"dt_react_GT_rGT": None, "t_offset": 0.0, "ratio_eq6": None,
-                      "dt_react_rGT_rSD": None, "dt_onset_GT_rGT": None,
-                      "dt_onset_rGT_rSD": None}
+    assert result == ReactionTiming(None, 0.0, None, None, None, None)
+    assert result.to_dict() == {"dt_react_GT_rGT": None, "t_offset": 0.0, "ratio_eq6": None,
+                                "dt_react_rGT_rSD": None, "dt_onset_GT_rGT": None,
+                                "dt_onset_rGT_rSD": None}
 
 
 def test_the_onset_is_where_the_speed_first_drops_below_its_running_maximum():
@@ -173,8 +180,8 @@ def test_reaction_analysis_reports_onset_differences():
     result = reaction_analysis({"GT": replace(at(3.7), onset=2.9),
                                 "rGT": replace(at(3.0), onset=2.7),
                                 "rSD": replace(at(3.05), onset=2.8)}, 1.4, 28.0)
-    assert result["dt_onset_GT_rGT"] == pytest.approx(0.2)
-    assert result["dt_onset_rGT_rSD"] == pytest.approx(0.1)
+    assert result.dt_onset_gt_rgt == pytest.approx(0.2)
+    assert result.dt_onset_rgt_rsd == pytest.approx(0.1)
 
 
 # -- the path frame -------------------------------------------------------------------------------
@@ -237,7 +244,7 @@ def test_the_ideal_resimulation_reacts_far_earlier_than_reality(result):
     motion, which the real sensor delays; the shift is far above t_ΔS,d (the offset's share)."""
     gt, rgt = result.reactions["GT"], result.reactions["rGT"]
     assert gt.manoeuvre == "brake" and rgt.manoeuvre == "brake"
-    assert gt.time - rgt.time > 5 * result.analysis["t_offset"]
+    assert gt.time - rgt.time > 5 * result.analysis.ideal.t_offset
     assert gt.onset > rgt.onset
 
 
@@ -258,10 +265,21 @@ def test_the_estimated_sensor_model_matches_the_real_tracker(result):
 def test_the_sensor_error_step_sees_the_offset(result):
     step = result.errors["ideal"]["S"]["to"]["d"]
     assert abs(step.median - CONFIG.sensor.offset) < 0.1
-    assert result.analysis["sensor_offset_d"] == pytest.approx(step.mean)
     a = result.analysis
-    assert a["t_offset"] == pytest.approx(a["sensor_offset_d"] / a["ego_speed"])
-    assert a["ratio_eq6"] == pytest.approx(a["dt_react_GT_rGT"] / a["t_offset"])
+    assert a.sensor_offset_d == pytest.approx(step.mean)
+    assert a.ideal.t_offset == pytest.approx(a.sensor_offset_d / a.ego_speed)
+    assert a.ideal.ratio_eq6 == pytest.approx(a.ideal.dt_react_gt_rgt / a.ideal.t_offset)
+
+
+def test_the_analysis_writes_the_flat_layout_of_reprocess_json(result):
+    """ΔS,d, v_EGO, eqs. (4)-(7) with the ideal sensor, then with the scenario-based model under
+    [1]'s symbols with the suffix [sb]: the keys reprocess.json has always had."""
+    a = result.analysis
+    eqs = ["dt_react_GT_rGT", "t_offset", "ratio_eq6", "dt_react_rGT_rSD", "dt_onset_GT_rGT",
+           "dt_onset_rGT_rSD"]
+    assert list(a.to_dict()) == ["sensor_offset_d", "ego_speed", *eqs, *(f"{k}[sb]" for k in eqs)]
+    assert a.to_dict()["dt_react_GT_rGT[sb]"] == a.scenario_based.dt_react_gt_rgt
+    assert result.to_dict()["analysis"] == a.to_dict() == result.analysis_report
 
 
 def test_fitting_gt_costs_far_less_than_fitting_sd(result):
@@ -297,5 +315,6 @@ def test_without_gt_only_the_sd_side_is_reprocessed(measurement):
     assert set(only_sd.errors) == {"ideal"}
     assert set(only_sd.errors["ideal"]) == {"FIT_SD", "SIM_SD", "FIT_rSD"}
     assert set(only_sd.reactions) == {"SD", "rSD"}
-    assert only_sd.sensor_model is None and only_sd.analysis == {}
+    assert only_sd.sensor_model is None and only_sd.analysis is None
+    assert only_sd.to_dict()["analysis"] == {}
     assert not any("GT" in name for name in only_sd.names)

@@ -41,13 +41,21 @@ adjusted residual is below ``NOISE_FLOOR`` of its raw spread has no noise of its
 kinematic identity: only the dither and fit leftovers, whose size differs between places a
 deterministic model drives): its spread is not compared.
 
-**Chain** = Tippett's combination [3] of ``max(z(T_j), z(S_j))`` per feature and the sum of the
-profile ``T_k,j`` over ``k`` and ``j``, each standardised over the assignments: a change in one
-feature is not diluted by the features that do not change, and the profile statistic adds the
-changes of varying sign. The maximum (not the sum) keeps a change of level from being diluted
-by the spread, and one component per feature keeps Tippett's floor low (with P permutations
-and K components the smallest chain p-value is about K / (P + 1)). Measured against the sum
-of ``T_j`` alone and other variants (calibration.md).
+**Co-movement statistic.** For every pair ``(j, k)`` of responses that both have noise of their
+own, ``C_jk`` is ``T_j`` computed on the product ``(r_j / sd_j)(r_k / sd_k)`` of the dithered
+residuals: per state the A–B difference of how the two responses move together, pooled. A
+reaction delay shows there first: in car following the relative speed's residual given the
+state is the leader's change over the step, and a driver who reacts within the step moves its
+acceleration with it, a delayed one does not — the marginal law of each response hardly
+changes. The largest ``z(C_jk)`` over the pairs is one component of the chain.
+
+**Chain** = Tippett's combination [3] of ``max(z(T_j), z(S_j))`` per feature, the sum of the
+profile ``T_k,j`` over ``k`` and ``j`` and the co-movement, each standardised over the
+assignments: a change in one feature is not diluted by the features that do not change, and the
+profile statistic adds the changes of varying sign. The maximum (not the sum) keeps a change of
+level from being diluted by the spread, and one component per feature keeps Tippett's floor low
+(with P permutations and K components the smallest chain p-value is about K / (P + 1)). Measured
+against the sum of ``T_j`` alone and other variants (calibration.md).
 
 **Per-state statistics** (where it shows): ``T_s,j = m n/(m+n) · ‖d_s,j‖²``, standardised, max-T
 family-wise adjusted [4], and *reported only when the chain verdict rejects* (gatekeeping: no
@@ -71,6 +79,7 @@ References
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -80,8 +89,9 @@ from simcred.compare.paired_runs import tippett
 from simcred.compare.run_counts import RunCounts
 from simcred.compare.runs import OneSided, exceedance_pvalues, row_max, standardise
 from simcred.compare.side_counts import SideCounts, is_paired
+from simcred.compare.state_sums import StatePairs, SumTarget, pair_chunks
 from simcred.compare.transitions import Transitions
-from simcred.compare.unit_sums import DENSE_SHARE, DenseSides
+from simcred.compare.unit_sums import DenseSides
 
 #: The comparison's resolution: residuals get N(0, (RESOLUTION · spread)²) noise, spread = the
 #: pooled standard deviation of the raw response.
@@ -97,10 +107,6 @@ NOISE_FLOOR = 0.05
 BANDWIDTH_PAIRS = 4096
 #: Elements of one dense (columns × batch) block of a permutation batch.
 BATCH_BUDGET = 2**22
-#: Transitions per chunk when the features are computed and summed.
-CHUNK = 2**16
-
-
 @dataclass(frozen=True, slots=True, eq=False)
 class ResponseOutcome:
     """Per tested state (``states``) and for the chain.
@@ -135,35 +141,17 @@ class ResponseOutcome:
 class KernelSums:
     """Per (state, unit) sums of ``[1, features]`` (a RunCounts of blocks of width
     ``1 + J · FOURIER``), per state the pooled feature variance ``v_s,j``, the bandwidths; the
-    same for the residuals' sizes ``[1, |r_j|]`` (:func:`size_values`), None where no response
-    has noise of its own (``noisy``: per response, None without a spread)."""
+    same for the residuals' second moments ``[1, |r_j|, products of the noisy pairs]``
+    (:class:`_Moments`), None where no response has noise of its own (``noisy``: per response,
+    None without a spread; ``pairs``: the noisy pairs, :func:`noisy_pairs`)."""
 
     counts: RunCounts
     variances: np.ndarray
     bandwidth: tuple[float, ...]
-    sizes: RunCounts | None
-    size_variances: np.ndarray | None
+    moments: RunCounts | None
+    moment_variances: np.ndarray | None
     noisy: np.ndarray | None = None
-
-
-@dataclass(frozen=True, slots=True, eq=False)
-class _Pairs:
-    """Runs of equal (state, unit) in the sorted transitions."""
-
-    starts: np.ndarray  # first transition of every (state, unit) pair, and the total at the end
-    state: np.ndarray
-    unit: np.ndarray
-    block: np.ndarray  # block (distinct state) of every pair
-    blocks: np.ndarray  # state code of every block
-
-    @classmethod
-    def of(cls, data: Transitions) -> _Pairs:
-        new = np.r_[True, (np.diff(data.state) != 0) | (np.diff(data.unit) != 0)]
-        first = np.flatnonzero(new)
-        state = data.state[first]
-        block_start = np.r_[True, np.diff(state) != 0]
-        return cls(np.r_[first, len(data.state)], state, data.unit[first],
-                   np.cumsum(block_start) - 1, state[block_start])
+    pairs: tuple[tuple[int, int], ...] = ()
 
 
 class _FourierMap:
@@ -205,151 +193,82 @@ def noisy_responses(data: Transitions) -> np.ndarray | None:
 
 
 def kernel_sums(data: Transitions, n_units: int, rng: np.random.Generator) -> KernelSums:
-    """Dithered residuals → Fourier features (and sizes ``|r_j|``, :func:`size_values`, where a
+    """Dithered residuals → Fourier features (and second moments, :class:`_Moments`, where a
     response has noise of its own) → per-(state, unit) sums, state by state and chunk by chunk
     in one pass (the feature matrix of all transitions never exists). The features are
     integers, so every sum here is exact (in any order): pair sums are one sparse product per
-    chunk, written straight into the unit matrix (:class:`_Target`)."""
+    chunk, written straight into the unit matrix (:class:`SumTarget`)."""
     spread = data.spread if data.spread is not None else np.zeros(data.residual.shape[1])
     residual = data.residual + RESOLUTION * spread * rng.normal(size=data.residual.shape)
     feature_map = _FourierMap(residual, rng)
     noisy = noisy_responses(data)
-    pairs = _Pairs.of(data)
+    pairs = StatePairs.of(data)
     n_blocks, n_features = len(pairs.blocks), residual.shape[1]
     peak = 2 * int(np.ceil(LEVELS * np.sqrt(2.0))) * int(np.diff(pairs.starts).max(initial=0))
-    kernel = _Target(pairs, 1 + n_features * FOURIER, n_units, peak)
-    sizes, scale = None, None
+    kernel = SumTarget(pairs, 1 + n_features * FOURIER, n_units, peak)
+    moments, moment_map = None, None
     if noisy is not None and noisy.any():
-        scale = np.abs(residual).std(axis=0)
-        scale = np.where(scale > 0, scale, 1.0)
-        sizes = _Target(pairs, 1 + n_features, n_units, None)
+        moment_map = _Moments.of(residual, noisy)
+        moments = SumTarget(pairs, 1 + moment_map.width, n_units, None)
     first_pair = np.r_[0, np.cumsum(np.bincount(pairs.block, minlength=n_blocks))]
     for b in range(n_blocks):
         p0, p1 = int(first_pair[b]), int(first_pair[b + 1])
         count = np.diff(pairs.starts[p0:p1 + 1]).astype(np.float64)[:, None]
-        for target in (kernel, sizes) if sizes is not None else (kernel,):
+        for target in (kernel, moments) if moments is not None else (kernel,):
             target.put(b, 0, p0, p1, count)
-        for first, last in _chunks(pairs.starts, p0, p1):
+        for first, last in pair_chunks(pairs.starts, p0, p1):
             lo, hi = pairs.starts[first], pairs.starts[last]
             ends = pairs.starts[first:last + 1] - lo
             indicator = sp.csr_matrix((np.ones(hi - lo), np.arange(hi - lo), ends),
                                       shape=(last - first, hi - lo))  # pair × transition
             for k, phi in enumerate(feature_map(residual[lo:hi])):
                 kernel.put(b, 1 + k * FOURIER, first, last, indicator @ phi, phi)
-            if sizes is not None:
-                values = size_values(residual[lo:hi], scale)
-                sizes.put(b, 1, first, last, indicator @ values, values)
+            if moments is not None:
+                values = moment_map(residual[lo:hi])
+                moments.put(b, 1, first, last, indicator @ values, values)
     count = kernel.totals[:, :1]
     variance = kernel.squares / count - (kernel.totals[:, 1:] / count) ** 2
     variances = np.maximum(variance.reshape(n_blocks, -1, FOURIER).sum(axis=2), 0.0) / LEVELS**2
-    size_variances = None
-    if sizes is not None:
-        mean = sizes.totals[:, 1:] / count
-        size_variances = np.maximum((sizes.squares / count - mean**2) / LEVELS**2, 0.0)
+    moment_variances = None
+    if moments is not None:
+        mean = moments.totals[:, 1:] / count
+        moment_variances = np.maximum((moments.squares / count - mean**2) / LEVELS**2, 0.0)
     return KernelSums(kernel.counts(), variances, tuple(feature_map.bandwidth),
-                      None if sizes is None else sizes.counts(), size_variances, noisy)
+                      None if moments is None else moments.counts(), moment_variances, noisy,
+                      () if moment_map is None else moment_map.pairs)
 
 
-def size_values(residual: np.ndarray, scale: np.ndarray) -> np.ndarray:
-    """``|r_j|`` in units of its pooled standard deviation ``scale`` (of all transitions'),
-    rounded to 1 / LEVELS: integers, so their sums are exact."""
-    return np.rint(LEVELS * np.abs(residual) / scale)
+@dataclass(frozen=True, slots=True)
+class _Moments:
+    """The second-moment values of the dithered residuals, rounded to 1 / LEVELS (integers, so
+    their sums are exact): per response ``|r_j|`` in units of its pooled standard deviation
+    (``size_scale``, over all transitions), then per noisy pair ``(j, k)`` the product
+    ``(r_j / sd_j)(r_k / sd_k)`` (``sd``: the residuals' pooled standard deviations)."""
+
+    size_scale: np.ndarray
+    sd: np.ndarray
+    pairs: tuple[tuple[int, int], ...]
+
+    @classmethod
+    def of(cls, residual: np.ndarray, noisy: np.ndarray) -> _Moments:
+        size_scale, sd = np.abs(residual).std(axis=0), residual.std(axis=0)
+        return cls(np.where(size_scale > 0, size_scale, 1.0), np.where(sd > 0, sd, 1.0),
+                   noisy_pairs(noisy))
+
+    @property
+    def width(self) -> int:
+        return len(self.sd) + len(self.pairs)
+
+    def __call__(self, residual: np.ndarray) -> np.ndarray:
+        z = residual / self.sd
+        products = [z[:, j] * z[:, k] for j, k in self.pairs]
+        return np.rint(LEVELS * np.column_stack([np.abs(residual) / self.size_scale, *products]))
 
 
-def _chunks(starts: np.ndarray, p0: int, p1: int):
-    """(first, last) pair ranges of pairs p0:p1 of about ``CHUNK`` transitions each."""
-    first = p0
-    while first < p1:
-        last = int(np.searchsorted(starts, starts[first] + CHUNK, side="right"))
-        last = min(max(last - 1, first + 1), p1)
-        yield first, last
-        first = last
-
-
-class _Target:
-    """The (blocks · width) × units matrix of per-(state, unit) sums being written: dense
-    where at least ``DENSE_SHARE`` of the positions hold a value (float32 where ``peak``
-    bounds every entry and every difference of two entries below 2**24: exact), else the
-    CSR arrays of :class:`_Layout`; and per block the column sums and sums of squares over
-    the transitions."""
-
-    def __init__(self, pairs: _Pairs, width: int, n_units: int, peak: int | None) -> None:
-        n_blocks = len(pairs.blocks)
-        self.pairs, self.width, self.n_units = pairs, width, n_units
-        self.totals = np.zeros((n_blocks, width))
-        self.squares = np.zeros((n_blocks, width - 1))
-        self.layout, self.matrix = None, None
-        if len(pairs.unit) >= DENSE_SHARE * n_units * n_blocks:
-            dtype = np.float32 if peak is not None and peak < 2**24 else np.float64
-            self.matrix = np.zeros((n_blocks * width, n_units), dtype)
-        else:
-            self.layout = _Layout(pairs, width, n_units)
-
-    def put(self, b: int, column: int, first: int, last: int, sums: np.ndarray,
-            values: np.ndarray | None = None) -> None:
-        """Pair sums (pairs first:last of block b, k) at columns column:column + k; ``values``:
-        the transitions' values they sum (for the squares; None for the count column)."""
-        k = sums.shape[1]
-        if self.matrix is not None:
-            row = b * self.width + column
-            self.matrix[row:row + k, self.pairs.unit[first:last]] = sums.T
-        else:
-            p0 = self.layout.first[b]
-            self.layout.view(b)[column:column + k, first - p0:last - p0] = sums.T
-        self.totals[b, column:column + k] += sums.sum(axis=0)
-        if values is not None:
-            self.squares[b, column - 1:column - 1 + k] += np.einsum("ij,ij->j", values, values)
-
-    def counts(self) -> RunCounts:
-        if self.layout is not None:
-            return self.layout.counts()
-        n_blocks = len(self.pairs.blocks)
-        return RunCounts(self.matrix, self.pairs.blocks, np.arange(n_blocks + 1) * self.width,
-                         np.zeros(n_blocks * self.width, dtype=np.int64))
-
-
-class _Layout:
-    """The CSR arrays of the (blocks · width) × units matrix of per-pair sums: block ``b``'s
-    entries are one (width, pairs of b) array, row by row, each row's units ascending."""
-
-    def __init__(self, pairs: _Pairs, width: int, n_units: int) -> None:
-        n_blocks = len(pairs.blocks)
-        per_block = np.bincount(pairs.block, minlength=n_blocks)
-        self.first = np.r_[0, np.cumsum(per_block)]
-        nnz = len(pairs.unit) * width
-        index = np.int32 if max(nnz, n_units) < 2**31 else np.int64
-        self.data = np.empty(nnz)
-        self.indices = np.empty(nnz, dtype=index)
-        self.indptr = np.r_[0, np.cumsum(np.repeat(per_block, width))].astype(index)
-        self.pairs, self.width, self.n_units = pairs, width, n_units
-        for b in range(n_blocks):
-            self._segment(self.indices, b)[:] = pairs.unit[self.first[b]:self.first[b + 1]]
-
-    def _segment(self, array: np.ndarray, b: int) -> np.ndarray:
-        lo, hi = self.first[b] * self.width, self.first[b + 1] * self.width
-        return array[lo:hi].reshape(self.width, -1)
-
-    def view(self, b: int) -> np.ndarray:
-        """(width, pairs of block b): the writable entries of block ``b``."""
-        return self._segment(self.data, b)
-
-    def counts(self) -> RunCounts:
-        n_blocks = len(self.pairs.blocks)
-        matrix = sp.csr_matrix((self.data, self.indices, self.indptr),
-                               shape=(n_blocks * self.width, self.n_units))
-        return RunCounts(matrix, self.pairs.blocks, np.arange(n_blocks + 1) * self.width,
-                         np.zeros(n_blocks * self.width, dtype=np.int64))
-
-
-def unit_sums(data: Transitions, columns: np.ndarray, n_units: int) -> RunCounts:
-    """Per state a block of ``columns.shape[1]`` rows, per unit the column sums over its
-    transitions in that state: a sparse (blocks · width) × units matrix."""
-    pairs = _Pairs.of(data)
-    sums = np.add.reduceat(columns, pairs.starts[:-1], axis=0)
-    layout = _Layout(pairs, columns.shape[1], n_units)
-    for b in range(len(pairs.blocks)):
-        layout.view(b)[:] = sums[layout.first[b]:layout.first[b + 1]].T
-    return layout.counts()
+def noisy_pairs(noisy: np.ndarray) -> tuple[tuple[int, int], ...]:
+    """Every pair ``(j, k)``, ``j < k``, of response features that both have noise of their
+    own."""
+    return tuple(itertools.combinations(np.flatnonzero(noisy).tolist(), 2))
 
 
 def response_test(data: Transitions, n_units: int, assignments: np.ndarray,
@@ -365,7 +284,7 @@ def response_test(data: Transitions, n_units: int, assignments: np.ndarray,
                                                 kernel.variances, data.profile)
     z, in_family = standardise(stats, OneSided.NEUTRAL)
     chain = chain_statistic(standardise(pooled, OneSided.NEUTRAL)[0], n_features,
-                            spread_statistics(kernel, data, assignments))
+                            *moment_statistics(kernel, n_features, assignments))
     adjusted = exceedance_pvalues(row_max(z[:, in_family])[:, None], z[0])
     adjusted[~in_family] = 1.0
     per_state = (len(kernel.counts.blocks), n_features)
@@ -379,30 +298,36 @@ def response_test(data: Transitions, n_units: int, assignments: np.ndarray,
         permutations=len(assignments) - 1, bandwidth=kernel.bandwidth, chain_null=chain)
 
 
-def spread_statistics(kernel: KernelSums, data: Transitions, assignments: np.ndarray
-                      ) -> np.ndarray | None:
-    """(P + 1, features) standardised spread statistics ``S_j``, 0 for a response below the
-    noise floor; None when no response has noise of its own (module docs; ``kernel`` holds
-    the size sums only then, :func:`kernel_sums`)."""
-    noisy = kernel.noisy
-    if noisy is None or not noisy.any():
-        return None
-    _, pooled, _, _ = assignment_statistics(kernel.sizes, assignments, len(data.response),
-                                            kernel.size_variances, dims=1)
-    return standardise(pooled, OneSided.NEUTRAL)[0] * noisy
+def moment_statistics(kernel: KernelSums, n_features: int, assignments: np.ndarray
+                      ) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """(P + 1, features) standardised spread statistics ``S_j`` (0 for a response below the
+    noise floor) and (P + 1,) the largest standardised co-movement statistic ``C_jk`` over the
+    noisy pairs; each None where there is none (module docs; ``kernel`` holds the moment sums
+    only where a response has noise of its own, :func:`kernel_sums`)."""
+    if kernel.moments is None:
+        return None, None
+    _, pooled, _, _ = assignment_statistics(kernel.moments, assignments,
+                                            n_features + len(kernel.pairs),
+                                            kernel.moment_variances, dims=1)
+    z = standardise(pooled, OneSided.NEUTRAL)[0]
+    comovement = z[:, n_features:].max(axis=1) if kernel.pairs else None
+    return z[:, :n_features] * kernel.noisy, comovement
 
 
-def chain_statistic(z: np.ndarray, n_features: int, spread: np.ndarray | None = None
-                    ) -> np.ndarray:
+def chain_statistic(z: np.ndarray, n_features: int, spread: np.ndarray | None = None,
+                    comovement: np.ndarray | None = None) -> np.ndarray:
     """The chain statistic of every assignment from the standardised pooled statistics
-    (P + 1, K · features) and spread statistics (P + 1, features): Tippett's combination of
-    each feature's ``max(T_j, S_j)`` (``T_j`` where ``S_j`` is 0: no noise of its own) and the
-    sum of the profile statistics (module docs); larger = more extreme."""
+    (P + 1, K · features), spread statistics (P + 1, features) and co-movement statistic
+    (P + 1,): Tippett's combination of each feature's ``max(T_j, S_j)`` (``T_j`` where ``S_j`` is
+    0: no noise of its own), the sum of the profile statistics and the co-movement (module
+    docs); larger = more extreme."""
     level = [z[:, j] if spread is None or not spread[:, j].any()
              else np.maximum(z[:, j], spread[:, j]) for j in range(n_features)]
-    if z.shape[1] == n_features:
-        return tippett(*level)
-    return tippett(*level, z[:, n_features:].sum(axis=1))
+    if z.shape[1] > n_features:
+        level.append(z[:, n_features:].sum(axis=1))
+    if comovement is not None:
+        level.append(comovement)
+    return tippett(*level)
 
 
 def contrasts(share: np.ndarray, profile: np.ndarray | None) -> np.ndarray:
@@ -425,7 +350,7 @@ def assignment_statistics(sums: RunCounts, assignments: np.ndarray, n_features: 
     """Statistics of every assignment: (P + 1, blocks · features) per-state ``T_s,j``,
     (P + 1, K · features) pooled studentised ``T_k,j`` (k = 0: ``T_j``; then one block of
     features per profile contrast, :func:`contrasts`), and the observed m, n per block.
-    ``dims``: columns per response feature in ``sums`` (``FOURIER``; 1 for the sizes)."""
+    ``dims``: columns per response feature in ``sums`` (``FOURIER``; 1 for the moments)."""
     sides = DenseSides if isinstance(sums.matrix, np.ndarray) else SideCounts
     product = sides(sums, paired=is_paired(assignments))
     width = 1 + n_features * dims

@@ -26,7 +26,7 @@ from simcred.reprocess.pipeline import (
     log_risk_rmse,
     reprocess,
 )
-from simcred.reprocess.reaction import Reaction
+from simcred.reprocess.reaction import Reaction, ReactionTiming
 from simcred.reprocess.representation import GT, SensorKind
 from simcred.reprocess.vary import (
     VariationCampaign,
@@ -96,11 +96,18 @@ def section3_claims(result: Reprocessed) -> list[Claim]:
     return claims
 
 
+def _timing(result: Reprocessed) -> ReactionTiming:
+    """Eqs. (4)-(7) with the ideal sensor (paper 002's drive has GT)."""
+    if result.analysis is None:
+        raise SimcredError("paper 002: the reprocessed drive has no GT (no eqs. (4)-(7))")
+    return result.analysis.ideal
+
+
 def reaction_claims(result: Reprocessed) -> list[Claim]:
     """[1] §IV's eqs. (4)-(7), Fig. 6's manoeuvre and Fig. 7's risk, ideal sensor."""
-    r, a = result.reactions, result.analysis
-    shift, t_offset, ratio = a["dt_react_GT_rGT"], a["t_offset"], a["ratio_eq6"]
-    dt_rsd = a["dt_react_rGT_rSD"]
+    r, a = result.reactions, _timing(result)
+    shift, t_offset, ratio = a.dt_react_gt_rgt, a.t_offset, a.ratio_eq6
+    dt_rsd = a.dt_react_rgt_rsd
     shift_value = math.nan if shift is None else shift
     gt_risk, rgt_risk, rsd_risk = (_max_risk(result, k) for k in ("GT", "rGT", "rSD"))
     return [
@@ -166,7 +173,7 @@ def mechanism_claims(result: Reprocessed, dynamic: Reprocessed, static: Reproces
     rgt_sb = GT.resimulation(SensorKind.SCENARIO_BASED)
     t_gt, t_rgt = result.reactions["GT"].time, result.reactions["rGT"].time
     t_dyn, t_static = dynamic.reactions[rgt_sb].time, static.reactions[rgt_sb].time
-    t_offset = result.analysis["t_offset"]
+    t_offset = _timing(result).t_offset
     share = (t_dyn - t_rgt) / (t_gt - t_rgt) if t_gt != t_rgt else math.nan
     return [
         at_least("dynamic_error_explains_shift",
@@ -278,7 +285,7 @@ def reaction_shift(result: Reprocessed, study: SensorStudy) -> dict[str, object]
     """``reaction_shift.json``'s body: eqs. (4)-(7) measured next to [1]'s numbers."""
     def row(r: Reprocessed) -> dict[str, object]:
         return {"reactions": {k: v.to_dict() for k, v in r.reactions.items()},
-                "analysis": r.analysis}
+                "analysis": r.analysis_report}
 
     rgt_sb = str(GT.resimulation(SensorKind.SCENARIO_BASED))
     return {
@@ -380,10 +387,10 @@ class ReprocessingRun:
 
     def reaction_summary(self) -> str:
         """One line: the measured reaction shift next to [1]'s."""
-        a = self.result.analysis
-        return (f"reaction shift GT↔rGT {a['dt_react_GT_rGT']:.2f} s ([1] eq. 4: ≈ "
-                f"{PAPER_SHIFT:g} s); t_ΔS,d {a['t_offset']:.3f} s ([1]: 0.05 s); rGT↔rSD "
-                f"{a['dt_react_rGT_rSD']:.2f} s ([1] eq. 7: ≈ t_ΔS,d)")
+        a = _timing(self.result)
+        return (f"reaction shift GT↔rGT {a.dt_react_gt_rgt:.2f} s ([1] eq. 4: ≈ "
+                f"{PAPER_SHIFT:g} s); t_ΔS,d {a.t_offset:.3f} s ([1]: 0.05 s); rGT↔rSD "
+                f"{a.dt_react_rgt_rsd:.2f} s ([1] eq. 7: ≈ t_ΔS,d)")
 
 
 def run_all(out: Path, *, seed: int = 0, variations: int = 300, runner: Engine | None = None,

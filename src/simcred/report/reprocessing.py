@@ -182,7 +182,7 @@ def _mark_reactions(ax, result: Reprocessed) -> None:
 
 
 def _shift_title(result: Reprocessed) -> str:
-    shift = result.analysis.get("dt_react_GT_rGT")
+    shift = None if result.analysis is None else result.analysis.ideal.dt_react_gt_rgt
     return "" if shift is None else (f"\n(o: reaction; GT − rGT = {shift:.2f} s, [1] eq. 4: "
                                      "≈ 1 s)")
 

@@ -2,10 +2,10 @@
 resimulation → refit → risk, reaction and the error of every step; and the variation campaign.
 
 Modules: ``representation`` (typed names GT, SD, rGT, rSD, [sb], fit(…)), ``pipeline``
-(:func:`reprocess`), ``errors`` (Fig. 4), ``reaction`` (eqs. 4-7), ``inputs`` (what ``simcred
-reprocess`` reads), ``timebase`` (a drive's recordings, gaps and common time base),
-``obstacles`` (every CommonRoad obstacle as the TO), ``output`` (what it writes, figures aside),
-``vary`` (sec. V campaign).
+(:func:`reprocess`), ``errors`` (Fig. 4), ``reaction`` (eqs. 4-7: ``ReactionAnalysis``),
+``inputs`` (what ``simcred reprocess`` reads), ``timebase`` (a drive's recordings, gaps and
+common time base), ``obstacles`` (every CommonRoad obstacle as the TO), ``output`` (what it
+writes, figures aside), ``vary`` (sec. V campaign).
 """
 
 from simcred.reprocess.decomposition import ErrorStats, decompose
@@ -13,7 +13,13 @@ from simcred.reprocess.inputs import LongColumns, read_measurement
 from simcred.reprocess.obstacles import reprocess_obstacles
 from simcred.reprocess.output import write
 from simcred.reprocess.pipeline import ReprocessConfig, Reprocessed, reprocess
-from simcred.reprocess.reaction import Reaction, ReactionCriteria, reaction
+from simcred.reprocess.reaction import (
+    Reaction,
+    ReactionAnalysis,
+    ReactionCriteria,
+    ReactionTiming,
+    reaction,
+)
 from simcred.reprocess.representation import GT, SD, Rep, SensorKind, Source
 from simcred.reprocess.timebase import Drive, Gap, RecordedTracks, Recording, align
 from simcred.reprocess.vary import (
@@ -34,6 +40,8 @@ __all__ = [
     "LongColumns",
     "Outcome",
     "Reaction",
+    "ReactionAnalysis",
+    "ReactionTiming",
     "RecordedTracks",
     "Recording",
     "ReactionCriteria",

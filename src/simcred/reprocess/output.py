@@ -42,7 +42,7 @@ def write(result: Reprocessed, directory: str | Path) -> dict[str, Path]:
             for sensor, table in result.errors.items()}, result.inputs),
         "reaction": _json(out / "reaction.json", "reaction", {
             "reactions": {k: r.to_dict() for k, r in result.reactions.items()},
-            "analysis": result.analysis}, result.inputs),
+            "analysis": result.analysis_report}, result.inputs),
         "risk": _json(out / "risk.json", "risk", {
             k: {col: values for col, values in r.items()} for k, r in result.risk.items()},
             result.inputs),

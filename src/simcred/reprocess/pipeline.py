@@ -33,7 +33,13 @@ from simcred.errors import OptionError, SimcredError
 from simcred.io.measurement import Measurement
 from simcred.kinematics import MOTION_SIGNALS, Track
 from simcred.reprocess.decomposition import ErrorStats, decompose
-from simcred.reprocess.reaction import Reaction, ReactionCriteria, reaction, reaction_analysis
+from simcred.reprocess.reaction import (
+    Reaction,
+    ReactionAnalysis,
+    ReactionCriteria,
+    reaction,
+    reaction_analysis,
+)
 from simcred.reprocess.representation import GT, SD, Rep, SensorKind, Source
 from simcred.reprocess.timebase import MAX_GAP, Aligned, Drive, align
 from simcred.reprocess.units import check_units
@@ -47,7 +53,6 @@ from simcred.sim.sensors import Sensor as SensorModel
 from simcred.traces import TIME, TraceSet
 
 SENSORS = tuple(sensor.value for sensor in SensorKind)
-SB = "[sb]"  # the suffix of a scenario-based representation's name (Rep prints it)
 LOG_RISK_FLOOR = 1e-9  # risk below this counts as this on the log scale
 RECORDED_PARAMETERS = ("set_speed", "lanes")
 
@@ -96,7 +101,7 @@ class Reprocessed(JsonResult):
     resimulations: dict[str, TraceSet]
     errors: dict[str, dict[str, dict[str, dict[str, ErrorStats]]]]
     reactions: dict[str, Reaction]
-    analysis: dict[str, float | None]
+    analysis: ReactionAnalysis | None  # [1] §IV's eqs. (4)-(7); None without GT
     risk: dict[str, dict[str, np.ndarray]]
     sensor_model: OffsetDelaySensor | None
     inputs: dict[str, str] = field(default_factory=dict)  # GT / SD -> content hash
@@ -110,6 +115,12 @@ class Reprocessed(JsonResult):
         if self.aligned is None:
             return {}
         return {"drive": dict(self.drive_metadata), **self.aligned.to_dict()}
+
+    @property
+    def analysis_report(self) -> dict[str, Any]:
+        """``reprocess.json``'s ``analysis``: :meth:`ReactionAnalysis.to_dict` (flat, [1]'s
+        symbols as keys), empty without GT."""
+        return {} if self.analysis is None else self.analysis.to_dict()
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -135,7 +146,7 @@ class Reprocessed(JsonResult):
                             for obj, f in fit.fits.items()} for name, fit in self.fits.items()},
             "sensor_model": None if self.sensor_model is None else self.sensor_model.to_dict(),
             "reactions": {k: r.to_dict() for k, r in self.reactions.items()},
-            "analysis": self.analysis,
+            "analysis": self.analysis_report,
             "max_risk": {k: float(r["risk"].max()) for k, r in self.risk.items()},
         }
 
@@ -299,20 +310,18 @@ def log_risk_rmse(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> float:
 
 
 def _analysis(states: dict[Rep, dict[str, Track]], reactions: dict[str, Reaction],
-              c: ReprocessConfig) -> dict[str, float | None]:
+              c: ReprocessConfig) -> ReactionAnalysis | None:
     """Eqs. (4)-(7) for the ideal sensor, and the same for the scenario-based model."""
     if GT not in states:
-        return {}
+        return None
     to = c.objects[0]
     offset = float(np.mean(np.hypot(states[SD][to].x - states[GT][to].x,
                                     states[SD][to].y - states[GT][to].y)))
     gt = reactions[GT]
     speed = gt.speed_at_reaction if not math.isnan(gt.speed_at_reaction) else float(
         np.mean(states[GT][c.ego].v))
-    result = {"sensor_offset_d": offset, "ego_speed": speed,
-              **reaction_analysis(reactions, offset, speed)}
     sb = {k.ideal(): v for k, v in reactions.items() if k.scenario_based}
     if sb:
         sb[GT] = gt
-        result.update({f"{k}{SB}": v for k, v in reaction_analysis(sb, offset, speed).items()})
-    return result
+    return ReactionAnalysis(offset, speed, reaction_analysis(reactions, offset, speed),
+                            reaction_analysis(sb, offset, speed) if sb else None)

@@ -25,12 +25,14 @@ References
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
+from typing import Any
 
 import numpy as np
 
-from simcred._json import JsonResult
+from simcred._json import JsonResult, fields_dict, json_key
 from simcred.kinematics import LANE_WIDTH
+from simcred.reprocess.representation import SB
 
 
 @dataclass(frozen=True, slots=True)
@@ -81,16 +83,56 @@ def reaction(t: np.ndarray, y: np.ndarray, v: np.ndarray, heading: np.ndarray,
                     float(lateral.max()), onset, bool(t[k] - t[0] >= c.start_margin), onset_ok)
 
 
+@dataclass(frozen=True, slots=True)
+class ReactionTiming(JsonResult):
+    """Eqs. (4)-(7) of [1] for one sensor model (s; None: a difference that involves a reaction
+    that is absent or not measurable): Δt_react(GT, rGT) (eq. 4, positive: the resimulation
+    reacts earlier), t_ΔS,d = ΔS,d / v_EGO (eq. 5), their ratio (eq. 6), Δt_react(rGT, rSD)
+    = t_rSD − t_rGT (eq. 7), and the same two differences for the onset of the speed drop.
+    Its document is its fields, under [1]'s names (``dt_react_GT_rGT``, ...)."""
+
+    dt_react_gt_rgt: float | None = field(metadata=json_key("dt_react_GT_rGT"))
+    t_offset: float | None
+    ratio_eq6: float | None
+    dt_react_rgt_rsd: float | None = field(metadata=json_key("dt_react_rGT_rSD"))
+    dt_onset_gt_rgt: float | None = field(metadata=json_key("dt_onset_GT_rGT"))
+    dt_onset_rgt_rsd: float | None = field(metadata=json_key("dt_onset_rGT_rSD"))
+
+    def to_dict(self) -> dict[str, Any]:
+        return fields_dict(self)
+
+
+@dataclass(frozen=True, slots=True)
+class ReactionAnalysis(JsonResult):
+    """[1] §IV's analysis of a drive with GT: ΔS,d (``sensor_offset_d``, m: the mean TO position
+    error of SD against GT), the EGO's speed before the reaction (m/s), eqs. (4)-(7) with the
+    ideal sensor (``ideal``) and with the scenario-based sensor model (``scenario_based``: its
+    resimulations rGT[sb], rSD[sb] in place of rGT, rSD; None without the model)."""
+
+    sensor_offset_d: float
+    ego_speed: float
+    ideal: ReactionTiming
+    scenario_based: ReactionTiming | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """The flat layout of ``reprocess.json``'s ``analysis`` (deliberate, [1]'s symbols as
+        keys): ΔS,d, v_EGO, the ideal sensor's eqs. (4)-(7), then the scenario-based model's
+        with the suffix ``[sb]`` (``dt_react_GT_rGT[sb]``, ...)."""
+        out: dict[str, Any] = {"sensor_offset_d": self.sensor_offset_d,
+                               "ego_speed": self.ego_speed, **self.ideal.to_dict()}
+        if self.scenario_based is not None:
+            out.update({f"{k}{SB}": v for k, v in self.scenario_based.to_dict().items()})
+        return out
+
+
 def reaction_analysis(reactions: dict[str, Reaction], sensor_offset: float, ego_speed: float
-                      ) -> dict[str, float | None]:
-    """Eqs. (4)-(7) of [1] from the reactions in ``GT``, ``rGT`` and ``rSD``.
+                      ) -> ReactionTiming:
+    """Eqs. (4)-(7) of [1] (:class:`ReactionTiming`) from the reactions in ``GT``, ``rGT`` and
+    ``rSD``.
 
     ``sensor_offset`` is ΔS,d (mean TO position error of SD against GT), ``ego_speed`` the EGO's
-    speed before the reaction; the result holds Δt_react(GT, rGT) (eq. 4, positive: the
-    resimulation reacts earlier), t_ΔS,d = ΔS,d / v_EGO (eq. 5), their ratio (eq. 6) and
-    Δt_react(rGT, rSD) = t_rSD − t_rGT (eq. 7); and the same two differences for the onset of
-    the speed drop (``dt_onset_...``). A difference involving a reaction that is not
-    measurable (see the module docstring) is None.
+    speed before the reaction. A difference involving a reaction that is not measurable (see
+    the module docstring) is None.
     """
     def time(name: str, what: str = "time") -> float:
         """The time, NaN where absent or not measurable (near the trace's first sample)."""
@@ -98,14 +140,16 @@ def reaction_analysis(reactions: dict[str, Reaction], sensor_offset: float, ego_
         ok = r is not None and (r.measurable if what == "time" else r.onset_measurable)
         return getattr(r, what) if ok else math.nan
 
+    def defined(value: float) -> float | None:
+        return None if math.isnan(value) else value
+
     gt_vs_rgt = time("GT") - time("rGT")
     offset_time = sensor_offset / ego_speed
-    result = {
-        "dt_react_GT_rGT": gt_vs_rgt,
-        "t_offset": offset_time,
-        "ratio_eq6": gt_vs_rgt / offset_time if offset_time > 0 else math.nan,
-        "dt_react_rGT_rSD": time("rSD") - time("rGT"),
-        "dt_onset_GT_rGT": time("GT", "onset") - time("rGT", "onset"),
-        "dt_onset_rGT_rSD": time("rSD", "onset") - time("rGT", "onset"),
-    }
-    return {k: (None if math.isnan(v) else v) for k, v in result.items()}
+    return ReactionTiming(
+        dt_react_gt_rgt=defined(gt_vs_rgt),
+        t_offset=defined(offset_time),
+        ratio_eq6=defined(gt_vs_rgt / offset_time if offset_time > 0 else math.nan),
+        dt_react_rgt_rsd=defined(time("rSD") - time("rGT")),
+        dt_onset_gt_rgt=defined(time("GT", "onset") - time("rGT", "onset")),
+        dt_onset_rgt_rsd=defined(time("rSD", "onset") - time("rGT", "onset")),
+    )

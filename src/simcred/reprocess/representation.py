@@ -37,7 +37,8 @@ class SensorKind(StrEnum):
     SCENARIO_BASED = "scenario-based"
 
 
-_SUFFIX = {SensorKind.IDEAL: "", SensorKind.SCENARIO_BASED: "[sb]"}
+SB = "[sb]"  # the suffix of a scenario-based representation's name (Rep prints it)
+_SUFFIX = {SensorKind.IDEAL: "", SensorKind.SCENARIO_BASED: SB}
 _PATTERN = re.compile(r"^(?P<fit>fit\()?(?P<r>r)?(?P<source>GT|SD)(?P<sb>\[sb\])?(?(fit)\))$")
 
 

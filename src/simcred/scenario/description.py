@@ -22,6 +22,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
@@ -130,6 +131,16 @@ class ObjectTrack:
         20 s (tested). Every time is integrated independently, so ``t`` need not be sorted.
         """
         t = self._times(t)
+        if t.size > _CACHED_STATES:
+            return self._states(t)
+        # Cached for recent tracks and times (Track is immutable): a variation campaign
+        # resimulates every variation's unvaried objects on the same grid.
+        cached = _states_cached(self.x0, self.y0, self.t0, self.t1,
+                                self.speed.coefficients.tobytes(),
+                                self.heading.coefficients.tobytes(), t.tobytes())
+        return Track(**{name: getattr(cached, name).copy() for name in _STATE_COLUMNS})
+
+    def _states(self, t: np.ndarray) -> Track:
         x, y = self.positions(t)
         return Track(t=t, x=x, y=y, v=self.speed(t), heading=self.heading(t),
                            acceleration=self.speed.derivative(t),
@@ -144,6 +155,19 @@ class ObjectTrack:
         if t.ndim != 1:
             raise SimcredError(f"times must be 1-D, got shape {t.shape}")
         return in_span(t, self.t0, self.t1)
+
+
+_CACHED_STATES = 1 << 16  # times; longer series are not cached
+_STATE_COLUMNS = ("t", "x", "y", "v", "heading", "acceleration", "yaw_rate")
+
+
+@lru_cache(maxsize=32)
+def _states_cached(x0: float, y0: float, t0: float, t1: float, speed: bytes, heading: bytes,
+                   times: bytes) -> Track:
+    """:meth:`ObjectTrack.states` of the track with these parameters (the same computation)."""
+    track = ObjectTrack(x0, y0, Spline(t0, t1, np.frombuffer(speed)),
+                        Spline(t0, t1, np.frombuffer(heading)))
+    return track._states(np.frombuffer(times))
 
 
 # -- the description ------------------------------------------------------------------------------

@@ -27,6 +27,8 @@ References
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 from scipy.interpolate import BSpline
 
@@ -69,8 +71,7 @@ class FitConstraints:
                  grid: np.ndarray, measured_speed: np.ndarray, *, smoothing: float = 0.0) -> None:
         self.limits = limits
         n = sections + DEGREE
-        basis = BSpline(spline_knots(t0, t1, sections), np.eye(n), DEGREE, extrapolate=False)
-        b0, b1 = basis(grid), basis(grid, nu=1)
+        b0, b1 = _bases(float(t0), float(t1), sections, grid)
         zeros = np.zeros_like(b0)
         stop = STOP_WEIGHT / (1.0 + (np.asarray(measured_speed) / STOP_SPEED) ** 4)
         stop_rows = stop > 1e-6 * STOP_WEIGHT if limits is not None else np.zeros(len(grid), bool)
@@ -108,3 +109,29 @@ class FitConstraints:
         if self.limits is None:
             return cv
         return np.clip(cv, self.limits.min_speed, self.limits.max_speed)
+
+
+def _bases(t0: float, t1: float, sections: int, grid: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The B-spline basis and its derivative at ``grid`` (read-only), cached for recent grids
+    (the same computation): every refit of a variation campaign checks on the same grid."""
+    grid = np.asarray(grid, dtype=np.float64)
+    if grid.size > _CACHED_GRID:
+        return _bases_of(t0, t1, sections, grid)
+    return _bases_cached(t0, t1, sections, grid.tobytes())
+
+
+_CACHED_GRID = 1 << 14
+
+
+@lru_cache(maxsize=16)
+def _bases_cached(t0: float, t1: float, sections: int, grid: bytes) -> tuple[np.ndarray, ...]:
+    return _bases_of(t0, t1, sections, np.frombuffer(grid))
+
+
+def _bases_of(t0: float, t1: float, sections: int, grid: np.ndarray) -> tuple[np.ndarray, ...]:
+    basis = BSpline(spline_knots(t0, t1, sections), np.eye(sections + DEGREE), DEGREE,
+                    extrapolate=False)
+    out = (basis(grid), basis(grid, nu=1))
+    for array in out:
+        array.setflags(write=False)
+    return out

@@ -37,7 +37,7 @@ from scipy.optimize import least_squares
 from simcred.scenario.description import ObjectTrack
 from simcred.scenario.fit_constraints import SMOOTHING_STEPS, FitConstraints
 from simcred.scenario.plausibility import PlausibilityLimits, check_plausibility
-from simcred.scenario.spline import Quadrature, Spline, design_matrix
+from simcred.scenario.spline import Quadrature, Spline, _design
 
 SHORT_TRACK = 8
 """Below this many samples the curves are also pulled towards constant v and θ (see fit_track)."""
@@ -91,8 +91,9 @@ class PositionProblem:
         self.sections = sections
         self.n = sections + 3
         self.quad = Quadrature.build(self.t0, self.t1, sections, t)
-        self.basis_full = design_matrix(self.t0, self.t1, sections, self.quad.full_nodes)
-        self.basis_part = design_matrix(self.t0, self.t1, sections, self.quad.part_nodes)
+        # Both cached (read-only): refits at the same times share them.
+        self.basis_full = _design(self.t0, self.t1, sections, self.quad.full_nodes)
+        self.basis_part = _design(self.t0, self.t1, sections, self.quad.part_nodes)
         self.limits = limits
         self.short = len(t) < SHORT_TRACK
         self.constraints: FitConstraints | None = None

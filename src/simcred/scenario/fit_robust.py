@@ -18,6 +18,7 @@ References
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import numpy as np
 
@@ -78,8 +79,36 @@ def spikes(t: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     right sample is set aside also at a track's ends (the fit, whose end bends towards a
     displaced end sample, is not asked). ``inf`` where no set has 3 samples (n < 4).
     """
+    best = np.full(len(t), np.inf)
+    for jj, w, usable, c0 in _predictors(np.asarray(t, dtype=np.float64)):
+        px = np.einsum("nk,nk->n", c0, (w * x[jj])[usable])
+        py = np.einsum("nk,nk->n", c0, (w * y[jj])[usable])
+        distance = np.hypot(px - x[usable], py - y[usable])
+        best[usable] = np.minimum(best[usable], distance)
+    return best
+
+
+def _predictors(t: np.ndarray) -> tuple[tuple[np.ndarray, ...], ...]:
+    """Per neighbour set of :func:`spikes`: the neighbours' indices, their weights, the samples
+    with 3 neighbours, and the rows that evaluate the quadratic at tᵢ. They depend on the times
+    alone: cached for recent times (a variation campaign refits at the same times), the same
+    numbers as computed anew."""
+    if t.size > _CACHED_SAMPLES:
+        return _predictors_of(t)
+    return _predictors_cached(t.tobytes())
+
+
+_CACHED_SAMPLES = 1 << 16
+
+
+@lru_cache(maxsize=16)
+def _predictors_cached(times: bytes) -> tuple[tuple[np.ndarray, ...], ...]:
+    return _predictors_of(np.frombuffer(times))
+
+
+def _predictors_of(t: np.ndarray) -> tuple[tuple[np.ndarray, ...], ...]:
     n = len(t)
-    best = np.full(n, np.inf)
+    out = []
     for offsets in _SUBSETS:
         j = np.arange(n)[:, None] + offsets  # (n, k)
         valid = (j >= 0) & (j < n)
@@ -91,11 +120,10 @@ def spikes(t: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         design = np.stack([w, w * s, w * s * s], axis=-1)  # (n, k, 3), rows of absent samples 0
         usable = valid.sum(axis=1) >= 3
         c0 = np.linalg.pinv(design[usable])[:, 0, :]  # the quadratic's value at tᵢ
-        px = np.einsum("nk,nk->n", c0, (w * x[jj])[usable])
-        py = np.einsum("nk,nk->n", c0, (w * y[jj])[usable])
-        distance = np.hypot(px - x[usable], py - y[usable])
-        best[usable] = np.minimum(best[usable], distance)
-    return best
+        for array in (jj, w, usable, c0):
+            array.setflags(write=False)
+        out.append((jj, w, usable, c0))
+    return tuple(out)
 
 
 def glitches(t: np.ndarray, x: np.ndarray, y: np.ndarray, noise: float) -> np.ndarray:

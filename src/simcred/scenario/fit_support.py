@@ -26,6 +26,7 @@ with the fit, not a refusal).
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import numpy as np
 
@@ -51,6 +52,40 @@ def local_acceleration(t: np.ndarray, x: np.ndarray, y: np.ndarray, noise: float
         return accel, error
     if not (np.diff(t) > 0).all():
         return _local_acceleration_loop(t, x, y, noise)
+    sigma = noise / math.sqrt(2.0)
+    for rows, near, inverse, project in _windows(np.asarray(t, dtype=np.float64)):
+        cx = (project @ x[near][..., None])[..., 0]
+        cy = (project @ y[near][..., None])[..., 0]
+        # math.hypot as in the loop (np.hypot may round differently); the rest elementwise,
+        # the same operations in the same order.
+        speed = np.array([math.hypot(a, b) for a, b in zip(cx[:, 1].tolist(),
+                                                           cy[:, 1].tolist(), strict=True)])
+        ok = ~(speed < 1e-6)  # NaN too, as in the loop
+        j, i = np.flatnonzero(ok), rows[ok]
+        accel[i] = 2 * (cx[j, 1] * cx[j, 2] + cy[j, 1] * cy[j, 2]) / speed[j]
+        error[i] = 2 * sigma * np.sqrt(np.maximum(inverse[j, 2, 2], 0.0))
+    return accel, error
+
+
+_CACHED_SAMPLES = 1 << 16
+
+
+def _windows(t: np.ndarray) -> tuple[tuple[np.ndarray, ...], ...]:
+    """Per window size: the samples, their windows, (XᵀX)⁻¹ and (XᵀX)⁻¹Xᵀ. They depend on the
+    times alone: cached for recent times (a variation campaign refits at the same times), the
+    same numbers as computed anew."""
+    if t.size > _CACHED_SAMPLES:
+        return _windows_of(t)
+    return _windows_cached(t.tobytes())
+
+
+@lru_cache(maxsize=16)
+def _windows_cached(times: bytes) -> tuple[tuple[np.ndarray, ...], ...]:
+    return _windows_of(np.frombuffer(times))
+
+
+def _windows_of(t: np.ndarray) -> tuple[tuple[np.ndarray, ...], ...]:
+    n = len(t)
     half = WINDOW / 2 + 1e-9
     lo = np.searchsorted(t, t - half - 1e-6)
     hi = np.searchsorted(t, t + half + 1e-6, side="right")
@@ -65,30 +100,19 @@ def local_acceleration(t: np.ndarray, x: np.ndarray, y: np.ndarray, noise: float
         start[j] = lo[j] + np.argmax(inside, axis=1)
     whole = count < MIN_WINDOW_SAMPLES
     count[whole], start[whole] = n, 0
+    out = []
     for k in np.unique(count):
         rows = np.flatnonzero(count == k)
-        _fit_windows(t, x, y, rows, start[rows, None] + np.arange(k), noise, accel, error)
-    return accel, error
-
-
-def _fit_windows(t: np.ndarray, x: np.ndarray, y: np.ndarray, rows: np.ndarray,
-                 near: np.ndarray, noise: float, accel: np.ndarray, error: np.ndarray) -> None:
-    """Local quadratics around samples ``rows``, one window (a row of ``near``) each, into
-    ``accel`` and ``error``."""
-    sigma = noise / math.sqrt(2.0)
-    tau = t[near] - t[rows, None]
-    design = np.stack([np.ones_like(tau), tau, tau * tau], axis=-1)
-    transposed = design.transpose(0, 2, 1)
-    inverse = np.linalg.pinv(transposed @ design)
-    project = inverse @ transposed
-    cx = (project @ x[near][..., None])[..., 0]
-    cy = (project @ y[near][..., None])[..., 0]
-    for j, i in enumerate(rows):
-        speed = math.hypot(cx[j, 1], cy[j, 1])
-        if speed < 1e-6:
-            continue
-        accel[i] = 2 * (cx[j, 1] * cx[j, 2] + cy[j, 1] * cy[j, 2]) / speed
-        error[i] = 2 * sigma * math.sqrt(max(inverse[j, 2, 2], 0.0))
+        near = start[rows, None] + np.arange(k)
+        tau = t[near] - t[rows, None]
+        design = np.stack([np.ones_like(tau), tau, tau * tau], axis=-1)
+        transposed = design.transpose(0, 2, 1)
+        inverse = np.linalg.pinv(transposed @ design)
+        project = inverse @ transposed
+        for array in (rows, near, inverse, project):
+            array.setflags(write=False)
+        out.append((rows, near, inverse, project))
+    return tuple(out)
 
 
 def _local_acceleration_loop(t: np.ndarray, x: np.ndarray, y: np.ndarray, noise: float

@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass
 from enum import StrEnum
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -24,6 +25,7 @@ from simcred.scenario.description import (
     ObjectTrack,
     sample_times,
 )
+from simcred.scenario.spline import Spline
 
 PLAUSIBILITY_DT = 0.01
 """Sampling step (s) of :func:`check_plausibility` for an :class:`ObjectTrack`."""
@@ -181,7 +183,10 @@ def _rates_iv(states: Track | ObjectTrack, t: ArrayLike | None
     """t, v, θ, v̇, θ̇ of states, or of a track at ``t`` (its splines only: no quadrature)."""
     if isinstance(states, ObjectTrack):
         track = states
-        times = sample_times(track.t0, track.t1, PLAUSIBILITY_DT) if t is None else t
+        if t is None:  # the default grid: the search and the campaign check one track repeatedly
+            return _default_rates(track.t0, track.t1, track.speed.coefficients.tobytes(),
+                                  track.heading.coefficients.tobytes())
+        times = t
         times = np.asarray(times, dtype=np.float64)
         if times.ndim != 1 or len(times) < 1:
             raise SimcredError(f"times must be 1-D and not empty, got shape {times.shape}")
@@ -199,3 +204,17 @@ def _rates_iv(states: Track | ObjectTrack, t: ArrayLike | None
             raise SimcredError(f"states.{name} must be 1-D like states.t {arrays[0].shape}, got "
                                f"shape {array.shape}")
     return arrays
+
+
+@lru_cache(maxsize=16)
+def _default_rates(t0: float, t1: float, speed: bytes, heading: bytes) -> tuple[np.ndarray, ...]:
+    """t, v, θ, v̇, θ̇ every :data:`PLAUSIBILITY_DT` of the track with these splines (read-only),
+    cached for recent tracks: the same numbers as sampled anew (the same computation)."""
+    track = ObjectTrack(0.0, 0.0, Spline(t0, t1, np.frombuffer(speed)),
+                        Spline(t0, t1, np.frombuffer(heading)))
+    times = sample_times(t0, t1, PLAUSIBILITY_DT)
+    out = (times, track.speed(times), track.heading(times), track.speed.derivative(times),
+           track.heading.derivative(times))
+    for array in out:
+        array.setflags(write=False)
+    return out

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -92,8 +93,9 @@ class Spline:
         object.__setattr__(self, "t0", t0)
         object.__setattr__(self, "t1", t1)
         object.__setattr__(self, "coefficients", c)
-        knots = spline_knots(t0, t1, len(c) - DEGREE)
-        object.__setattr__(self, "_bspline", BSpline(knots, c, DEGREE, extrapolate=False))
+        # The knots are valid by construction and c is checked above: skip BSpline's checks.
+        object.__setattr__(self, "_bspline", BSpline.construct_fast(
+            _knots(t0, t1, len(c) - DEGREE), c, DEGREE, extrapolate=False))
 
     def __reduce__(self) -> tuple:
         # Rebuilt through __init__, which copies the coefficients: Dask's out-of-band pickle
@@ -131,16 +133,36 @@ class Spline:
         every coefficient down.
         """
         t = np.asarray(t, dtype=np.float64)
-        basis = design_matrix(t0, t1, sections, np.clip(t, t0, t1))
         values = np.asarray(values, dtype=np.float64)
         if weights is not None:
-            root = np.sqrt(np.asarray(weights, dtype=np.float64))
-            basis, values = basis * root[:, None], values * root
-        coefficients = np.linalg.lstsq(basis, values, rcond=None)[0]
-        return cls(t0, t1, coefficients)
+            weights = np.asarray(weights, dtype=np.float64)
+        if cls is not Spline or t.size > _CACHED_VALUES or values.shape != t.shape:
+            return cls(t0, t1, _lstsq(t, values, float(t0), float(t1), sections, weights))
+        # The fit smooths the same positions several times (speed, initial guess, reversals).
+        return _least_squares_cached(
+            float(t0), float(t1), sections, t.shape, t.tobytes(), values.tobytes(),
+            None if weights is None else weights.tobytes())
 
     def _in_span(self, t: ArrayLike) -> np.ndarray:
         return in_span(t, self.t0, self.t1)
+
+
+def _lstsq(t: np.ndarray, values: np.ndarray, t0: float, t1: float, sections: int,
+           weights: np.ndarray | None) -> np.ndarray:
+    basis = _design(t0, t1, sections, np.clip(t, t0, t1))
+    if weights is not None:
+        root = np.sqrt(weights)
+        basis, values = basis * root[:, None], values * root
+    return np.linalg.lstsq(basis, values, rcond=None)[0]
+
+
+@lru_cache(maxsize=16)
+def _least_squares_cached(t0: float, t1: float, sections: int, shape: tuple[int, ...],
+                          times: bytes, values: bytes, weights: bytes | None) -> Spline:
+    """:meth:`Spline.least_squares` of recent data (splines are immutable: shared)."""
+    return Spline(t0, t1, _lstsq(np.frombuffer(times).reshape(shape), np.frombuffer(values),
+                                 t0, t1, sections,
+                                 None if weights is None else np.frombuffer(weights)))
 
 
 def spline_knots(t0: float, t1: float, sections: int) -> np.ndarray:
@@ -148,11 +170,44 @@ def spline_knots(t0: float, t1: float, sections: int) -> np.ndarray:
     return np.concatenate([[t0] * DEGREE, np.linspace(t0, t1, sections + 1), [t1] * DEGREE])
 
 
+@lru_cache(maxsize=256)
+def _knots(t0: float, t1: float, sections: int) -> np.ndarray:
+    """:func:`spline_knots`, computed once per span and sections (read-only)."""
+    knots = spline_knots(t0, t1, sections)
+    knots.setflags(write=False)
+    return knots
+
+
 def design_matrix(t0: float, t1: float, sections: int, t: np.ndarray) -> np.ndarray:
     """Dense B-spline basis matrix at times ``t`` (inside [t0, t1]), shape (len(t), sections+3)."""
+    return _design(float(t0), float(t1), sections, t).copy()
+
+
+_CACHED_VALUES = 1 << 16  # larger time arrays are not cached (memory) ...
+_CACHED_BASIS = 1 << 17  # ... nor bases of more values (1 MiB): at most 32 MiB of bases
+
+
+def _design(t0: float, t1: float, sections: int, t: np.ndarray) -> np.ndarray:
+    """:func:`design_matrix`, read-only, cached for recent (span, sections, times): the refits of
+    a variation campaign sample every variation at the same times (the same bytes as computed
+    anew: it is the same computation)."""
     t = np.asarray(t, dtype=np.float64)
-    flat = BSpline.design_matrix(t.ravel(), spline_knots(t0, t1, sections), DEGREE)
-    return flat.toarray().reshape(*t.shape, sections + DEGREE)
+    if t.size > _CACHED_VALUES or t.size * (sections + DEGREE) > _CACHED_BASIS:
+        return _design_of(t0, t1, sections, t)
+    return _design_cached(t0, t1, sections, t.shape, t.tobytes())
+
+
+@lru_cache(maxsize=32)
+def _design_cached(t0: float, t1: float, sections: int, shape: tuple[int, ...], times: bytes
+                   ) -> np.ndarray:
+    return _design_of(t0, t1, sections, np.frombuffer(times).reshape(shape))
+
+
+def _design_of(t0: float, t1: float, sections: int, t: np.ndarray) -> np.ndarray:
+    flat = BSpline.design_matrix(t.ravel(), _knots(t0, t1, sections), DEGREE)
+    basis = flat.toarray().reshape(*t.shape, sections + DEGREE)
+    basis.setflags(write=False)
+    return basis
 
 
 def in_span(t: ArrayLike, t0: float, t1: float) -> np.ndarray:
@@ -197,11 +252,23 @@ class Quadrature:
 
     @classmethod
     def build(cls, t0: float, t1: float, sections: int, t: np.ndarray) -> Quadrature:
+        """The quadrature to the times ``t``; its arrays are read-only and shared: cached for
+        recent (span, sections, times), computed as anew."""
+        t = np.asarray(t, dtype=np.float64)
+        if t.size > _CACHED_VALUES:
+            return cls._build(float(t0), float(t1), sections, t)
+        return _quadrature_cached(float(t0), float(t1), sections, t.shape, t.tobytes())
+
+    @classmethod
+    def _build(cls, t0: float, t1: float, sections: int, t: np.ndarray) -> Quadrature:
         grid = integration_grid(t0, t1, sections)
         full_nodes, full_weights = _gauss(grid[:-1], grid[1:])
         index = np.clip(np.searchsorted(grid, t, side="right") - 1, 0, len(grid) - 2)
         part_nodes, part_weights = _gauss(grid[index], t)
-        return cls(grid, full_nodes, full_weights, index, part_nodes, part_weights)
+        arrays = (grid, full_nodes, full_weights, index, part_nodes, part_weights)
+        for array in arrays:
+            array.setflags(write=False)
+        return cls(*arrays)
 
     def integrate(self, full_values: np.ndarray, part_values: np.ndarray) -> np.ndarray:
         """∫_{t0}^{t} f for every query t, from f at the full and partial nodes.
@@ -214,6 +281,12 @@ class Quadrature:
                                      np.cumsum(per_interval, axis=0)])
         partial = np.sum(self.part_weights[extra] * part_values, axis=1)
         return cumulative[self.index] + partial
+
+
+@lru_cache(maxsize=32)
+def _quadrature_cached(t0: float, t1: float, sections: int, shape: tuple[int, ...],
+                       times: bytes) -> Quadrature:
+    return Quadrature._build(t0, t1, sections, np.frombuffer(times).reshape(shape))
 
 
 def _gauss(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
