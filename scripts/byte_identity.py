@@ -3,7 +3,8 @@
 Runs the demo's comparison commands (scripts/demo.sh steps 1-4 and 10, at smaller sizes, plus
 the runs and response tests, ``--json`` to stdout and a few refused options), step 7's
 reprocessing (files and ``--json``), the cut-in's (with GT: eqs. (4)-(7) in its analysis),
-``convert`` of a folder and of a file, and a quotient, with the sources of each commit (``git
+a variation campaign of the cut-in's fit(GT) (files and ``--json``), ``convert`` of a folder
+and of a file, and a quotient, with the sources of each commit (``git
 worktree`` of the commit, ``PYTHONPATH=<tree>/src``), and compares the SHA-256 of every output
 file, stdout and stderr included.
 
@@ -83,6 +84,11 @@ COMMANDS = [
     ("reprocess-cutin", ["reprocess", "{o}/cutin-measurement", "--out", "{o}/reprocess-cutin"]),
     ("reprocess-ngsim", ["reprocess", "tests/data/commonroad-ngsim/USA_US101-3_3_T-1.xml",
                          "--object", "394", "--out", "{o}/ngsim-394"]),
+    # the variation campaign of the cut-in's fit(GT): files, and --json printed from memory
+    ("vary", ["vary", "{o}/reprocess-cutin/descriptions/fit_GT.json", "-n", "6", "--seed", "2",
+              "--out", "{o}/vary"]),
+    ("vary-json", ["vary", "{o}/reprocess-cutin/descriptions/fit_GT.json", "-n", "6", "--seed",
+                   "2", "--out", "{o}/vary-json", "--json"]),
     ("quotient", ["contracts", "quotient", "examples/contracts/figure2.yaml", "--test-case",
                   "C_tc", "--given", "I1=M1", "--json"]),
 ]
