@@ -11,7 +11,7 @@ import pytest
 from simcred.cli import run
 from simcred.engine import engine
 from simcred.reprocess.pipeline import ReprocessConfig, reprocess
-from simcred.reprocess.vary import VaryConfig, run_campaign, write_campaign
+from simcred.reprocess.vary import VaryConfig, run_campaign, summary_text, write_campaign
 from simcred.scenario.description import Spline
 from simcred.sim.experiments import cutin
 
@@ -118,6 +118,17 @@ def test_cli_vary_writes_the_campaign(description, tmp_path):
     summary = json.loads((out / "variations.json").read_text())
     assert summary["generated"] == 4 and (out / "figures" / "fig8_variations.png").is_file()
     assert (out / "runs.parquet").is_file()
+
+
+def test_cli_vary_json_prints_the_text_of_variations_json(description, serial, tmp_path, capsys):
+    """``--json`` prints the campaign in memory (summary_text), the bytes it writes."""
+    write_campaign(serial, tmp_path / "lib")
+    assert summary_text(serial) == (tmp_path / "lib" / "variations.json").read_text()
+    path = description.write(tmp_path / "fit_GT.json")
+    capsys.readouterr()
+    assert run(["vary", str(path), "-n", "4", "--seed", "2", "--out", str(tmp_path / "o"),
+                "--json"]) == 0
+    assert capsys.readouterr().out == (tmp_path / "o" / "variations.json").read_text()
 
 
 @pytest.mark.parametrize("args, message", [

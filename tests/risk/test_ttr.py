@@ -460,3 +460,14 @@ def test_ttc_and_thw_for_oncoming_reversing_and_backward_traffic():
                             heading=[np.pi, 0.0, np.pi])
     np.testing.assert_allclose(time_to_collision(ego, objects), [40 / 30, 40 / 25, 40 / 10])
     np.testing.assert_allclose(time_headway(ego, objects), [2.0, 2.0, 2.0])
+
+
+def test_to_dict_is_the_settings_then_the_per_scene_columns():
+    """fields_dict in the keys' order of before; the per-prediction arrays and the configuration
+    are left out."""
+    result = risk(*lead_scenes([10.0, 40.0], 25.0, 15.0))
+    document = result.to_dict()
+    assert list(document) == ["method", "resolution", "prediction_names", "maneuver_names",
+                              "risk", "ttr_min", "dominant_object", "dominant_prediction"]
+    assert document["prediction_names"] == list(result.prediction_names)
+    assert document["risk"] is result.risk and document["method"] == "ttr"
