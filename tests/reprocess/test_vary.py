@@ -1,4 +1,4 @@
-"""The variation campaign (seed 002 sec. V): determinism serial vs Dask, assessment, CLI."""
+"""The variation campaign (paper 002 sec. V): determinism serial vs Dask, assessment, CLI."""
 
 from __future__ import annotations
 
