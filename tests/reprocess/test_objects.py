@@ -55,7 +55,7 @@ def test_a_trucks_footprint_is_its_recorded_shape_in_every_description(truck):
 
 def test_the_headway_is_bumper_to_bumper_with_the_recorded_lengths(truck):
     description = truck.descriptions["fit(SD)"]
-    t = truck.risk["SD"]["t"]
+    t = truck.risk["SD"].t
     e, o = description.objects["ego"].states(t), description.objects["to"].states(t)
     length = 0.5 * (description.objects["ego"].length + description.objects["to"].length)
     width = 0.5 * (description.objects["ego"].width + description.objects["to"].width)
@@ -63,7 +63,7 @@ def test_the_headway_is_bumper_to_bumper_with_the_recorded_lengths(truck):
     speed = e.v * np.cos(e.heading)  # along the road
     literal = np.where(lead, np.maximum(np.abs(o.x - e.x) - length, 0) / speed, np.inf)
     assert lead.sum() > 10
-    np.testing.assert_allclose(truck.risk["SD"]["thw"], literal, rtol=1e-12)
+    np.testing.assert_allclose(truck.risk["SD"].thw, literal, rtol=1e-12)
 
 
 def test_a_pedestrian_is_never_the_ego(tmp_path):

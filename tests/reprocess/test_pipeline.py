@@ -19,7 +19,7 @@ from scipy.optimize import brentq
 from simcred.io.measurement import Measurement
 from simcred.kinematics import Track
 from simcred.reprocess.decomposition import STEPS, ErrorStats, decompose, state_errors, wrap
-from simcred.reprocess.pipeline import reprocess
+from simcred.reprocess.pipeline import RiskSeries, reprocess
 from simcred.reprocess.reaction import (
     Reaction,
     ReactionCriteria,
@@ -281,6 +281,16 @@ def test_the_analysis_writes_the_flat_layout_of_reprocess_json(result):
     assert a.to_dict()["dt_react_GT_rGT[sb]"] == a.scenario_based.dt_react_gt_rgt
     assert result.to_dict()["analysis"] == a.to_dict() == result.analysis_report
 
+
+def test_every_representation_has_a_typed_risk_series_written_as_its_fields(result):
+    """risk.json's entry of a representation is its RiskSeries' fields in order, arrays as
+    lists; reprocess.json's max_risk is each series' max_risk."""
+    assert set(result.risk) == set(result.reactions)
+    for name, series in result.risk.items():
+        assert isinstance(series, RiskSeries)
+        assert list(series.to_dict()) == ["t", "risk", "ttr_min", "ttc", "thw"]
+        assert series.to_dict()["thw"] is series.thw and len(series.risk) == len(series.t)
+        assert result.to_dict()["max_risk"][name] == series.max_risk == float(series.risk.max())
 
 def test_fitting_gt_costs_far_less_than_fitting_sd(result):
     """Fit residuals follow the noise of what was fitted: the 2-D distance of isotropic noise of

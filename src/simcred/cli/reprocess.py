@@ -306,6 +306,6 @@ def _print_ad_function(ad: dict) -> None:
 def _print_reactions(result) -> None:
     rows = [(str(name), r.manoeuvre, "—" if r.time != r.time else
              f"{r.time:.2f}{'' if r.measurable else ' (at the start: not measurable)'}",
-             f"{result.risk[name]['risk'].max():.3g}") for name, r in result.reactions.items()]
+             f"{result.risk[name].max_risk:.3g}") for name, r in result.reactions.items()]
     out_console.print(plain_table("EGO reaction per representation",
                                   ("trace", "manoeuvre", "reaction time [s]", "max risk"), rows))

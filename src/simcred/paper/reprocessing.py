@@ -50,7 +50,7 @@ def _rmse(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def _max_risk(result: Reprocessed, name: str) -> float:
-    return max(float(result.risk[name]["risk"].max()), LOG_RISK_FLOOR)
+    return max(result.risk[name].max_risk, LOG_RISK_FLOOR)
 
 
 def _ratio(a: float, b: float) -> float:

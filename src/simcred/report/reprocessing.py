@@ -157,7 +157,7 @@ def fig7_velocity_risk(result: Reprocessed, path: str | Path) -> Path:
         speed.plot(t, result.states[source][ego].v, color=color, ls=style,
                    label=f"EGO {label}")
         r = result.risk[key]
-        risk.plot(r["t"], log_risk(r["risk"]), color=color, ls=style, label=label)
+        risk.plot(r.t, log_risk(r.risk), color=color, ls=style, label=label)
     if "GT" in result.states:
         speed.plot(t, result.states["GT"][to].v, color=TO_COLOR, lw=0.8, label="TO (GT)")
     _mark_reactions(speed, result)

@@ -2,17 +2,17 @@
 resimulation → refit → risk, reaction and the error of every step; and the variation campaign.
 
 Modules: ``representation`` (typed names GT, SD, rGT, rSD, [sb], fit(…)), ``pipeline``
-(:func:`reprocess`), ``errors`` (Fig. 4), ``reaction`` (eqs. 4-7: ``ReactionAnalysis``),
-``inputs`` (what ``simcred reprocess`` reads), ``timebase`` (a drive's recordings, gaps and
-common time base), ``obstacles`` (every CommonRoad obstacle as the TO), ``output`` (what it
-writes, figures aside), ``vary`` (sec. V campaign).
+(:func:`reprocess`; ``RiskSeries``: risk, TTC, THW), ``errors`` (Fig. 4), ``reaction`` (eqs. 4-7:
+``ReactionAnalysis``), ``inputs`` (what ``simcred reprocess`` reads), ``timebase`` (a drive's
+recordings, gaps and common time base), ``obstacles`` (every CommonRoad obstacle as the TO),
+``output`` (what it writes, figures aside), ``vary`` (sec. V campaign).
 """
 
 from simcred.reprocess.decomposition import ErrorStats, decompose
 from simcred.reprocess.inputs import LongColumns, read_measurement
 from simcred.reprocess.obstacles import reprocess_obstacles
 from simcred.reprocess.output import write
-from simcred.reprocess.pipeline import ReprocessConfig, Reprocessed, reprocess
+from simcred.reprocess.pipeline import ReprocessConfig, Reprocessed, RiskSeries, reprocess
 from simcred.reprocess.reaction import (
     Reaction,
     ReactionAnalysis,
@@ -48,6 +48,7 @@ __all__ = [
     "Rep",
     "ReprocessConfig",
     "Reprocessed",
+    "RiskSeries",
     "SensorKind",
     "Source",
     "VaryConfig",

@@ -102,4 +102,4 @@ def _summary(result: Reprocessed, out: Path) -> dict[str, Any]:
             "reactions": {k: r.manoeuvre for k, r in result.reactions.items()},
             "reactions_not_measurable": [k for k, r in result.reactions.items()
                                          if not r.measurable],
-            "max_risk": {k: float(r["risk"].max()) for k, r in result.risk.items()}}
+            "max_risk": {k: r.max_risk for k, r in result.risk.items()}}

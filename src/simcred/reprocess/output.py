@@ -43,9 +43,8 @@ def write(result: Reprocessed, directory: str | Path) -> dict[str, Path]:
         "reaction": _json(out / "reaction.json", "reaction", {
             "reactions": {k: r.to_dict() for k, r in result.reactions.items()},
             "analysis": result.analysis_report}, result.inputs),
-        "risk": _json(out / "risk.json", "risk", {
-            k: {col: values for col, values in r.items()} for k, r in result.risk.items()},
-            result.inputs),
+        "risk": _json(out / "risk.json", "risk",
+                      {k: r.to_dict() for k, r in result.risk.items()}, result.inputs),
     }
     (out / "descriptions").mkdir(exist_ok=True)
     for name, description in result.descriptions.items():

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from simcred._json import JsonResult
+from simcred._json import JsonResult, fields_dict
 from simcred.errors import OptionError, SimcredError
 from simcred.io.measurement import Measurement
 from simcred.kinematics import MOTION_SIGNALS, Track
@@ -90,6 +90,28 @@ class ReprocessConfig:
 
 
 @dataclass(frozen=True, slots=True, eq=False)
+class RiskSeries(JsonResult):
+    """The assessment of one representation ([1] §II-D), per scene every ``risk_dt`` on its
+    description: the scene times ``t`` (s), the TTR risk and the least TTR (s) of
+    :func:`simcred.risk.risk`, TTC and THW to the lead (s, :mod:`simcred.risk.measures`). Its
+    document (one entry of ``risk.json``) is its fields, arrays as lists."""
+
+    t: np.ndarray
+    risk: np.ndarray
+    ttr_min: np.ndarray
+    ttc: np.ndarray
+    thw: np.ndarray
+
+    @property
+    def max_risk(self) -> float:
+        """The highest risk of the series (``reprocess.json``'s ``max_risk``)."""
+        return float(self.risk.max())
+
+    def to_dict(self) -> dict[str, Any]:
+        return fields_dict(self)
+
+
+@dataclass(frozen=True, slots=True, eq=False)
 class Reprocessed(JsonResult):
     """Everything the pipeline produced; :meth:`to_dict` is ``reprocess.json``'s body."""
 
@@ -102,7 +124,7 @@ class Reprocessed(JsonResult):
     errors: dict[str, dict[str, dict[str, dict[str, ErrorStats]]]]
     reactions: dict[str, Reaction]
     analysis: ReactionAnalysis | None  # [1] §IV's eqs. (4)-(7); None without GT
-    risk: dict[str, dict[str, np.ndarray]]
+    risk: dict[str, RiskSeries]  # representation -> its risk, TTC and THW series
     sensor_model: OffsetDelaySensor | None
     inputs: dict[str, str] = field(default_factory=dict)  # GT / SD -> content hash
     ad_function: dict[str, Any] = field(default_factory=dict)  # the resimulations' parameters
@@ -147,7 +169,7 @@ class Reprocessed(JsonResult):
             "sensor_model": None if self.sensor_model is None else self.sensor_model.to_dict(),
             "reactions": {k: r.to_dict() for k, r in self.reactions.items()},
             "analysis": self.analysis_report,
-            "max_risk": {k: float(r["risk"].max()) for k, r in self.risk.items()},
+            "max_risk": {k: r.max_risk for k, r in self.risk.items()},
         }
 
 
@@ -285,7 +307,7 @@ def _reaction(description: ScenarioDescription, c: ReprocessConfig) -> Reaction:
     return reaction(s.t, s.y, s.v, s.heading, s.acceleration, c.criteria)
 
 
-def _risk(description: ScenarioDescription, c: ReprocessConfig) -> dict[str, np.ndarray]:
+def _risk(description: ScenarioDescription, c: ReprocessConfig) -> RiskSeries:
     """Risk, TTC and THW per scene every ``risk_dt`` on the description ([1] §II-D)."""
     t = description.times(c.risk_dt)
     ego_track, tracks = description.objects[c.ego], [description.objects[o] for o in c.objects]
@@ -295,18 +317,18 @@ def _risk(description: ScenarioDescription, c: ReprocessConfig) -> dict[str, np.
                                      length=np.array([track.length for track in tracks]),
                                      width=np.array([track.width for track in tracks]))
     result = risk(ego, others)
-    return {"t": t, "risk": result.risk, "ttr_min": result.ttr_min,
-            "ttc": time_to_collision(ego, others), "thw": time_headway(ego, others)}
+    return RiskSeries(t, result.risk, result.ttr_min, time_to_collision(ego, others),
+                      time_headway(ego, others))
 
 
 def log_risk(risk: np.ndarray) -> np.ndarray:
     return np.log10(np.maximum(risk, LOG_RISK_FLOOR))
 
 
-def log_risk_rmse(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> float:
+def log_risk_rmse(a: RiskSeries, b: RiskSeries) -> float:
     """RMSE of log10 risk over the common sample times of two risk series."""
-    n = min(len(a["risk"]), len(b["risk"]))
-    return float(np.sqrt(np.mean((log_risk(a["risk"][:n]) - log_risk(b["risk"][:n])) ** 2)))
+    n = min(len(a.risk), len(b.risk))
+    return float(np.sqrt(np.mean((log_risk(a.risk[:n]) - log_risk(b.risk[:n])) ** 2)))
 
 
 def _analysis(states: dict[Rep, dict[str, Track]], reactions: dict[str, Reaction],
