@@ -23,8 +23,8 @@ echo "== 4. distance matrix: baseline, an independent repeat of it, and the vari
   --out "$out/matrix"
 echo
 echo "== 5. all three methods at the sizes the papers' claims are made for: simcred paper all"
-echo "   seed 000: SimpleCar sweep + T-junction (full size); seed 002: cut-in reprocessed and"
-echo "   varied 300 times; seed 003: configuration, quotient, monitors"
+echo "   paper 000: SimpleCar sweep + T-junction (full size); paper 002: cut-in reprocessed and"
+echo "   varied 300 times; paper 003: configuration, quotient, monitors"
 "$simcred" paper all --out "$out/all" --variations 300 --workers 2
 echo
 echo "== 6. the report"

@@ -48,7 +48,7 @@ def paper_000(
         claims = markov_chains.run_all(target.path, runs=runs, seed=seed, runner=runner,
                                        progress_for=progress)
     if not State.quiet:
-        out_console.print(claims_table(claims, "seed 000: the paper's claims"))
+        out_console.print(claims_table(claims, "paper 000: the paper's claims"))
         say(f"wrote figures, tables and claims.json to {out}")
 
 
@@ -75,7 +75,7 @@ def paper_002(
         run = reprocessing.run_all(target.path, seed=seed, variations=variations,
                                    runner=runner, progress_for=progress)
     if not State.quiet:
-        out_console.print(claims_table(run.claims, "seed 002: the paper's claims"))
+        out_console.print(claims_table(run.claims, "paper 002: the paper's claims"))
         say(run.reaction_summary())
         say(f"wrote measurement, results, figures and claims.json to {out}")
 
@@ -86,16 +86,16 @@ def paper_002(
 def paper_all(
     out: Annotated[Path, typer.Option(help="Directory for every seed's results and the "
                                            "combined claims.json.")],
-    runs: Annotated[int | None, typer.Option(help="Seed 000: runs per trace set (default: the "
+    runs: Annotated[int | None, typer.Option(help="Paper 000: runs per trace set (default: the "
                                                   "documented full size).")] = None,
-    variations: Annotated[int, typer.Option(help="Seed 002: variations of the cut-in.")] = 300,
+    variations: Annotated[int, typer.Option(help="Paper 002: variations of the cut-in.")] = 300,
     seed: Annotated[int, typer.Option(min=0, help="Seed of every experiment.")] = 0,
     workers: Workers = None,
     scheduler: Scheduler = None,
     overwrite: Overwrite = False,
     resume: Resume = False,
 ) -> None:
-    """All three seeds: paper 000, paper 002, and seed 003's contracts on the cut-in."""
+    """All three papers: 000, 002, and paper 003's contracts on the cut-in."""
     from simcred.paper.all import AllOptions, run_all
 
     if runs is not None:
