@@ -11,7 +11,9 @@ and writes everything to --out (JSON).
     ... --designs 'defect:*:40:*' --reps 100
 
 Design names: the H0 designs (``lengths``, ``lengths_markov``, ``paired_scenarios``,
-``leaders_split``, ``grouped``, ``segments``) and ``defect:<kind>:<runs>:<paired|unpaired>`` for
+``leaders_split``, ``grouped``, ``segments``), ``lengths_markov_equal10`` /
+``lengths_markov_equal100`` (that chain with equal run lengths on both sides) and
+``defect:<kind>:<runs>:<paired|unpaired>`` for
 every kind of response_designs.DEFECTS and runs 40, 100. --designs takes comma-separated names or
 shell patterns, and the aliases ``h0``, ``defects``, ``all``.
 """
@@ -40,7 +42,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
 from peer_energy import energy_test  # noqa: E402
-from response_designs import DEFECTS, H0, Design, defect  # noqa: E402
+from response_designs import DEFECTS, H0, Design, defect, lengths_markov  # noqa: E402
 from simcred.compare import compare  # noqa: E402
 
 # -- designs ---------------------------------------------------------------------------------------
@@ -51,6 +53,9 @@ for _kind in DEFECTS:
         for _paired in (True, False):
             DESIGNS[f"defect:{_kind}:{_runs}:{'paired' if _paired else 'unpaired'}"] = partial(
                 defect, kind=_kind, runs=_runs, paired=_paired)
+# the lengths_markov chain with equal run lengths (is the size problem the lengths' or the chain's?)
+DESIGNS["lengths_markov_equal10"] = partial(lengths_markov, long=10)
+DESIGNS["lengths_markov_equal100"] = partial(lengths_markov, short=100)
 ALIASES = {"h0": list(H0), "defects": [n for n in DESIGNS if n.startswith("defect:")],
            "all": list(DESIGNS)}
 
