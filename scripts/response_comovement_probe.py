@@ -1,8 +1,8 @@
 """Probe (not shipped in the test): a co-movement component for the response test's chain.
 
-Written against the chain before the co-movement component (the results in calibration.md ran
-at commit 925d22a, where ``state_unit_sums`` was ``response.unit_sums`` and ``_rebuild`` called
-``response.spread_statistics``): at later commits ``shipped`` already holds the co-movement.
+Written against the chain before the co-movement component: the results in calibration.md ran
+at commit 925d22a (run it there; at later commits ``shipped`` already holds the co-movement and
+``response.unit_sums`` / ``response.spread_statistics`` are gone).
 
 A 0.5 s reaction delay or late braking shows less in any one response's law given the state than
 in how two responses move *together*: in a car-following set the residual of the relative speed
@@ -49,7 +49,6 @@ import simcred.compare.response as response  # noqa: E402
 from response_designs import lengths  # noqa: E402
 from simcred.compare.paired_runs import tippett  # noqa: E402
 from simcred.compare.runs import OneSided, exceedance_pvalues, standardise  # noqa: E402
-from simcred.compare.state_sums import state_unit_sums  # noqa: E402
 from simcred.compare.transitions import state_means  # noqa: E402
 
 SHIPPED = response.response_test
@@ -69,7 +68,7 @@ def comovement_z(data, n_units, assignments, pairs, rng):
     z = r / (r.std(axis=0) + 1e-300)
     q = np.column_stack([z[:, j] * z[:, k] for j, k in pairs])
     values = np.rint(response.LEVELS * q)
-    sums = state_unit_sums(data, np.column_stack([np.ones(len(q)), values]), n_units)
+    sums = response.unit_sums(data, np.column_stack([np.ones(len(q)), values]), n_units)
     mean = state_means(data.state, values)
     variances = np.maximum(state_means(data.state, values**2) - mean**2, 0.0) \
         / response.LEVELS**2

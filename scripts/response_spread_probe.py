@@ -1,8 +1,7 @@
 """Probe (not shipped in the test): a spread component for the response test's chain.
 
-Written against the chain of commit 5e7c0df (session 11; run it there, where
-``state_unit_sums`` was ``response.unit_sums``): the package has moved on (the co-movement
-component, compare/state_sums.py).
+Written against the chain of commit 5e7c0df (session 11; run it there): the package has moved
+on (the co-movement component, compare/state_sums.py).
 
 The unpaired response test loses to the energy peer on variance and clip defects
 (docs/calibration.md). This probe adds a Levene-type statistic — per state the A–B difference of
@@ -51,7 +50,6 @@ import simcred.compare.transitions as transitions_module  # noqa: E402
 from response_designs import lengths  # noqa: E402
 from simcred.compare.paired_runs import tippett  # noqa: E402
 from simcred.compare.runs import OneSided, exceedance_pvalues, standardise  # noqa: E402
-from simcred.compare.state_sums import state_unit_sums  # noqa: E402
 from simcred.compare.transitions import adjusted, state_means  # noqa: E402
 
 SHIPPED = response.response_test
@@ -77,7 +75,7 @@ def _abs_residual(data, rng):
 
 
 def _pooled_z(data, columns, variances, n_units, assignments):
-    sums = state_unit_sums(data, columns, n_units)
+    sums = response.unit_sums(data, columns, n_units)
     n_features = len(data.response)
     _, pooled, _, _ = response.assignment_statistics(sums, assignments, n_features,
                                                      np.maximum(variances, 0.0), None)

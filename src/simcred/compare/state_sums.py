@@ -129,14 +129,3 @@ class SumLayout:
                                shape=(n_blocks * self.width, self.n_units))
         return RunCounts(matrix, self.pairs.blocks, np.arange(n_blocks + 1) * self.width,
                          np.zeros(n_blocks * self.width, dtype=np.int64))
-
-
-def state_unit_sums(data: Transitions, columns: np.ndarray, n_units: int) -> RunCounts:
-    """Per state a block of ``columns.shape[1]`` rows, per unit the column sums over its
-    transitions in that state: a sparse (blocks · width) × units matrix."""
-    pairs = StatePairs.of(data)
-    sums = np.add.reduceat(columns, pairs.starts[:-1], axis=0)
-    layout = SumLayout(pairs, columns.shape[1], n_units)
-    for b in range(len(pairs.blocks)):
-        layout.view(b)[:] = sums[layout.first[b]:layout.first[b + 1]].T
-    return layout.counts()
