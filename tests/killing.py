@@ -85,11 +85,17 @@ def kill_after(argv: list[str], out: Path, count: int, timeout: float = 120
     return process.wait(), sent
 
 
+def differing(got: dict[str, bytes], want: dict[str, bytes]) -> list[str]:
+    """The files missing from, extra in or different in ``got`` against ``want``."""
+    return sorted(n for n in got.keys() | want.keys() if got.get(n) != want.get(n))
+
+
 def finished_despite_kill(out: Path, expected: dict[str, bytes]) -> bool:
     """True when the job had renamed its output before the kill came: then it is complete."""
     if not out.exists():
         return False
-    assert files(out) == expected  # what looks complete is complete
+    got = files(out)
+    assert got == expected, differing(got, expected)  # what looks complete is complete
     return True
 
 
@@ -110,6 +116,7 @@ def kill_and_resume(args: list[str], out: Path, count: int, total: int,
     done = subprocess.run(command(args, out, "--resume"), env=environment(), timeout=timeout,
                           stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     assert done.returncode == code, (done.returncode, done.stderr[-2000:])
-    assert files(out) == want
+    got = files(out)
+    assert got == want, differing(got, want)
     assert not partial_path(out).exists()
     return killed

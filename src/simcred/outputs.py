@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import tempfile
 from collections.abc import Callable, Iterator, Sequence
@@ -132,6 +133,7 @@ def _make_partial(partial: Path) -> None:
     """Create ``partial`` holding its :data:`MARKER`, atomically: a kill at any moment leaves
     no partial output without its marker (which could then be neither resumed nor replaced)."""
     partial.parent.mkdir(parents=True, exist_ok=True)
+    _drop_staging_debris(partial)
     staging = Path(tempfile.mkdtemp(prefix=f".{partial.name}-", dir=partial.parent))
     try:
         (staging / MARKER).write_bytes(MARKER_TEXT)
@@ -139,6 +141,39 @@ def _make_partial(partial: Path) -> None:
     except BaseException:  # e.g. the disk is full: nothing is left behind
         shutil.rmtree(staging, ignore_errors=True)
         raise
+
+
+def _drop_staging_debris(partial: Path) -> None:
+    """Remove what an earlier :func:`_make_partial` killed before its rename left beside
+    ``partial``: folders named like its staging folder that hold nothing but simcred's
+    :data:`MARKER` (nothing else can be in them)."""
+    for debris in partial.parent.glob(f".{partial.name}-*"):
+        if debris.is_symlink() or not debris.is_dir():
+            continue
+        content = list(debris.iterdir())
+        marker = debris / MARKER
+        if content in ([], [marker]) and (not content or _is_marker(marker)):
+            shutil.rmtree(debris, ignore_errors=True)
+
+
+#: The name :func:`write_atomic` gives its temporary file (``tempfile.mkstemp``'s 8 characters).
+_TEMPORARY = re.compile(r"\..+\.[a-z0-9_]{8}\.tmp")
+
+
+def _drop_temporaries(partial: Path) -> None:
+    """Remove the temporary files of :func:`write_atomic` calls that a kill interrupted in an
+    inherited ``partial`` (a resumed run writes those files again; left, they would end up in
+    the output)."""
+    for path in partial.rglob(".*.tmp"):
+        if _TEMPORARY.fullmatch(path.name) and path.is_file() and not path.is_symlink():
+            path.unlink(missing_ok=True)
+
+
+def _is_marker(path: Path) -> bool:
+    """Whether ``path`` is a regular file holding :data:`MARKER_TEXT` or a prefix of it (a kill
+    can land while it is written)."""
+    return (not path.is_symlink() and path.is_file() and path.stat().st_size <= len(MARKER_TEXT)
+            and MARKER_TEXT.startswith(path.read_bytes()))
 
 
 @contextmanager
@@ -179,6 +214,7 @@ def output_path(out: Path, inputs: Sequence[Path] = (), *, kind: str = "director
     if inherited:
         _refuse_foreign(partial, "the partial output")
         lock = _lock(partial)  # refuses a partial output another command is writing now
+        _drop_temporaries(partial)
         if not resume:
             if not overwrite:
                 _unlock(lock)

@@ -9,6 +9,7 @@ import pytest
 from simcred.errors import OptionError
 from simcred.outputs import (
     MARKER,
+    MARKER_TEXT,
     Checkpoint,
     check_out,
     output_dir,
@@ -103,6 +104,41 @@ def test_resume_continues_the_partial_run(tmp_path):
         assert checkpoint.load("chunk_0") == b"zero" and checkpoint.keys() == ["chunk_0"]
         (partial / "result.json").write_text("{}")
     assert listing(out) == ["result.json"]  # checkpoints dropped
+
+
+@pytest.mark.parametrize("marker", [None, b"", MARKER_TEXT[:7], MARKER_TEXT],
+                         ids=["empty", "empty marker", "half marker", "marker"])
+def test_a_staging_folder_left_by_a_kill_is_removed(tmp_path, marker):
+    """A kill between creating ``OUT.partial``'s staging folder and renaming it leaves that
+    folder beside the output (seen in CI in a validation's candidate simulation); the next run
+    removes it, and nothing that holds anything else."""
+    out = tmp_path / "out"
+    debris = tmp_path / ".out.partial-x1y2"
+    debris.mkdir()
+    if marker is not None:
+        (debris / MARKER).write_bytes(marker)
+    other = tmp_path / ".out.partial-keep"
+    other.mkdir()
+    (other / "data.csv").write_text("t\n")
+    with output_dir(out) as partial:
+        (partial / "f").write_text("x")
+    assert sorted(p.name for p in tmp_path.iterdir()) == [".out.partial-keep", "out"]
+
+
+def test_a_resumed_run_drops_temporaries_of_interrupted_writes(tmp_path):
+    """A kill inside :func:`write_atomic` leaves its temporary file; a resumed run removes it
+    (else the output would differ from an uninterrupted run's) and keeps everything else."""
+    out = tmp_path / "out"
+    with pytest.raises(KeyboardInterrupt), output_dir(out, keep_partial=True) as partial:
+        Checkpoint(partial).save("chunk_0", b"zero")
+        (partial / "sub").mkdir()
+        for name in (".result.json.ab_3x9zq.tmp", "sub/.f.csv.12345678.tmp", "keep.tmp"):
+            (partial / name).write_text("half")
+        raise KeyboardInterrupt
+    with output_dir(out, resume=True, keep_partial=True) as partial:
+        assert Checkpoint(partial).keys() == ["chunk_0"]
+    assert sorted(p.relative_to(out).as_posix() for p in out.rglob("*") if p.name != MARKER) == [
+        "keep.tmp", "sub"]
 
 
 def test_write_atomic_leaves_no_temporary_on_failure(tmp_path):
