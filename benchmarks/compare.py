@@ -1,4 +1,4 @@
-"""Benchmarks of the seed-000 comparison: prints a table, writes benchmarks/results/compare.json.
+"""Benchmarks of the paper-000 comparison: prints a table, writes benchmarks/results/compare.json.
 
 (a) count-based compare vs the literal sample-based oracle (tests/oracle.py), identical results;
 (b) the 9×9 distance matrix, bound and permutation test, serial and on 2 worker processes;

@@ -1,4 +1,4 @@
-"""Benchmarks of seed 002's reprocessing: prints a table, writes benchmarks/results/reprocess.json.
+"""Benchmarks of paper 002's reprocessing: prints a table, writes benchmarks/results/reprocess.json.
 
 * **fit** — one 20 s trace at 100 Hz (the cut-in TO from 0 to 20 s, 1 cm noise), the whole
   section search (target < 0.2 s). Reference in the same run: the final least-squares solve with
@@ -152,7 +152,7 @@ def main() -> None:
     results = {"fit": bench_fit(repeats), "fit real": bench_fit_real(repeats),
                "ttr per scene": bench_ttr(500 if quick else 2000, 20 if quick else 100, repeats),
                "pipeline": bench_pipeline(1 if quick else 3)}
-    table = Table(title="seed 002 reprocessing (best of k, one process)")
+    table = Table(title="paper 002 reprocessing (best of k, one process)")
     for column in ("what", "time", "target", "met", "reference", "ratio"):
         table.add_column(column)
     fit, ttr, pipe = results["fit"], results["ttr per scene"], results["pipeline"]

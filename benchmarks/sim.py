@@ -73,7 +73,7 @@ def measure(model: VehicleModel, runs: int, seconds: float, repeats: int) -> dic
 
 
 def experiments(runs: int, repeats: int) -> list[dict]:
-    """Runs per second of the seed-000 experiments at their default settings."""
+    """Runs per second of the paper-000 experiments at their default settings."""
     cases = [("simplecar sweep (λ = 1, dt 2 s, 40 s)",
               lambda: simplecar_sweep.simulate(range(runs), 0, lam=1.0))]
     cases += [(f"tjunction {c} (dt 0.1 s)",

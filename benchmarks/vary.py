@@ -1,4 +1,4 @@
-"""Benchmark of seed 002's local variation: prints a table, writes benchmarks/results/vary.json.
+"""Benchmark of paper 002's local variation: prints a table, writes benchmarks/results/vary.json.
 
 300 variations of the cut-in's fit(GT) generated (C2 Bézier, plausibility check), refitted and
 resimulated (KS, ideal sensor, 100 Hz) — target < 10 s on 2 cores; the time includes each

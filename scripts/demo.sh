@@ -52,7 +52,7 @@ cf="$out/validate-examples/car_following"
 "$simcred" validate "$cf/validation.yaml" --out "$out/validate-cf" \
   || [ $? -eq 1 ]  # exit 1 = "not valid": the answer, not a failure
 echo
-echo "== 10. validate: is the KS resimulation valid for the seed-002 cut-in? (manufactured data)"
+echo "== 10. validate: is the KS resimulation valid for the paper-002 cut-in? (manufactured data)"
 cutin="$out/validate-examples/cutin"
 "$python" "$cutin/make_runs.py" --out "$cutin"
 "$simcred" validate "$cutin/validation.yaml" --out "$out/validate-cutin"

@@ -95,7 +95,7 @@ COMMANDS: dict[str, tuple[Callable[[Path], list[str]], int]] = {
     # 20 variations generated (1 chunk), the original and the variations resimulated (2)
     "paper 002": (lambda root: ["paper", "002", "--variations", "20", "--seed", "3"], 7),
     # paper 000 (602 chunks), then paper 002 (7 chunks: the kills at 608 and 609 land in it),
-    # then seed 003 (no chunks)
+    # then paper 003 (no chunks)
     "paper all": (lambda root: [
         "paper", "all", "--runs", "2", "--variations", "20", "--seed", "3"], 609),
 }

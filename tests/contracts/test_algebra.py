@@ -1,4 +1,4 @@
-"""Contract algebra (seed 003, sec. III; docs/contracts.md "Algebra"): laws on random linear
+"""Contract algebra (paper 003, sec. III; docs/contracts.md "Algebra"): laws on random linear
 contracts, verdicts against closed forms and a brute-force oracle, counterexamples checked by
 evaluation.
 

@@ -1,4 +1,4 @@
-"""The assertion language (seed 003): parse/print round trips, the numpy back end against z3
+"""The assertion language (paper 003): parse/print round trips, the numpy back end against z3
 (exact rationals), the robustness margin against the boolean value, and one-line parse errors.
 
 Random ASTs are built in the parser's canonical form (``and``/``or`` flattened, a negated or

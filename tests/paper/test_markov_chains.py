@@ -1,4 +1,4 @@
-"""seed 000 reproduction: claim logic on known curves, and the whole command at a tiny size."""
+"""Paper 000 reproduction: claim logic on known curves, and the whole command at a tiny size."""
 
 import json
 

@@ -1,4 +1,4 @@
-"""Seed 002's claims (paper 002): reproduced on the default universe, and able to fail.
+"""Paper 002's claims (Wagner, Groh et al.): reproduced on the default universe, and able to fail.
 
 Oracles: closed forms (t_ΔS,d = ΔS,d / v_EGO; a noise-free sensor model predicts the SD it
 produced exactly, the ideal sensor misses it by the offset), and perturbed universes in which a

@@ -1,4 +1,4 @@
-"""Seed 003 on the cut-in (paper 003 part of `simcred paper all`): configuration, quotient,
+"""Paper 003 on the cut-in (the paper 003 part of `simcred paper all`): configuration, quotient,
 monitors; and the combined claims of `paper all`."""
 
 from __future__ import annotations

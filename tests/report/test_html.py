@@ -1,7 +1,7 @@
 """`simcred report DIR`: a self-contained, deterministic HTML page, checked as text and in Chromium.
 
 The unit tests build a synthetic `simcred paper all` directory (small matplotlib PNGs, claims that
-pass and fail, seed 003's findings.json) and a partial one. The browser test renders the page in
+pass and fail, paper 003's findings.json) and a partial one. The browser test renders the page in
 headless Chromium: a screenshot that is not blank, and the dumped DOM after the `load` event, in
 which the page's own script has counted the images that decoded (`data-images-loaded`).
 """
@@ -23,10 +23,11 @@ import pytest  # noqa: E402
 from browser import headless  # noqa: E402
 from simcred.cli import run  # noqa: E402
 from simcred.errors import SimcredError  # noqa: E402
+from simcred.paper.all import AllOptions, _write_combined  # noqa: E402
 from simcred.report.html import MAX_VIOLATIONS, render_report, write_report  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
-SECTIONS = ("seed-000", "seed-002", "seed-003", "provenance")
+SECTIONS = ("paper-000", "paper-002", "paper-003", "provenance")
 FIGURES = {
     "000": ["fig5_inputs.png", "fig6_xy.png", "fig7_xy_heading.png", "table3_bound.png",
             "table3_permutation.png", "extra_histogram.png"],
@@ -50,14 +51,14 @@ def _png(path: Path, k: int) -> None:
     plt.close(fig)
 
 
-def _claims(seed: str) -> list[dict]:
+def _claims(paper: str) -> list[dict]:
     claims = [
-        {"id": f"{seed}.holds", "claim": f"seed {seed}: something that holds", "value": 0.5,
+        {"id": f"{paper}.holds", "claim": f"paper {paper}: something that holds", "value": 0.5,
          "bound": 0.9, "passed": True, "note": "value below bound"},
-        {"id": f"{seed}.fails", "claim": f"seed {seed}: something that fails", "value": 3.25,
+        {"id": f"{paper}.fails", "claim": f"paper {paper}: something that fails", "value": 3.25,
          "bound": 2.0, "passed": False, "note": ""},
     ]
-    if seed == "000":
+    if paper == "000":
         claims.append({"id": "000.escaped", "claim": EVIL, "value": None, "bound": None,
                        "passed": True, "note": EVIL})
     return claims
@@ -99,25 +100,25 @@ def _findings() -> dict:
     }
 
 
-def make_paper_dir(root: Path, seeds=("000", "002", "003")) -> Path:
-    """A synthetic `simcred paper all` output with the given seed folders."""
+def make_paper_dir(root: Path, papers=("000", "002", "003")) -> Path:
+    """A synthetic `simcred paper all` output with the given paper folders."""
     root.mkdir(parents=True, exist_ok=True)
     k = 0
     entries = {}
-    for seed in seeds:
-        folder = root / f"paper{seed}"
-        for name in FIGURES[seed]:
+    for paper in papers:
+        folder = root / f"paper{paper}"
+        for name in FIGURES[paper]:
             _png(folder / name, k)
             k += 1
-        entries[seed] = {"title": TITLES[seed], "provenance": PROVENANCE[seed],
-                         "claims": _claims(seed)}
+        entries[paper] = {"title": TITLES[paper], "provenance": PROVENANCE[paper],
+                          "claims": _claims(paper)}
         (folder / "claims.json").parent.mkdir(parents=True, exist_ok=True)
         (folder / "claims.json").write_text(json.dumps(
-            {"schema_version": 1, "kind": "claims", "simcred_version": "0.1.0", **entries[seed]}))
-        if seed == "003":
+            {"schema_version": 1, "kind": "claims", "simcred_version": "0.1.0", **entries[paper]}))
+        if paper == "003":
             (folder / "findings.json").write_text(json.dumps(_findings()))
     document = {"schema_version": 1, "kind": "claims_all", "simcred_version": "0.1.0",
-                "seeds": entries,
+                "papers": entries,
                 "run": {"command": "simcred paper all --out DIR --runs 40",
                         "options": {"runs": 40, "seed": 0, "variations": 300},
                         "versions": {"simcred": "0.1.0", "numpy": "2.0.0", "python": "3.11"},
@@ -142,8 +143,8 @@ def _section(html: str, anchor: str) -> str:
     return html[start:html.index("</section>", start)]
 
 
-def _claim_row(html: str, seed: str, claim_id: str) -> str:
-    match = re.search(rf'<tr id="claim-{seed}-{re.escape(claim_id)}"[^>]*>.*?</tr>', html, re.S)
+def _claim_row(html: str, paper: str, claim_id: str) -> str:
+    match = re.search(rf'<tr id="claim-{paper}-{re.escape(claim_id)}"[^>]*>.*?</tr>', html, re.S)
     assert match, f"no row for claim {claim_id}"
     return match.group(0)
 
@@ -154,10 +155,10 @@ def test_every_section_claim_and_status_is_on_the_page(full_report):
     for anchor in SECTIONS:
         assert f'<section id="{anchor}">' in html
         assert f'href="#{anchor}"' in html  # table of contents
-    for seed in ("000", "002", "003"):
-        section = _section(html, f"seed-{seed}")
-        for claim in _claims(seed):
-            row = _claim_row(section, seed, claim["id"])
+    for paper in ("000", "002", "003"):
+        section = _section(html, f"paper-{paper}")
+        for claim in _claims(paper):
+            row = _claim_row(section, paper, claim["id"])
             status = "pass" if claim["passed"] else "fail"
             assert f'<span class="badge {status}">{status}</span>' in row
             assert f"<code>{claim['id']}</code>" in row
@@ -182,19 +183,19 @@ def test_every_png_is_embedded_and_nothing_is_fetched(full_dir, full_report):
 
 def test_figures_in_the_papers_order_then_extras(full_report):
     _, html = full_report
-    section = _section(html, "seed-000")
+    section = _section(html, "paper-000")
     order = [section.index(f"paper000/{name}</code>") for name in FIGURES["000"]]
     assert order == sorted(order)  # extra_histogram.png (unknown) comes last
     assert "Fig. 5: the input functions" in section
     assert "Table 3 with a permutation test" in section
-    reprocessing = _section(html, "seed-002")
+    reprocessing = _section(html, "paper-002")
     assert "Fig. 3: the scenario description fitted to GT" in reprocessing
     assert "Fig. 8: the simulations of the variations" in reprocessing
 
 
 def test_provenance_is_flattened_and_run_record_shown(full_report):
     _, html = full_report
-    reprocessing = _section(html, "seed-002")
+    reprocessing = _section(html, "paper-002")
     assert "<code>cutin.sensor.delay.mean</code>" in reprocessing
     assert "simplecar_sweep: experiment = simplecar-sweep, runs = 40, seed = 0" in html
     assert "(40 values)" in html  # long lists abbreviated, full value in the title
@@ -202,12 +203,13 @@ def test_provenance_is_flattened_and_run_record_shown(full_report):
     assert "simcred paper all --out DIR --runs 40" in provenance
     assert "ab" * 32 in provenance
     assert "<code>numpy</code>" in provenance
-    assert "<code>variations.seed</code>" in provenance  # seeds collected from every seed
+    assert "<td>paper 002</td><td><code>variations.seed</code></td>" in provenance  # seeds
+    # are collected from the run options and every paper's provenance
 
 
-def test_seed_003_findings(full_report):
+def test_paper_003_findings(full_report):
     _, html = full_report
-    section = _section(html, "seed-003")
+    section = _section(html, "paper-003")
     assert "<code>camera_v1</code>" in section and "ks_model" in section
     assert "<pre>assume: rain &lt;= 2\nguarantee: |d_err| &lt;= 0.5 &amp; x &lt; y</pre>" in section
     assert "no: no setup refines it" in section
@@ -235,14 +237,14 @@ def test_same_directory_gives_byte_identical_html(full_dir, full_report, tmp_pat
 
 
 def test_partial_directory_names_what_is_missing(tmp_path):
-    root = make_paper_dir(tmp_path / "partial", seeds=("000", "002"))
+    root = make_paper_dir(tmp_path / "partial", papers=("000", "002"))
     (root / "paper002" / "figures" / "fig6_traces.png").unlink()
     html = write_report(root).read_text(encoding="utf-8")
     for anchor in SECTIONS:
         assert f'<section id="{anchor}">' in html
     assert html.count("data:image/png;base64,") == len(list(root.rglob("*.png")))
-    validity_contracts = _section(html, "seed-003")
-    assert "not run: claims.json has no entry for seed 003" in validity_contracts
+    validity_contracts = _section(html, "paper-003")
+    assert "not run: claims.json has no entry for paper 003" in validity_contracts
     assert "<code>paper003/</code> is missing" in validity_contracts
     assert "Missing: <code>paper002/figures/fig6_traces.png</code>" in html
     assert "4 of 5 claims hold" not in html and "3 of 5 claims hold" in html
@@ -253,8 +255,8 @@ def test_damaged_parts_do_not_stop_the_report(tmp_path):
     (root / "paper003" / "findings.json").write_text("{ not json")
     (root / "paper000" / "fig6_xy.png").write_bytes(b"\x89PNG\r\n")  # cut off while written
     document = json.loads((root / "claims.json").read_text())
-    del document["seeds"]["002"], document["run"]  # falls back to paper002/claims.json
-    document["seeds"]["000"]["claims"].append({"id": "000.odd", "passed": "maybe"})
+    del document["papers"]["002"], document["run"]  # falls back to paper002/claims.json
+    document["papers"]["000"]["claims"].append({"id": "000.odd", "passed": "maybe"})
     (root / "claims.json").write_text(json.dumps(document))
     html = write_report(root).read_text(encoding="utf-8")
     assert "paper003/findings.json is not valid JSON (line 1, column 3)" in html
@@ -262,6 +264,36 @@ def test_damaged_parts_do_not_stop_the_report(tmp_path):
     assert "shown from paper002/claims.json" in html
     assert '<span class="badge unknown">unknown</span>' in _claim_row(html, "000", "000.odd")
     assert "claims.json has no run record" in html
+
+
+def _shows_the_three_papers(html: str) -> None:
+    for paper in ("000", "002", "003"):
+        section = _section(html, f"paper-{paper}")
+        assert f"<h2>Paper {paper}: " in section
+        assert "no entry for paper" not in section  # read from the top-level claims.json
+        for claim in _claims(paper):
+            _claim_row(section, paper, claim["id"])
+    assert "4 of 7 claims hold" in html
+
+
+def test_claims_json_of_paper_all_is_read(tmp_path):
+    """The top-level claims.json as `simcred paper all` writes it (key "papers")."""
+    root = make_paper_dir(tmp_path / "all")
+    _write_combined(root, AllOptions(runs=40), {"library.yaml": "ab" * 32})
+    document = json.loads((root / "claims.json").read_text())
+    assert list(document["papers"]) == ["000", "002", "003"] and "seeds" not in document
+    _shows_the_three_papers(render_report(root))
+
+
+def test_old_claims_json_with_seeds_key_still_shows_the_papers(tmp_path):
+    """A claims.json written before the papers were keyed "papers" keys them "seeds"."""
+    root = make_paper_dir(tmp_path / "old")
+    document = json.loads((root / "claims.json").read_text())
+    document = {("seeds" if k == "papers" else k): v for k, v in document.items()}
+    (root / "claims.json").write_text(json.dumps(document))
+    html = render_report(root)
+    _shows_the_three_papers(html)
+    assert "<td>paper 002</td><td><code>variations.seed</code></td>" in html
 
 
 def test_bad_directory_is_one_line_error(tmp_path, capsys):

@@ -1,6 +1,6 @@
 """Markup payloads through every field of both HTML reports reach the page as text only.
 
-The papers' report (``simcred report``, with the seed 002 section) gets a payload in every string
+The papers' report (``simcred report``, with the paper 002 section) gets a payload in every string
 of its claims files (claim ids and texts, notes, provenance keys and values, run options, input
 file names, monitors' run ids, clauses and signal names), in figure file names and in its folder
 name; the validation report (``simcred validate``) gets them in the validation's name, the trace
@@ -84,7 +84,7 @@ def _shown(page: Page, payload: str) -> bool:
     return payload in "".join(page.text)
 
 
-# --- the papers' report (simcred report), seed 002 and all others -------------------------------
+# --- the papers' report (simcred report), paper 002 and all others ------------------------------
 
 #: Values the report needs to recognise a file (kept); every other string becomes a payload.
 STRUCTURAL = {"kind"}
@@ -99,7 +99,7 @@ def _poison(value, counter: list[int], *, keys: bool):
     if isinstance(value, dict):
         poisoned = {}
         for k, v in value.items():
-            free = keys and k not in ("seeds", "claims", "run", "provenance", "configuration",
+            free = keys and k not in ("papers", "claims", "run", "provenance", "configuration",
                                       "quotient", "monitors", "violations", "options",
                                       "versions", "inputs", "setup", "given", "accepts")
             new_key = payload(k) if free and k not in {"id", "claim", "value", "bound",
@@ -139,7 +139,7 @@ def test_papers_report_shows_payloads_as_text_only(papers_reports):
     for payload in PAYLOADS:
         assert _shown(page, payload), payload  # it reached the page, as text
     text = "".join(page.text)
-    assert "claim" in text and "seed 002" in text.lower()
+    assert "claim" in text and "paper 002" in text.lower()
     assert text.count("alert(1)") >= 50  # claims, notes, provenance, monitors, file names
 
 

@@ -1,6 +1,6 @@
-"""Runs for example (b): is the KS resimulation valid for the cut-in test case of seed 002?
+"""Runs for example (b): is the KS resimulation valid for the cut-in test case of paper 002?
 
-Manufactured data (simcred's cut-in universe, seed 002), not recordings:
+Manufactured data (simcred's cut-in universe, paper 002), not recordings:
 
 * reference ``reality.parquet``: the cut-in driven by the AD function in "reality" (single-track
   model ST, the tracker sensor), measured by the DGPS noise of the ground truth (GT) —

@@ -84,7 +84,7 @@ def paper_002(
 @paper_app.command("all")
 @one_line_errors
 def paper_all(
-    out: Annotated[Path, typer.Option(help="Directory for every seed's results and the "
+    out: Annotated[Path, typer.Option(help="Directory for every paper's results and the "
                                            "combined claims.json.")],
     runs: Annotated[int | None, typer.Option(help="Paper 000: runs per trace set (default: the "
                                                   "documented full size).")] = None,

@@ -40,7 +40,7 @@ def versions() -> dict[str, str]:
 
 def run_all(out: Path, options: AllOptions, *, runner: Engine,
             progress_for=lambda _: None) -> dict[str, list[Claim]]:
-    """Run every seed into ``out`` and write the combined ``claims.json``."""
+    """Run every paper into ``out`` and write the combined ``claims.json``."""
     out.mkdir(parents=True, exist_ok=True)
     claims = {"000": markov_chains.run_all(out / "paper000", runs=options.runs,
                                            seed=options.seed, runner=runner,
@@ -70,15 +70,15 @@ def run_all(out: Path, options: AllOptions, *, runner: Engine,
 
 
 def _write_combined(out: Path, options: AllOptions, inputs: dict[str, str]) -> Path:
-    seeds: dict[str, Any] = {}
-    for seed, title in TITLES.items():
-        document = json.loads((out / f"paper{seed}" / "claims.json").read_text())
-        seeds[seed] = {"title": title, "provenance": document["provenance"],
+    papers: dict[str, Any] = {}
+    for key, title in TITLES.items():
+        document = json.loads((out / f"paper{key}" / "claims.json").read_text())
+        papers[key] = {"title": title, "provenance": document["provenance"],
                        "claims": document["claims"]}
     run = {"command": "simcred paper all",
            "options": {"runs": options.runs, "variations": options.variations,
                        "seed": options.seed},
            "versions": versions(), "inputs": inputs}
     path = out / "claims.json"
-    path.write_text(dumps(envelope("claims_all", {"seeds": seeds, "run": run})))
+    path.write_text(dumps(envelope("claims_all", {"papers": papers, "run": run})))
     return path

@@ -31,7 +31,7 @@ MAX_LIST_ITEMS = 12  # longer lists in the provenance are abbreviated (full valu
 
 
 @dataclass(frozen=True, slots=True)
-class Seed:
+class Paper:
     """What the report knows about one paper: its method and its figures, in order."""
 
     key: str
@@ -40,8 +40,8 @@ class Seed:
     figures: tuple[tuple[str, str], ...]  # (path inside paperNNN/, caption)
 
 
-SEEDS = {
-    "000": Seed(
+PAPERS = {
+    "000": Paper(
         "000", "Neurohr et al. 2023: Determining the Validity of Simulation Models for the "
         "Verification of ADSs",
         "Sets of runs become Markov chains over a discretized state space; an MMD two-sample "
@@ -57,7 +57,7 @@ SEEDS = {
           "occlusion, with occlusion and with a chance of occlusion (the paper's bound test)."),
          ("table3_permutation.png", "Table 3 with a permutation test instead of the bound "
           "test."))),
-    "002": Seed(
+    "002": Paper(
         "002", "Wagner, Groh et al.: Towards Cross-Verification and Use of Simulation in the "
         "Assessment of Automated Driving",
         "A real drive is reprocessed: scenario fit, resimulation, refit and risk (TTR); the "
@@ -80,7 +80,7 @@ SEEDS = {
          ("variations/figures/fig8_variations.png", "Fig. 8: the simulations of the variations "
           "of the original scenario compared to the resimulation of GT by trace (upper), "
           "velocity (middle) and risk (lower); TO purple, EGO blue, rGT's risk green."))),
-    "003": Seed(
+    "003": Paper(
         "003", "Braun et al.: A Concept for Semi-Automatic Configuration of Sufficiently Valid "
         "Simulation Setups",
         "Simulation models carry assume-guarantee contracts: the cheapest setup whose "
@@ -128,11 +128,12 @@ def render_report(directory: str | Path) -> str:
     """The report's HTML text (see :func:`write_report`)."""
     directory = Path(directory)
     document = _top_claims(directory)
-    seeds_doc = document.get("seeds")
-    seeds_doc = seeds_doc if isinstance(seeds_doc, dict) else {}
-    keys = list(SEEDS) + sorted(k for k in seeds_doc if k not in SEEDS)
-    seeds = [_seed(directory, key, seeds_doc.get(key)) for key in keys]
-    claims = [c for s in seeds for c in s["claims"]]
+    # a claims.json written before issue 27 calls the papers "seeds"
+    papers_doc = document.get("papers", document.get("seeds"))
+    papers_doc = papers_doc if isinstance(papers_doc, dict) else {}
+    keys = list(PAPERS) + sorted(k for k in papers_doc if k not in PAPERS)
+    papers = [_paper(directory, key, papers_doc.get(key)) for key in keys]
+    claims = [c for p in papers for c in p["claims"]]
     holding = sum(c["status"] == "pass" for c in claims)
     context = {
         "title": "simcred report: the papers' claims, checked",
@@ -140,8 +141,8 @@ def render_report(directory: str | Path) -> str:
         "directory": directory.name or str(directory),
         "score": {"holding": holding, "total": len(claims),
                   "failing": [c for c in claims if c["status"] != "pass"]},
-        "seeds": seeds,
-        "run": _run(document, seeds),
+        "papers": papers,
+        "run": _run(document, papers),
     }
     return _environment().get_template("report.html.j2").render(context)
 
@@ -193,21 +194,21 @@ def _top_claims(directory: Path) -> dict:
     return document
 
 
-def _seed(directory: Path, key: str, entry: Any) -> dict:
-    """Everything the template shows for one seed, with the missing parts named."""
-    known = SEEDS.get(key, Seed(key, f"seed {key}", "", ()))
+def _paper(directory: Path, key: str, entry: Any) -> dict:
+    """Everything the template shows for one paper, with the missing parts named."""
+    known = PAPERS.get(key, Paper(key, f"paper {key}", "", ()))
     folder = directory / f"paper{key}"
     problems: list[str] = []
     if not isinstance(entry, dict):
         fallback, problem = _read_json(folder / "claims.json")
         if isinstance(fallback, dict):
             entry = fallback
-            problems.append(f"claims.json has no entry for seed {key}; shown from "
+            problems.append(f"claims.json has no entry for paper {key}; shown from "
                             f"paper{key}/claims.json")
         else:
             entry = {}
             reason = "is not a JSON object" if problem is None else problem.partition(" ")[2]
-            problems.append(f"not run: claims.json has no entry for seed {key} and "
+            problems.append(f"not run: claims.json has no entry for paper {key} and "
                             f"paper{key}/claims.json {reason}")
     raw_claims = entry.get("claims")
     if raw_claims is not None and not isinstance(raw_claims, list):
@@ -218,9 +219,9 @@ def _seed(directory: Path, key: str, entry: Any) -> dict:
         problems.append(f"{len(raw_claims) - len(claims)} claim(s) are not JSON objects")
     provenance = entry.get("provenance")
     figures, missing = _figures(folder, known.figures)
-    seed = {
+    paper = {
         "key": key,
-        "anchor": f"seed-{key}",
+        "anchor": f"paper-{key}",
         "title": str(entry.get("title") or known.title),
         "method": known.method,
         "folder": folder.name,
@@ -235,13 +236,13 @@ def _seed(directory: Path, key: str, entry: Any) -> dict:
         "findings": None,
     }
     if key == "003":
-        seed["findings"] = _findings(folder)
-    return seed
+        paper["findings"] = _findings(folder)
+    return paper
 
 
-def _claim(seed: str, claim: dict) -> dict:
+def _claim(paper: str, claim: dict) -> dict:
     identifier = _text(claim.get("id"))
-    return {"id": identifier, "anchor": f"claim-{seed}-{identifier}", "seed": seed,
+    return {"id": identifier, "anchor": f"claim-{paper}-{identifier}", "paper": paper,
             "claim": _text(claim.get("claim")), "value": _text(claim.get("value")),
             "bound": _text(claim.get("bound")), "status": _status(claim.get("passed")),
             "note": "" if claim.get("note") is None else _text(claim.get("note"))}
@@ -401,13 +402,14 @@ def _status(value: Any) -> str:
     return "pass" if value is True else "fail" if value is False else "unknown"
 
 
-def _run(document: dict, seeds: list[dict]) -> dict:
-    """The run record of claims.json, and every seed found in the options and provenances."""
+def _run(document: dict, papers: list[dict]) -> dict:
+    """The run record of claims.json, and every (random) seed found in the options and the
+    papers' provenances."""
     run = document.get("run")
     run = run if isinstance(run, dict) else {}
     options = _flatten(run.get("options")) if isinstance(run.get("options"), dict) else []
     used = [("run options", row) for row in options]
-    used += [(f"seed {s['key']}", row) for s in seeds for row in s["provenance"]]
+    used += [(f"paper {p['key']}", row) for p in papers for row in p["provenance"]]
     return {
         "present": bool(run),
         "command": "" if run.get("command") is None else _text(run.get("command")),
