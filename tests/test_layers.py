@@ -267,9 +267,6 @@ STATE_ALLOWED = {
     # The slot where simcred.io registers TraceSet's file formats (the core must not import io;
     # docs/architecture.md "TraceSet files without traces → io"): a registry, set once at import.
     ("simcred.traces", "_handlers"),
-    # The per-process temporary folder of the straight road that netconvert builds once per
-    # process (`global _workdir` in _network): a cache of a subprocess's output.
-    ("simcred.sim.sumo", "_workdir"),
 }
 _MUTATORS = {"append", "extend", "insert", "remove", "pop", "popitem", "clear", "update",
              "setdefault", "add", "discard", "difference_update", "intersection_update",

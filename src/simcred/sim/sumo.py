@@ -29,6 +29,7 @@ resolved by SUMO (``--collision.action none``): a negative gap stays in the outp
 from __future__ import annotations
 
 import atexit
+import functools
 import os
 import shutil
 import subprocess
@@ -129,9 +130,6 @@ def parse_model(text: str) -> SumoModel:
 
 # -- one process's SUMO ---------------------------------------------------------------------------
 
-_workdir: Path | None = None
-
-
 def _libsumo():
     """libsumo, imported without its stdout notice about the pyarrow version it was built with
     (simcred uses none of SUMO's file outputs, and replays followed by Parquet writing in one
@@ -163,22 +161,30 @@ def sumo_version() -> str:
 
 
 def _network() -> Path:
-    """The straight road, built once per process with SUMO's netconvert into a temporary folder."""
-    global _workdir
-    if _workdir is not None and (_workdir / "road.net.xml").is_file():
-        return _workdir / "road.net.xml"
-    _workdir = Path(tempfile.mkdtemp(prefix="simcred-sumo-"))
-    atexit.register(shutil.rmtree, _workdir, True)
-    (_workdir / "road.nod.xml").write_text(
+    """The straight road, built once per process with SUMO's netconvert into a temporary folder
+    (built again if something removed it)."""
+    net = _network_folder() / "road.net.xml"
+    if not net.is_file():
+        _network_folder.cache_clear()
+        net = _network_folder() / "road.net.xml"
+    return net
+
+
+@functools.cache
+def _network_folder() -> Path:
+    """A new temporary folder (removed at exit) holding the road built by netconvert."""
+    folder = Path(tempfile.mkdtemp(prefix="simcred-sumo-"))
+    atexit.register(shutil.rmtree, folder, True)
+    (folder / "road.nod.xml").write_text(
         f'<nodes><node id="a" x="0" y="0"/><node id="b" x="{ROAD_LENGTH}" y="0"/></nodes>')
-    (_workdir / "road.edg.xml").write_text(
+    (folder / "road.edg.xml").write_text(
         f'<edges><edge id="road" from="a" to="b" numLanes="1" speed="{ROAD_SPEED}"/></edges>')
     done = subprocess.run([_netconvert(), "-n", "road.nod.xml", "-e", "road.edg.xml",
                            "-o", "road.net.xml", "--no-turnarounds", "true"],
-                          cwd=_workdir, capture_output=True, text=True)
+                          cwd=folder, capture_output=True, text=True)
     if done.returncode != 0:
         raise RuntimeError(f"netconvert failed: {done.stderr.strip()}")
-    return _workdir / "road.net.xml"
+    return folder
 
 
 def _netconvert() -> str:
