@@ -262,7 +262,7 @@ def test_no_package_imports_the_cli():
 
 #: Where process state belongs: the engine (workers, shared values) and outputs (writing).
 STATEFUL = ("simcred.engine", "simcred.outputs")
-#: Known offenders, each (module, name): to be removed, not added to.
+#: Known exceptions, each (module, name): not to be added to (docs/architecture.md says why).
 STATE_ALLOWED = {
     # The slot where simcred.io registers TraceSet's file formats (the core must not import io;
     # docs/architecture.md "TraceSet files without traces → io"): a registry, set once at import.
