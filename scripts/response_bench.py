@@ -56,6 +56,9 @@ for _kind in DEFECTS:
 # the lengths_markov chain with equal run lengths (is the size problem the lengths' or the chain's?)
 DESIGNS["lengths_markov_equal10"] = partial(lengths_markov, long=10)
 DESIGNS["lengths_markov_equal100"] = partial(lengths_markov, short=100)
+# does the excess of 10 vs 100 shrink with more runs (small-sample) or stay (structural)?
+DESIGNS["lengths_markov_runs160"] = partial(lengths_markov, runs=160)
+DESIGNS["lengths_markov_10vs30"] = partial(lengths_markov, long=30)
 ALIASES = {"h0": list(H0), "defects": [n for n in DESIGNS if n.startswith("defect:")],
            "all": list(DESIGNS)}
 
