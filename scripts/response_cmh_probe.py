@@ -3,6 +3,9 @@
 share w_s in the pooled response statistics (every other part of the shipped test unchanged; the
 bench's designs and seeds).
 
+Written against the pooled-variance chain of commit f4a7bf7 (run it there: from session 13 on the
+package studentises by units, and ``assignment_statistics`` takes no variances).
+
     OPENBLAS_NUM_THREADS=1 PYTHONPATH=src .venv/bin/python scripts/response_cmh_probe.py \
         --designs lengths_markov,lengths,leaders_split --reps 400 --out cmh.json
 """

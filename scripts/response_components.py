@@ -42,7 +42,7 @@ def components(data, n_units, assignments, rng) -> dict[str, np.ndarray]:
     kernel = response.kernel_sums(data, n_units, rng)
     n_features = len(data.response)
     _, pooled, _, _ = response.assignment_statistics(kernel.counts, assignments, n_features,
-                                                     kernel.variances, data.profile)
+                                                     data.profile)
     z = standardise(pooled, OneSided.NEUTRAL)[0]
     spread, comovement = response.moment_statistics(kernel, n_features, assignments)
     out = {}

@@ -10,6 +10,9 @@ studentisation in the sense of Chung & Romano 2013), which follows the observed 
 unequal run lengths and within-run dependence. Everything else as shipped (the bench's designs
 and seeds); dense arithmetic, for the bench's sizes only.
 
+Written against the pooled-variance chain of commit f4a7bf7 (run it there: from session 13 on the
+package studentises by units, and ``assignment_statistics`` takes no variances).
+
     OPENBLAS_NUM_THREADS=1 PYTHONPATH=src .venv/bin/python \\
         scripts/response_unit_variance_probe.py --designs lengths_markov --reps 400
 """

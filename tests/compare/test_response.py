@@ -85,8 +85,9 @@ def test_exact_by_enumeration(kind):
 
 
 def _literal_pooled(data, features, assignment, weight):
-    """``‖Σ_s weight_s d_s‖² / Σ_s weight_s² v_s (1/m_s + 1/n_s)`` per transition, and per state
-    (m, n, m n/(m+n) ‖d_s‖²)."""
+    """``‖Σ_s weight_s d_s‖² / Σ_s weight_s² (Q_A,s / m_s² + Q_B,s / n_s²)`` per transition, with
+    ``Q_A,s = Σ_{u ∈ A} ‖Σ_{t ∈ u, s} (φ_t − μ_s)‖²`` (μ_s the pooled state mean: each side's
+    variance from its own units), and per state (m, n, m n/(m+n) ‖d_s‖²)."""
     weighted, spread, per_state = np.zeros(features.shape[1]), 0.0, []
     for s in range(len(weight)):
         here = data.state == s
@@ -96,7 +97,12 @@ def _literal_pooled(data, features, assignment, weight):
         k, l_ = side.sum(), (~side).sum()
         per_state.append((k, l_, k * l_ / (k + l_) * (diff @ diff)))
         weighted += weight[s] * diff
-        spread += weight[s]**2 * phi.var(axis=0).sum() * (1 / k + 1 / l_)
+        centred = phi - phi.mean(axis=0)
+        units = data.unit[here]
+        q = {u: float(np.sum(centred[units == u].sum(axis=0) ** 2)) for u in np.unique(units)}
+        q_a = sum(v for u, v in q.items() if assignment[u])
+        q_b = sum(v for u, v in q.items() if not assignment[u])
+        spread += weight[s]**2 * (q_a / k**2 + q_b / l_**2)
     return weighted @ weighted / spread, per_state
 
 
@@ -113,7 +119,7 @@ def _literal_case(seed, n_states, chosen):
 def test_statistic_equals_literal_computation():
     """Per state and for the pooled chain statistic, against a per-transition computation."""
     data, kernel, features, assignment, share = _literal_case(1, 2, [0, 2, 3, 7])
-    stats, pooled, m, n = assignment_statistics(kernel.counts, assignment, 1, kernel.variances)
+    stats, pooled, m, n = assignment_statistics(kernel.counts, assignment, 1)
     literal, per_state = _literal_pooled(data, features, assignment[0], share)
     for s, (k, l_, value) in enumerate(per_state):
         assert (m[s], n[s]) == (k, l_)
@@ -125,8 +131,7 @@ def test_profile_statistic_equals_literal_computation():
     """The profile contrast: ``w_s h(s)`` in place of ``w_s``, ``h`` the state's mean
     response centred and scaled with the weights."""
     data, kernel, features, assignment, share = _literal_case(5, 3, [1, 2, 5, 8, 9])
-    _, pooled, _, _ = assignment_statistics(kernel.counts, assignment, 1, kernel.variances,
-                                            data.profile)
+    _, pooled, _, _ = assignment_statistics(kernel.counts, assignment, 1, data.profile)
     h = data.profile[:, 0] - share @ data.profile[:, 0]
     h /= np.sqrt(share @ h**2)
     assert pooled.shape == (1, 2)
@@ -154,8 +159,7 @@ def test_spread_statistic_equals_literal_computation():
     rng = np.random.default_rng(3)  # kernel_sums draws the dither first
     size = np.abs(data.residual + RESOLUTION * data.spread * rng.normal(size=data.residual.shape))
     values = np.rint(LEVELS * size / size.std(axis=0))
-    _, pooled, _, _ = assignment_statistics(kernel.moments, assignment, 1,
-                                            kernel.moment_variances, dims=1)
+    _, pooled, _, _ = assignment_statistics(kernel.moments, assignment, 1, dims=1)
     assert pooled.shape == (1, 1)
     assert pooled[0, 0] == pytest.approx(_literal_pooled(data, values, assignment[0], share)[0],
                                          rel=1e-10)
@@ -234,8 +238,7 @@ def test_comovement_statistic_equals_literal_computation():
         size=data.residual.shape)
     z = r / r.std(axis=0)
     product = np.rint(LEVELS * z[:, :1] * z[:, 1:])
-    _, pooled, _, _ = assignment_statistics(kernel.moments, assignment, 3,
-                                            kernel.moment_variances, dims=1)
+    _, pooled, _, _ = assignment_statistics(kernel.moments, assignment, 3, dims=1)
     assert pooled[0, 2] == pytest.approx(_literal_pooled(data, product, assignment[0],
                                                          share)[0], rel=1e-10)
 

@@ -18,13 +18,17 @@ products are exact and the result does not depend on the summation order.
 the two sides' kernel mean embeddings ``d_s,j = μ̂_A,s,j − μ̂_B,s,j`` [1]; pooled over the
 states with their pooled share of transitions ``w_s`` and studentised:
 
-    T_j = ‖Σ_s w_s d_s,j‖² / Σ_s w_s² v_s,j (1/m_s + 1/n_s)
+    T_j = ‖Σ_s w_s d_s,j‖² / Σ_s w_s² (Q_A,s,j / m_s² + Q_B,s,j / n_s²)
 
-(``v_s,j``: pooled within-state variance of the features, label-free; ``m_s``, ``n_s``: the
-assignment's transitions per side). Every term has mean zero under H0 whatever the state mix, and
-the studentisation keeps the null's scale when the two sides' runs have different lengths (the
-issue-11 lesson). It aggregates a difference of one sign over the whole state space (a variance
-change, a bias); a difference whose sign changes between states cancels in it.
+(``m_s``, ``n_s``: the assignment's transitions per side; ``Q_A,s,j``: the sum over A's units of
+the squared norm of the unit's sum of centred features in state s — each side's variance from
+its own units, :mod:`simcred.compare.unit_variance`). Every term has mean zero under H0 whatever
+the state mix, and the studentisation follows the assignment: runs of other lengths, within-run
+dependence and traits per run on one side are in that side's variance, which keeps the
+permutation null's level where the units are not exchangeable (session 13; the pooled
+within-state variance used before did not: 0.090 on runs of 10 vs 100 steps). It aggregates a
+difference of one sign over the whole state space (a variance change, a bias); a difference
+whose sign changes between states cancels in it.
 
 **Profile statistics.** A delay, a late brake or a gain change the response by an amount that
 follows how the model responds in that state — its sign changes with the state's mean response
@@ -92,6 +96,7 @@ from simcred.compare.side_counts import SideCounts, is_paired
 from simcred.compare.state_sums import StatePairs, SumTarget, pair_chunks
 from simcred.compare.transitions import Transitions
 from simcred.compare.unit_sums import DenseSides
+from simcred.compare.unit_variance import UnitSquares
 
 #: The comparison's resolution: residuals get N(0, (RESOLUTION · spread)²) noise, spread = the
 #: pooled standard deviation of the raw response.
@@ -140,16 +145,14 @@ class ResponseOutcome:
 @dataclass(frozen=True, slots=True, eq=False)
 class KernelSums:
     """Per (state, unit) sums of ``[1, features]`` (a RunCounts of blocks of width
-    ``1 + J · FOURIER``), per state the pooled feature variance ``v_s,j``, the bandwidths; the
-    same for the residuals' second moments ``[1, |r_j|, products of the noisy pairs]``
-    (:class:`_Moments`), None where no response has noise of its own (``noisy``: per response,
-    None without a spread; ``pairs``: the noisy pairs, :func:`noisy_pairs`)."""
+    ``1 + J · FOURIER``), the bandwidths; the same for the residuals' second moments ``[1,
+    |r_j|, products of the noisy pairs]`` (:class:`_Moments`), None where no response has
+    noise of its own (``noisy``: per response, None without a spread; ``pairs``: the noisy
+    pairs, :func:`noisy_pairs`)."""
 
     counts: RunCounts
-    variances: np.ndarray
     bandwidth: tuple[float, ...]
     moments: RunCounts | None
-    moment_variances: np.ndarray | None
     noisy: np.ndarray | None = None
     pairs: tuple[tuple[int, int], ...] = ()
 
@@ -222,19 +225,12 @@ def kernel_sums(data: Transitions, n_units: int, rng: np.random.Generator) -> Ke
             indicator = sp.csr_matrix((np.ones(hi - lo), np.arange(hi - lo), ends),
                                       shape=(last - first, hi - lo))  # pair × transition
             for k, phi in enumerate(feature_map(residual[lo:hi])):
-                kernel.put(b, 1 + k * FOURIER, first, last, indicator @ phi, phi)
+                kernel.put(b, 1 + k * FOURIER, first, last, indicator @ phi)
             if moments is not None:
                 values = moment_map(residual[lo:hi])
-                moments.put(b, 1, first, last, indicator @ values, values)
-    count = kernel.totals[:, :1]
-    variance = kernel.squares / count - (kernel.totals[:, 1:] / count) ** 2
-    variances = np.maximum(variance.reshape(n_blocks, -1, FOURIER).sum(axis=2), 0.0) / LEVELS**2
-    moment_variances = None
-    if moments is not None:
-        mean = moments.totals[:, 1:] / count
-        moment_variances = np.maximum((moments.squares / count - mean**2) / LEVELS**2, 0.0)
-    return KernelSums(kernel.counts(), variances, tuple(feature_map.bandwidth),
-                      None if moments is None else moments.counts(), moment_variances, noisy,
+                moments.put(b, 1, first, last, indicator @ values)
+    return KernelSums(kernel.counts(), tuple(feature_map.bandwidth),
+                      None if moments is None else moments.counts(), noisy,
                       () if moment_map is None else moment_map.pairs)
 
 
@@ -281,7 +277,7 @@ def response_test(data: Transitions, n_units: int, assignments: np.ndarray,
     kernel = kernel_sums(data, n_units, rng)
     n_features = len(data.response)
     stats, pooled, m, n = assignment_statistics(kernel.counts, assignments, n_features,
-                                                kernel.variances, data.profile)
+                                                data.profile)
     z, in_family = standardise(stats, OneSided.NEUTRAL)
     chain = chain_statistic(standardise(pooled, OneSided.NEUTRAL)[0], n_features,
                             *moment_statistics(kernel, n_features, assignments))
@@ -307,8 +303,7 @@ def moment_statistics(kernel: KernelSums, n_features: int, assignments: np.ndarr
     if kernel.moments is None:
         return None, None
     _, pooled, _, _ = assignment_statistics(kernel.moments, assignments,
-                                            n_features + len(kernel.pairs),
-                                            kernel.moment_variances, dims=1)
+                                            n_features + len(kernel.pairs), dims=1)
     z = standardise(pooled, OneSided.NEUTRAL)[0]
     comovement = z[:, n_features:].max(axis=1) if kernel.pairs else None
     return z[:, :n_features] * kernel.noisy, comovement
@@ -344,15 +339,16 @@ def contrasts(share: np.ndarray, profile: np.ndarray | None) -> np.ndarray:
 
 
 def assignment_statistics(sums: RunCounts, assignments: np.ndarray, n_features: int,
-                          variances: np.ndarray, profile: np.ndarray | None = None,
-                          dims: int = FOURIER
+                          profile: np.ndarray | None = None, dims: int = FOURIER
                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Statistics of every assignment: (P + 1, blocks · features) per-state ``T_s,j``,
     (P + 1, K · features) pooled studentised ``T_k,j`` (k = 0: ``T_j``; then one block of
-    features per profile contrast, :func:`contrasts`), and the observed m, n per block.
+    features per profile contrast, :func:`contrasts`; each side's variance from its units,
+    :mod:`simcred.compare.unit_variance`), and the observed m, n per block.
     ``dims``: columns per response feature in ``sums`` (``FOURIER``; 1 for the moments)."""
     sides = DenseSides if isinstance(sums.matrix, np.ndarray) else SideCounts
     product = sides(sums, paired=is_paired(assignments))
+    squares = UnitSquares.of(sums, n_features, dims)
     width = 1 + n_features * dims
     totals = np.asarray(sums.matrix.sum(axis=1, dtype=np.float64)).ravel()
     share = totals[0::width] / max(totals[0::width].sum(), 1.0)
@@ -364,28 +360,32 @@ def assignment_statistics(sums: RunCounts, assignments: np.ndarray, n_features: 
     for first, last, lo, hi in product.chunks:
         rows = product.rows(lo, hi)
         for start in range(0, len(assignments), batch):
-            side_a = product.product(rows, assignments[start:start + batch])
-            value, diff, inverse = _statistic(side_a.reshape(last - first, width, -1),
-                                              totals[lo:hi].reshape(last - first, width),
-                                              n_features, dims)
-            here, weight = slice(start, start + batch), weights[:, first:last]
+            here = slice(start, start + batch)
+            side_a = product.product(rows, assignments[here])
+            value, diff, m, n = _statistic(side_a.reshape(last - first, width, -1),
+                                           totals[lo:hi].reshape(last - first, width),
+                                           n_features, dims)
+            square_a, square_b = squares.sides(first, last, assignments[here])
+            with np.errstate(invalid="ignore", divide="ignore"):
+                variance = np.where(((m < 1) | (n < 1))[:, None, :], 0.0,
+                                    square_a / m[:, None, :]**2 + square_b / n[:, None, :]**2)
+            weight = weights[:, first:last]
             per_state[here, first:last] = value.transpose(2, 0, 1)
             pooled[:, :, here] += np.einsum("ks,sdb->kdb", weight, diff)
-            spread[:, :, here] += np.einsum("ks,sj,sb->kjb", weight**2, variances[first:last],
-                                            inverse)
+            spread[:, :, here] += np.einsum("ks,sjb->kjb", weight**2, variance)
     observed = sums.matrix[0::width] @ assignments[0].astype(np.float64)
     with np.errstate(invalid="ignore", divide="ignore"):
         studentised = ((pooled.reshape(len(weights), n_features, dims, -1) ** 2).sum(axis=2)
-                       / LEVELS**2 / spread).reshape(len(weights) * n_features, -1).T
+                       / spread).reshape(len(weights) * n_features, -1).T
     return (per_state.reshape(len(assignments), -1), studentised,
             observed.astype(np.int64), (totals[0::width] - observed).astype(np.int64))
 
 
 def _statistic(side_a: np.ndarray, totals: np.ndarray, n_features: int, dims: int
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Per block and assignment: ``m n / (m + n) · ‖μ_A,j − μ_B,j‖²`` (blocks, features, batch),
-    ``μ_A − μ_B`` (blocks, features · dims, batch) and ``1/m + 1/n`` (blocks, batch); the
-    last two 0 and the first NaN where a side is empty."""
+    ``μ_A − μ_B`` (blocks, features · dims, batch), m and n (blocks, batch); the difference 0
+    and the first NaN where a side is empty."""
     m = side_a[:, 0, :]
     n = totals[:, :1] - m
     empty = (m < 1) | (n < 1)
@@ -394,7 +394,6 @@ def _statistic(side_a: np.ndarray, totals: np.ndarray, n_features: int, dims: in
             - (totals[:, 1:, None] - side_a[:, 1:, :]) / n[:, None, :]
         per_feature = (diff**2).reshape(len(m), n_features, dims, -1).sum(axis=2)
         value = (m * n / (m + n))[:, None, :] * per_feature / LEVELS**2
-        inverse = np.where(empty, 0.0, 1.0 / m + 1.0 / n)
     value[np.broadcast_to(empty[:, None, :], value.shape)] = np.nan
     diff[np.broadcast_to(empty[:, None, :], diff.shape)] = 0.0
-    return value, diff, inverse
+    return value, diff, m, n

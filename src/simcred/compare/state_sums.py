@@ -60,14 +60,11 @@ class SumTarget:
     """The (blocks · width) × units matrix of per-(state, unit) sums being written: dense
     where at least ``DENSE_SHARE`` of the positions hold a value (float32 where ``peak``
     bounds every entry and every difference of two entries below 2**24: exact), else the
-    CSR arrays of :class:`SumLayout`; and per block the column sums and sums of squares over
-    the transitions."""
+    CSR arrays of :class:`SumLayout`."""
 
     def __init__(self, pairs: StatePairs, width: int, n_units: int, peak: int | None) -> None:
         n_blocks = len(pairs.blocks)
         self.pairs, self.width, self.n_units = pairs, width, n_units
-        self.totals = np.zeros((n_blocks, width))
-        self.squares = np.zeros((n_blocks, width - 1))
         self.layout, self.matrix = None, None
         if len(pairs.unit) >= DENSE_SHARE * n_units * n_blocks:
             dtype = np.float32 if peak is not None and peak < 2**24 else np.float64
@@ -75,10 +72,8 @@ class SumTarget:
         else:
             self.layout = SumLayout(pairs, width, n_units)
 
-    def put(self, b: int, column: int, first: int, last: int, sums: np.ndarray,
-            values: np.ndarray | None = None) -> None:
-        """Pair sums (pairs first:last of block b, k) at columns column:column + k; ``values``:
-        the transitions' values they sum (for the squares; None for the count column)."""
+    def put(self, b: int, column: int, first: int, last: int, sums: np.ndarray) -> None:
+        """Pair sums (pairs first:last of block b, k) at columns column:column + k."""
         k = sums.shape[1]
         if self.matrix is not None:
             row = b * self.width + column
@@ -86,9 +81,6 @@ class SumTarget:
         else:
             p0 = self.layout.first[b]
             self.layout.view(b)[column:column + k, first - p0:last - p0] = sums.T
-        self.totals[b, column:column + k] += sums.sum(axis=0)
-        if values is not None:
-            self.squares[b, column - 1:column - 1 + k] += np.einsum("ij,ij->j", values, values)
 
     def counts(self) -> RunCounts:
         if self.layout is not None:
