@@ -53,7 +53,8 @@ def test_side_squares_equal_a_literal_per_unit_computation(layout):
                        kernel.counts.successors)
     squares = UnitSquares.of(counts, 2, FOURIER)
     assignments = np.random.default_rng(3).random((5, 40)) < 0.5
-    side_a, side_b = squares.sides(0, len(kernel.counts.blocks), assignments)
+    side_a, side_b = squares.sides(assignments, kernel.counts.blocks)(
+        0, len(kernel.counts.blocks), slice(None))
     for row, assignment in enumerate(assignments):
         assert side_a[:, :, row] == pytest.approx(_literal(dense, 2, FOURIER, assignment),
                                                   rel=1e-9, abs=1e-6)

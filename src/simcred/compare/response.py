@@ -91,7 +91,13 @@ import scipy.sparse as sp
 
 from simcred.compare.paired_runs import tippett
 from simcred.compare.run_counts import RunCounts
-from simcred.compare.runs import OneSided, exceedance_pvalues, row_max, standardise
+from simcred.compare.runs import (
+    BATCH_BUDGET,
+    OneSided,
+    exceedance_pvalues,
+    row_max,
+    standardise,
+)
 from simcred.compare.side_counts import SideCounts, is_paired
 from simcred.compare.state_sums import StatePairs, SumTarget, pair_chunks
 from simcred.compare.transitions import Transitions
@@ -110,8 +116,6 @@ LEVELS = 256
 NOISE_FLOOR = 0.05
 #: Residual pairs used for the median-distance bandwidth.
 BANDWIDTH_PAIRS = 4096
-#: Elements of one dense (columns × batch) block of a permutation batch.
-BATCH_BUDGET = 2**22
 @dataclass(frozen=True, slots=True, eq=False)
 class ResponseOutcome:
     """Per tested state (``states``) and for the chain.
@@ -348,7 +352,7 @@ def assignment_statistics(sums: RunCounts, assignments: np.ndarray, n_features: 
     ``dims``: columns per response feature in ``sums`` (``FOURIER``; 1 for the moments)."""
     sides = DenseSides if isinstance(sums.matrix, np.ndarray) else SideCounts
     product = sides(sums, paired=is_paired(assignments))
-    squares = UnitSquares.of(sums, n_features, dims)
+    squares = UnitSquares.of(sums, n_features, dims).sides(assignments, sums.blocks)
     width = 1 + n_features * dims
     totals = np.asarray(sums.matrix.sum(axis=1, dtype=np.float64)).ravel()
     share = totals[0::width] / max(totals[0::width].sum(), 1.0)
@@ -365,7 +369,7 @@ def assignment_statistics(sums: RunCounts, assignments: np.ndarray, n_features: 
             value, diff, m, n = _statistic(side_a.reshape(last - first, width, -1),
                                            totals[lo:hi].reshape(last - first, width),
                                            n_features, dims)
-            square_a, square_b = squares.sides(first, last, assignments[here])
+            square_a, square_b = squares(first, last, here)
             with np.errstate(invalid="ignore", divide="ignore"):
                 variance = np.where(((m < 1) | (n < 1))[:, None, :], 0.0,
                                     square_a / m[:, None, :]**2 + square_b / n[:, None, :]**2)

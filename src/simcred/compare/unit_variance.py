@@ -34,6 +34,9 @@ import numpy as np
 import scipy.sparse as sp
 
 from simcred.compare.run_counts import RunCounts
+from simcred.compare.runs import BATCH_BUDGET
+from simcred.compare.side_counts import SideCounts, is_paired
+from simcred.compare.unit_sums import DenseSides
 
 #: Every sum of the integer squares stays below this, so float64 holds it exactly.
 TOTAL = 2.0**50
@@ -72,15 +75,38 @@ class UnitSquares:
         matrix = sp.csr_matrix((data, indices, indptr), shape=(n_blocks * n_features, n_units))
         return cls(matrix, scale, totals, n_features)
 
-    def sides(self, first: int, last: int, assignments: np.ndarray
-              ) -> tuple[np.ndarray, np.ndarray]:
-        """Blocks first:last: ``Σ_{u ∈ A} ‖X_u,s,j‖²`` and the same over B, (blocks, features,
-        assignments), in the features' units."""
-        rows = self.matrix[first * self.n_features:last * self.n_features]
-        side_a = np.asarray(rows @ assignments.T.astype(np.float64))
-        side_a = side_a.reshape(last - first, self.n_features, -1)
-        side_b = self.totals[first:last, :, None] - side_a
-        return side_a / self.scale[:, None], side_b / self.scale[:, None]
+    def sides(self, assignments: np.ndarray, blocks: np.ndarray) -> SideSquares:
+        """``Σ_{u ∈ A} ‖X_u,s,j‖²`` of every assignment (row 0 observed), through the same exact
+        products as the sums themselves (:class:`SideCounts`, paired or not)."""
+        n_blocks = len(self.totals)
+        counts = RunCounts(self.matrix, blocks, np.arange(n_blocks + 1) * self.n_features,
+                           np.zeros(n_blocks * self.n_features, dtype=np.int64))
+        sides = DenseSides if isinstance(self.matrix, np.ndarray) else SideCounts
+        product = sides(counts, paired=is_paired(assignments))
+        side_a = np.empty((n_blocks * self.n_features, len(assignments)))
+        batch = int(np.clip(BATCH_BUDGET // max(*self.matrix.shape, 1), 8, 1024))
+        for _, _, lo, hi in product.chunks:
+            rows = product.rows(lo, hi)
+            for start in range(0, len(assignments), batch):
+                here = slice(start, start + batch)
+                side_a[lo:hi, here] = product.product(rows, assignments[here])
+        return SideSquares(side_a.reshape(n_blocks, self.n_features, -1), self)
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class SideSquares:
+    """The A-side sums of :class:`UnitSquares` of every assignment (blocks, features, P + 1)."""
+
+    side_a: np.ndarray
+    squares: UnitSquares
+
+    def __call__(self, first: int, last: int, here: slice) -> tuple[np.ndarray, np.ndarray]:
+        """Blocks first:last, assignments ``here``: ``Σ_{u ∈ A} ‖X_u,s,j‖²`` and the same over
+        B, (blocks, features, assignments), in the features' units."""
+        side_a = self.side_a[first:last, :, here]
+        side_b = self.squares.totals[first:last, :, None] - side_a
+        scale = self.squares.scale[:, None]
+        return side_a / scale, side_b / scale
 
 
 def _block_squares(rows, n_features: int, dims: int) -> tuple[np.ndarray, np.ndarray]:
