@@ -116,8 +116,9 @@ def _block_squares(rows, n_features: int, dims: int) -> tuple[np.ndarray, np.nda
         units, values = np.arange(rows.shape[1]), rows.astype(np.float64)
     else:
         lengths = np.diff(rows.indptr)
-        if lengths.min() == lengths.max():  # every row holds the block's units (SumLayout)
-            units = rows.indices[:lengths[0]]
+        grid = rows.indices.reshape(len(lengths), -1) if lengths.min() == lengths.max() else None
+        if grid is not None and (grid == grid[0]).all():  # every row the same units (SumLayout)
+            units = grid[0]
             values = rows.data.reshape(len(lengths), -1).astype(np.float64)
         else:
             units = np.unique(rows.indices)
