@@ -16,10 +16,7 @@ import os
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-import argparse  # noqa: E402
-import json  # noqa: E402
 import sys  # noqa: E402
-from concurrent.futures import ProcessPoolExecutor  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
@@ -76,28 +73,6 @@ def one(args):
 
 
 if __name__ == "__main__":
-    p = argparse.ArgumentParser()
-    p.add_argument("--designs", required=True)
-    p.add_argument("--reps", type=int, default=200)
-    p.add_argument("--first-rep", type=int, default=0)
-    p.add_argument("--permutations", type=int, default=999)
-    p.add_argument("--variants", default="shipped,cmh")
-    p.add_argument("--jobs", type=int, default=2)
-    p.add_argument("--out", type=Path)
-    a = p.parse_args()
-    names = rb.select(a.designs, list(rb.DESIGNS), rb.ALIASES)
-    variants = a.variants.split(",")
-    work = [(n, r, a.permutations, v) for n in names
-            for r in range(a.first_rep, a.first_rep + a.reps) for v in variants]
-    with ProcessPoolExecutor(a.jobs) as pool:
-        rows = list(pool.map(one, work, chunksize=4))
-    table = {}
-    for n in names:
-        for v in variants:
-            ps = [r[3] for r in rows if r[0] == n and r[2] == v]
-            k = int(sum(x <= 0.05 for x in ps))
-            table[f"{n}/{v}"] = [k, len(ps), k / len(ps), rb.wilson(k, len(ps))]
-            print(n, v, k, len(ps), round(k / len(ps), 3), flush=True)
-    if a.out:
-        a.out.write_text(json.dumps({"args": vars(a) | {"out": str(a.out)}, "table": table,
-                                     "rows": rows}, indent=1))
+    from response_unit_variance_probe import main
+
+    main(one, "shipped,cmh")

@@ -127,13 +127,14 @@ def one(args):
     return name, rep, variant, rb.response(rb.DESIGNS[name](rng), seed)
 
 
-def main() -> None:
+def main(run=one, default_variants: str = "shipped,unit") -> None:
+    """Rejection rates of ``variants`` (``run``: one replication) on the bench's designs."""
     p = argparse.ArgumentParser()
     p.add_argument("--designs", required=True)
     p.add_argument("--reps", type=int, default=200)
     p.add_argument("--first-rep", type=int, default=0)
     p.add_argument("--permutations", type=int, default=999)
-    p.add_argument("--variants", default="shipped,unit")
+    p.add_argument("--variants", default=default_variants)
     p.add_argument("--jobs", type=int, default=2)
     p.add_argument("--out", type=Path)
     a = p.parse_args()
@@ -142,7 +143,7 @@ def main() -> None:
     work = [(n, r, a.permutations, v) for n in names
             for r in range(a.first_rep, a.first_rep + a.reps) for v in variants]
     with ProcessPoolExecutor(a.jobs) as pool:
-        rows = list(pool.map(one, work, chunksize=4))
+        rows = list(pool.map(run, work, chunksize=4))
     table = {}
     for n in names:
         for v in variants:

@@ -92,8 +92,8 @@ import scipy.sparse as sp
 from simcred.compare.paired_runs import tippett
 from simcred.compare.run_counts import RunCounts
 from simcred.compare.runs import (
-    BATCH_BUDGET,
     OneSided,
+    batch_size,
     exceedance_pvalues,
     row_max,
     standardise,
@@ -360,7 +360,7 @@ def assignment_statistics(sums: RunCounts, assignments: np.ndarray, n_features: 
     per_state = np.empty((len(assignments), len(sums.blocks), n_features))
     pooled = np.zeros((len(weights), n_features * dims, len(assignments)))
     spread = np.zeros((len(weights), n_features, len(assignments)))
-    batch = int(np.clip(BATCH_BUDGET // max(*sums.matrix.shape, 1), 8, 1024))
+    batch = batch_size(*sums.matrix.shape)
     for first, last, lo, hi in product.chunks:
         rows = product.rows(lo, hi)
         for start in range(0, len(assignments), batch):

@@ -159,7 +159,7 @@ def run_level_test(counts: RunCounts, in_a: np.ndarray, grid_of, spec: RunTestSp
     else:
         assignments = np.vstack([in_a[None, :], np.asarray(null, dtype=bool)])
     stats = assignment_statistics(counts, states, assignments, spec.estimator,
-                                  _batch(counts))
+                                  batch_size(*counts.matrix.shape))
     z, in_family = standardise(stats, spec.one_sided)
     chain = z[:, in_family].sum(axis=1) if spec.chain is ChainStatistic.SUM \
         else row_max(z[:, in_family])
@@ -236,9 +236,9 @@ class StateModels:
         return cls(tuple(operators), np.array(bandwidths), totals, column_totals)
 
 
-def _batch(counts: RunCounts) -> int:
+def batch_size(*dimensions: int) -> int:
     """Assignments per batch: depends only on the data's dimensions."""
-    return int(np.clip(BATCH_BUDGET // max(*counts.matrix.shape, 1), 8, 1024))
+    return int(np.clip(BATCH_BUDGET // max(*dimensions, 1), 8, 1024))
 
 
 def random_assignments(in_a: np.ndarray, permutations: int, n_cols: int,
@@ -249,7 +249,7 @@ def random_assignments(in_a: np.ndarray, permutations: int, n_cols: int,
     ``Generator.permuted`` call.
     """
     total, n_runs = permutations + 1, len(in_a)
-    batch = int(np.clip(BATCH_BUDGET // max(n_cols, n_runs, 1), 8, 1024))
+    batch = batch_size(n_cols, n_runs)
     pattern = np.sort(in_a)[::-1].copy()  # n_A ones, then zeros
     assignments = np.empty((total, n_runs), dtype=bool)
     for start in range(0, total, batch):

@@ -34,7 +34,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from simcred.compare.run_counts import RunCounts
-from simcred.compare.runs import BATCH_BUDGET
+from simcred.compare.runs import batch_size
 from simcred.compare.side_counts import SideCounts, is_paired
 from simcred.compare.unit_sums import DenseSides
 
@@ -84,7 +84,7 @@ class UnitSquares:
         sides = DenseSides if isinstance(self.matrix, np.ndarray) else SideCounts
         product = sides(counts, paired=is_paired(assignments))
         side_a = np.empty((n_blocks * self.n_features, len(assignments)))
-        batch = int(np.clip(BATCH_BUDGET // max(*self.matrix.shape, 1), 8, 1024))
+        batch = batch_size(*self.matrix.shape)
         for _, _, lo, hi in product.chunks:
             rows = product.rows(lo, hi)
             for start in range(0, len(assignments), batch):
