@@ -18,13 +18,15 @@ demo: $(STAMP)
 	bash scripts/demo.sh $(BIN)/simcred $(DEMO_OUT)
 
 # One BLAS thread: the statistical suites multiply many small matrices, which OpenBLAS's threads
-# make 3-5x slower on 2 cores (results are identical either way).
+# make 3-5x slower on 2 cores (results are identical either way). TEST_WORKERS pytest processes
+# (pytest-xdist) share the tests; each test's result does not depend on which runs it.
+TEST_WORKERS ?= 2
 test: $(STAMP)
 	bash scripts/ensure_chromium.sh
-	OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest
+	OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest -n $(TEST_WORKERS)
 
 test-fast: $(STAMP)
-	$(BIN)/python -m pytest -m "not slow"
+	OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest -n $(TEST_WORKERS) -m "not slow"
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/compare.py

@@ -41,24 +41,31 @@ def effects(d, seed, bootstrap, margin=None):
 
 
 def truth(kind, draws, runs):
-    """Per feature: (true deviation, its standard error) from ``draws`` draws of ``runs``."""
-    squared = {}
+    """Per feature: (true deviation, its standard error, true shift, its standard error) from
+    ``draws`` draws of ``runs`` (the shift's plug-in is its mean over the draws)."""
+    squared, shifts = {}, {}
     for i in range(draws):
         for name, f in effects(defect(np.random.default_rng(10**6 + i), kind, runs=runs),
                                i, 2).items():
             squared.setdefault(name, []).append(f.squared)
+            shifts.setdefault(name, []).append(f.shift)
     out = {}
     for name, values in squared.items():
         mean, se = float(np.mean(values)), float(np.std(values, ddof=1) / np.sqrt(draws))
         root = np.sqrt(max(mean, 0.0))
-        out[name] = (float(root), float(se / (2 * root)) if root > 0 else float("nan"))
+        shift = shifts[name]
+        out[name] = (float(root), float(se / (2 * root)) if root > 0 else float("nan"),
+                     float(np.mean(shift)), float(np.std(shift, ddof=1) / np.sqrt(draws)))
     return out
 
 
-def coverage(kind, true, reps, runs, bootstrap, seed0=0):
+def coverage(kind, true, reps, runs, bootstrap, seed0=0, true_shift=None):
+    true_shift = true_shift or {}
     counts = {name: {"cover": {lv: 0 for lv in LEVELS}, "low_above": {lv: 0 for lv in LEVELS},
                      "high_below": {lv: 0 for lv in LEVELS}, "width95": 0.0, "equivalent": 0,
-                     "estimate": 0.0} for name in true}
+                     "estimate": 0.0, "shift_cover": {lv: 0 for lv in LEVELS},
+                     "shift_low_above": {lv: 0 for lv in LEVELS},
+                     "shift_high_below": {lv: 0 for lv in LEVELS}} for name in true}
     for rep in range(seed0, seed0 + reps):
         d = defect(np.random.default_rng(rep), kind, runs=runs)
         found = effects(d, rep, bootstrap, margin={n: t for n, t in true.items() if t > 1e-9})
@@ -71,13 +78,23 @@ def coverage(kind, true, reps, runs, bootstrap, seed0=0):
                 c["high_below"][lv] += high < t
                 if lv == 0.95:
                     c["width95"] += high - low
+                if name in true_shift:
+                    s_low, s_high = f.shift_bounds((1 - lv) / 2)
+                    c["shift_cover"][lv] += s_low <= true_shift[name] <= s_high
+                    c["shift_low_above"][lv] += s_low > true_shift[name]
+                    c["shift_high_below"][lv] += s_high < true_shift[name]
             c["equivalent"] += bool(f.equivalent) if t > 1e-9 else 0
             c["estimate"] += f.estimate
     return {name: {"coverage": {str(lv): c["cover"][lv] / reps for lv in LEVELS},
                    "low_above_truth": {str(lv): c["low_above"][lv] / reps for lv in LEVELS},
                    "high_below_truth": {str(lv): c["high_below"][lv] / reps for lv in LEVELS},
                    "mean_width_95": c["width95"] / reps, "mean_estimate": c["estimate"] / reps,
-                   "equivalent_at_truth": c["equivalent"] / reps}
+                   "equivalent_at_truth": c["equivalent"] / reps,
+                   "shift_coverage": {str(lv): c["shift_cover"][lv] / reps for lv in LEVELS},
+                   "shift_low_above_truth": {str(lv): c["shift_low_above"][lv] / reps
+                                             for lv in LEVELS},
+                   "shift_high_below_truth": {str(lv): c["shift_high_below"][lv] / reps
+                                              for lv in LEVELS}}
             for name, c in counts.items()}
 
 
@@ -115,10 +132,11 @@ def main(argv=None):
     for kind in filter(None, args.kinds.split(",")):
         start = time.time()
         true = truth(kind, args.truth_draws, args.truth_runs)
-        cov = coverage(kind, {n: t for n, (t, _) in true.items()}, args.reps, args.runs,
-                       args.bootstrap, args.seed0)
-        table[kind] = {name: {"truth": true[name][0], "truth_se": true[name][1], **cov[name]}
-                       for name in true}
+        cov = coverage(kind, {n: t[0] for n, t in true.items()}, args.reps, args.runs,
+                       args.bootstrap, args.seed0, {n: t[2] for n, t in true.items()})
+        table[kind] = {name: {"truth": true[name][0], "truth_se": true[name][1],
+                              "true_shift": true[name][2], "true_shift_se": true[name][3],
+                              **cov[name]} for name in true}
         print(kind, f"{time.time() - start:.0f}s", json.dumps(table[kind]), flush=True)
     null = null_check([int(s) for s in args.null_sizes.split(",") if s], args.null_reps,
                       args.bootstrap)

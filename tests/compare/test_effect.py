@@ -15,8 +15,9 @@ import numpy as np
 import pytest
 
 from simcred.compare import compare
+from simcred.compare.cluster_sums import ClusterSums, Entries
 from simcred.compare.design import Design, DesignKind, runs_design
-from simcred.compare.effect import FeatureEffect, _Entries, _Sums, response_effects
+from simcred.compare.effect import FeatureEffect, response_effects
 from simcred.compare.transitions import Transitions
 
 # state -> unit -> residuals; units 0, 1 are A's, 2, 3 B's (pairs: (0, 2) and (1, 3))
@@ -107,8 +108,8 @@ def test_literal_oracle_on_a_tiny_case(pairs):
     assert effect.estimate == pytest.approx(max(corrected, 0.0) ** 0.5, rel=1e-12)
     assert effect.shift == pytest.approx(shift, rel=1e-12)
     # a replicate that draws unit (pair) 0 twice and 1 once on every side
-    entries = _Entries.of(data, design)
-    sums = _Sums.of(entries, entries.entering())
+    entries = Entries.of(data, design)
+    sums = ClusterSums.of(entries, entries.entering())
     weights = np.array([[2.0], [1.0]] if pairs else [[2.0], [1.0], [1.0], [2.0]])
     drawn = {0: 2} if pairs else {0: 2, 3: 2}
     replicate = sums.deviation(weights)
@@ -116,6 +117,38 @@ def test_literal_oracle_on_a_tiny_case(pairs):
     assert replicate["plugin"][0, 0] == pytest.approx(plugin, rel=1e-12)
     assert replicate["squared"][0, 0] == pytest.approx(corrected, rel=1e-12)
     assert replicate["shift"][0, 0] == pytest.approx(shift, rel=1e-12)
+
+
+@pytest.mark.parametrize("pairs", [False, True])
+def test_permuted_plugin_equals_literal_relabelling(pairs):
+    """Each assignment's plug-in θ̂ is the literal one of the data with the units' sides
+    relabelled (paired: through half the units, ``M_1 1 + (M_2 − M_1) F``)."""
+    from simcred.compare.effect import _permuted_plugin
+
+    data = _transitions(TINY)
+    design = _paired(2) if pairs else runs_design(2, 2)
+    entries = Entries.of(data, design)
+    keep = entries.entering()
+    if pairs:  # every assignment puts one member of each pair in A
+        flips = [(0, 0), (1, 0), (0, 1), (1, 1)]
+        rows = [[not f0, not f1, bool(f0), bool(f1)] for f0, f1 in flips]
+    else:
+        rows = [[u in chosen for u in range(4)] for chosen in ((0, 1), (0, 2), (1, 3), (2, 3))]
+    null = _permuted_plugin(entries, keep, np.array(rows))
+    for r, row in enumerate(rows):
+        side_a = [u for u in range(4) if row[u]]
+        relabel = {u: i for i, u in enumerate(side_a + [u for u in range(4) if not row[u]])}
+        cells = {s: {relabel[u]: x for u, x in units.items()} for s, units in TINY.items()}
+        assert null[0, r] == pytest.approx(_literal(cells, 2, False)[0], rel=1e-12)
+
+
+def test_shift_bounds_written_out():
+    """Basic bootstrap bounds of the shift: 2 shift − q_{1−a}, 2 shift − q_a."""
+    reps = np.array([0.1, 0.3, 0.2, 0.5, 0.4])
+    effect = FeatureEffect("x", "1/s", 0, 0, 0, 0, 0, 0.25, 0, 0, 0, shift_replicates=reps)
+    low, high = effect.shift_bounds(0.1)
+    assert (low, high) == pytest.approx((0.5 - np.quantile(reps, 0.9),
+                                         0.5 - np.quantile(reps, 0.1)))
 
 
 def test_bounds_written_out():
@@ -142,7 +175,7 @@ def test_bounds_written_out():
 def test_entry_rule_needs_two_units_of_each_side():
     cells = {s: dict(units) for s, units in TINY.items()}
     cells[1] = {0: [0.0, 1.0], 2: [3.0], 3: [1.0, 2.0]}  # one unit of A only
-    entries = _Entries.of(_transitions(cells), runs_design(2, 2))
+    entries = Entries.of(_transitions(cells), runs_design(2, 2))
     assert entries.entering().tolist() == [True, False]
 
 

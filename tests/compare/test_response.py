@@ -300,8 +300,10 @@ def _literal_features(data, rng):
     z = residual[:, 0] / scale
     sigma = np.median(np.abs(z[i] - z[j]))
     w, b = rng.normal(0.0, 1.0 / sigma, FOURIER), rng.uniform(0.0, 2 * np.pi, FOURIER)
-    return np.array([[np.rint(LEVELS * np.sqrt(2) * np.cos(zi * wk + bk))
-                      for wk, bk in zip(w, b, strict=True)] for zi in z])
+    f32 = np.float32  # the map's angle and cosine are single precision (numpy's array cosine)
+    angle = np.array([[f32(zi) * f32(wk) + f32(bk) for wk, bk in zip(w, b, strict=True)]
+                      for zi in z])
+    return np.rint(f32(LEVELS * np.sqrt(2)) * np.cos(angle)).astype(np.float64)
 
 
 def test_quadratic_response_leaves_no_residual():
@@ -558,3 +560,19 @@ def test_a_column_that_changes_within_a_run_is_refused():
                                           r"\(row 3") as error:
         compare(a, a, features=["x", "u"], test="response", group_by="g", permutations=19)
     assert "\n" not in str(error.value)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_least_squares_equals_svd_solution(seed):
+    """The normal equations where well conditioned, an SVD where not (a covariate with two
+    values makes its square collinear with the constant): the fitted values of
+    ``np.linalg.lstsq`` either way."""
+    from simcred.compare.transitions import _Basis, _least_squares
+
+    rng = np.random.default_rng(seed)
+    x = np.column_stack([rng.normal(size=3000), rng.standard_t(3, size=3000),
+                         rng.integers(0, 2, 3000) if seed % 2 else rng.normal(size=3000)])
+    y = rng.normal(size=(3000, 2)) + x[:, :1] ** 2
+    design = _Basis.of(x, cubic=True).design(x)
+    expected = design @ np.linalg.lstsq(design, y, rcond=None)[0]
+    assert np.allclose(design @ _least_squares(design, y), expected, rtol=0, atol=1e-9)

@@ -46,3 +46,13 @@ def test_unit_brackets_survive_in_text_output(tmp_path, capsys):
     lib_path.write_text(text)
     assert run(["contracts", "check", str(lib_path)]) == 0
     assert "lib[m_s].yaml" in capsys.readouterr().out
+
+
+def test_a_long_path_is_printed_on_one_line(tmp_path, capsys):
+    """Text output never breaks a path (rich wraps at 80 columns off a terminal by default)."""
+    folder = tmp_path / ("deep_" * 20)
+    folder.mkdir()
+    lib_path = folder / "library.yaml"
+    lib_path.write_text((EXAMPLES / "units_and_time.yaml").read_text())
+    assert run(["contracts", "check", str(lib_path)]) == 0
+    assert str(lib_path) in capsys.readouterr().out

@@ -30,8 +30,10 @@ app = typer.Typer(
     pretty_exceptions_show_locals=False,
     add_completion=False,
 )
-out_console = Console()
-err_console = Console(stderr=True)
+# soft_wrap: a line longer than the terminal (a file path in "wrote ...") is never broken
+# into two, so it can be copied; tables still fit the width.
+out_console = Console(soft_wrap=True)
+err_console = Console(stderr=True, soft_wrap=True)
 EXIT_BAD_INPUT = 2
 
 

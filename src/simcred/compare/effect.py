@@ -40,7 +40,11 @@ terms with variance ``≈ 4θν + 2ν²`` is stabilised by ``√(θ + ν/2)``; t
 was chosen among 0.5–4 on the known-truth designs, calibration.md). Well above the noise
 ``φ`` is the deviation itself, whose law is near normal (the squared scale's skew would put the
 lower bound far too low, "beyond the margin" would lose its power); within the noise it is
-nearly the squared scale.
+nearly the squared scale. The shift's interval is the basic bootstrap interval of its
+replicates. In a replicate a state enters ``θ̃*`` where at least ``MIN_UNITS`` drawn units of each
+side visit it (its variances need two) and the shift where at least one does: dropping from the
+shift the states a replicate happens to draw one unit of made its bootstrap spread 1.3× its
+sampling spread (coverage 96–97 % at 90 %, calibration.md).
 
 **Equivalence** [6], [7], [8]. H0: ``E_j ≥ δ_j`` for some declared margin; H1: ``E_j < δ_j``
 for all. Rejected (equivalence shown) when every one-sided upper ``1 − α`` bound
@@ -82,20 +86,16 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-import scipy.sparse as sp
 from scipy.stats import norm
 
-from simcred.compare.design import Design, DesignKind
+from simcred.compare.cluster_sums import MIN_SHARE, MIN_UNITS, ClusterSums, Entries, normalised
+from simcred.compare.design import Design
 from simcred.compare.runs import exceedance_pvalues
+from simcred.compare.side_counts import is_paired
 from simcred.compare.transitions import Transitions
-from simcred.compare.unit_sums import unique_inverse, unit_matrix
+from simcred.compare.unit_sums import side_sums, unit_matrix
 from simcred.errors import OptionError
 
-#: A state enters the effect when it holds at least this share of EACH side's transitions ...
-MIN_SHARE = 0.005
-#: ... and at least this many units of each side visit it (its variances are estimated between
-#: units, which needs two).
-MIN_UNITS = 2
 #: The entry rule in words (warnings, docs).
 ENTRY = (f"holds {100 * MIN_SHARE:g} % of each side's transitions and is visited by "
          f"{MIN_UNITS} units of each side")
@@ -138,6 +138,8 @@ class FeatureEffect:
     squared: float = float("nan")
     replicates: np.ndarray = field(default_factory=lambda: np.empty(0), repr=False,
                                    compare=False)
+    shift_replicates: np.ndarray = field(default_factory=lambda: np.empty(0), repr=False,
+                                         compare=False)
 
     def bounds(self, alpha: float) -> tuple[float, float]:
         """One-sided ``1 − alpha`` lower and upper bounds, as deviations (clamped at 0); NaN
@@ -154,6 +156,14 @@ class FeatureEffect:
         lower = max(np.sqrt(max(squared + c, 0.0))
                     - (np.quantile(stable, 1 - alpha) - np.sqrt(plugin + c)), 0.0)**2 - c
         return float(np.sqrt(max(lower, 0.0))), float(np.sqrt(max(upper, 0.0)))
+
+    def shift_bounds(self, alpha: float) -> tuple[float, float]:
+        """One-sided ``1 − alpha`` lower and upper bounds of ``shift``: basic bootstrap bounds
+        ``2 shift − q_{1−alpha}``, ``2 shift − q_alpha`` of its replicates; NaN without."""
+        if len(self.shift_replicates) == 0 or not np.isfinite(self.shift):
+            return float("nan"), float("nan")
+        high, low = np.quantile(self.shift_replicates, [alpha, 1 - alpha])
+        return float(2 * self.shift - low), float(2 * self.shift - high)
 
 
 @dataclass(frozen=True, slots=True)
@@ -207,14 +217,14 @@ def response_effects(data: Transitions, design: Design, replicates: int, alpha: 
                      assignments: np.ndarray | None = None) -> EffectSummary:
     """Response deviations with cluster-bootstrap intervals, equivalence, detectable effect and,
     given the design's ``assignments`` (row 0 observed), the deviation's permutation p-value."""
-    entries = _Entries.of(data, design)
+    entries = Entries.of(data, design)
     keep = entries.entering()
     weights = design.resamples(replicates, rng)
     if not keep.any():  # nothing to estimate from: say so, never "no deviation"
         return EffectSummary(level, replicates, 0, tuple(
             _not_estimable(name, units.get(name, ""), dict(margins).get(name))
             for name in data.response), False if margins else None)
-    sums = _Sums.of(entries, keep)
+    sums = ClusterSums.of(entries, keep)
     if entries.pairs:
         weights = weights[:design.units_a]  # a pair's members are drawn together
     observed = sums.deviation(np.ones((sums.totals.shape[0], 1)))
@@ -241,7 +251,7 @@ def _not_estimable(name: str, unit: str, margin: float | None) -> FeatureEffect:
                          None if margin is None else False)
 
 
-def _permuted_plugin(entries: _Entries, keep: np.ndarray, assignments: np.ndarray
+def _permuted_plugin(entries: Entries, keep: np.ndarray, assignments: np.ndarray
                      ) -> np.ndarray:
     """(features, P + 1) plug-in squared deviation of every assignment (states fixed)."""
     take = keep[entries.state]
@@ -254,12 +264,12 @@ def _permuted_plugin(entries: _Entries, keep: np.ndarray, assignments: np.ndarra
     matrix = unit_matrix(unit, state, values.__getitem__, width, n_units, n_states)
     totals = np.bincount(entries.unit, weights=entries.count, minlength=n_units)
     pooled = np.asarray(matrix.sum(axis=1)).reshape(n_states, width, 1)
-    side_a = assignments.T.astype(np.float64)  # (units, P + 1)
+    product = side_sums(matrix, is_paired(assignments))
     out = np.zeros((j, assignments.shape[0]))
-    for start in range(0, side_a.shape[1], 256):
-        cols = side_a[:, start:start + 256]
-        a = np.asarray(matrix @ cols).reshape(n_states, width, -1)
-        total_a = totals @ cols
+    for start in range(0, assignments.shape[0], 256):
+        rows = assignments[start:start + 256]
+        a = product(rows).reshape(n_states, width, -1)
+        total_a = rows @ totals
         out[:, start:start + 256] = _plugin([a, pooled - a], [total_a, totals.sum() - total_a], j)
     return out
 
@@ -269,198 +279,13 @@ def _plugin(sides, total, j: int) -> np.ndarray:
     (a state with fewer than 2 transitions on a side drops out)."""
     count = [s[:, 0] for s in sides]
     usable = (count[0] >= 2) & (count[1] >= 2)
-    share = np.where(usable, 0.5 * (count[0] / total[0] + count[1] / total[1]), 0.0)
-    w = share / np.where(share.sum(axis=0) > 0, share.sum(axis=0), 1.0)
+    w = normalised(np.where(usable, 0.5 * (count[0] / total[0] + count[1] / total[1]), 0.0))
     with np.errstate(invalid="ignore", divide="ignore"):
         mean = [s[:, 1:1 + j] / c[:, None] for s, c in zip(sides, count, strict=True)]
         sd = [np.sqrt(np.maximum(s[:, 1 + j:] / c[:, None] - m**2, 0.0))
               for s, c, m in zip(sides, count, mean, strict=True)]
     squared = np.nan_to_num((mean[0] - mean[1])**2 + (sd[0] - sd[1])**2)
     return (w[:, None] * squared).sum(axis=0)
-
-
-@dataclass(frozen=True, slots=True, eq=False)
-class _Entries:
-    """Sums per (state, unit) of the pooled transitions: ``state`` indexes the distinct states,
-    ``side`` 0 (A) / 1 (B), ``cluster`` the resampled unit (the pair for a paired design)."""
-
-    state: np.ndarray
-    unit: np.ndarray
-    side: np.ndarray
-    cluster: np.ndarray
-    count: np.ndarray  # (entries,)
-    first: np.ndarray  # (entries, J) sums of the residual
-    second: np.ndarray  # (entries, J) sums of its square
-    n_states: int
-    n_clusters: int
-    pairs: bool
-
-    @classmethod
-    def of(cls, data: Transitions, design: Design) -> _Entries:
-        state, unit, x = data.state, data.unit, data.effect_residual
-        new = np.r_[True, (state[1:] != state[:-1]) | (unit[1:] != unit[:-1])]
-        starts = np.flatnonzero(new)
-        codes, index = np.unique(state[starts], return_inverse=True)
-        units = unit[starts]
-        pairs = design.kind is DesignKind.PAIRS
-        side = (units >= design.units_a).astype(np.int64)
-        return cls(index, units, side, units % design.units_a if pairs else units,
-                   np.diff(np.r_[starts, len(state)]).astype(np.float64),
-                   np.add.reduceat(x, starts, axis=0), np.add.reduceat(x**2, starts, axis=0),
-                   len(codes), design.units_a if pairs else design.n_units, pairs)
-
-    def per_state(self, values: np.ndarray) -> np.ndarray:
-        """(states, 2) sums of ``values`` per state and side."""
-        out = np.zeros((self.n_states, 2))
-        np.add.at(out, (self.state, self.side), values)
-        return out
-
-    def entering(self) -> np.ndarray:
-        """The states that enter the effect (module docs: :data:`ENTRY`)."""
-        count = self.per_state(self.count)
-        share = count / np.maximum(count.sum(axis=0), 1.0)
-        visits = self.per_state(np.ones(len(self.count)))
-        return ((share >= MIN_SHARE) & (visits >= MIN_UNITS)).all(axis=1)
-
-    def totals(self) -> np.ndarray:
-        """(clusters, 2) transitions per cluster and side over all states."""
-        out = np.zeros((self.n_clusters, 2))
-        np.add.at(out, (self.cluster, self.side), self.count)
-        return out
-
-
-@dataclass(frozen=True, slots=True, eq=False)
-class _Sums:
-    """Per entering state and cluster: the sums and the products of sums the cluster variances
-    need, as a sparse (states · width) × clusters matrix, so that any resampling weights of the
-    clusters give every replicate's moments and variances with one product."""
-
-    matrix: np.ndarray | sp.csc_matrix  # (states · width) × clusters
-    visits: sp.csr_matrix  # (states · 2) × clusters: the cluster's side-k member visits
-    totals: np.ndarray  # (clusters, 2)
-    column: dict
-    n_states: int
-    features: int
-    pairs: bool
-
-    @classmethod
-    def of(cls, entries: _Entries, keep: np.ndarray) -> _Sums:
-        new_index = np.cumsum(keep) - 1
-        take = keep[entries.state]
-        state = new_index[entries.state[take]]
-        side, cluster = entries.side[take], entries.cluster[take]
-        n_states, n_clusters = int(keep.sum()), entries.n_clusters
-        j = entries.first.shape[1]
-        key, inverse = unique_inverse(cluster * n_states + state)
-        x = np.zeros((len(key), 2, 1 + 2 * j))  # per (state, cluster) and side: N, S1, S2
-        x[inverse, side] = np.hstack([entries.count[take, None], entries.first[take],
-                                      entries.second[take]])  # (state, unit) occurs once
-        spec = _product_spec(j, entries.pairs)
-        column = {name: i for i, (name, _, _) in enumerate(spec)}
-        matrix = unit_matrix(key // n_states, key % n_states,
-                             lambda part: np.stack([_product(x[part], one, two)
-                                                    for _, one, two in spec], axis=1),
-                             len(spec), n_clusters, n_states)
-        visits = sp.csr_matrix(
-            (np.ones(int(take.sum())), (2 * state + side, cluster)),
-            shape=(2 * n_states, n_clusters))
-        return cls(matrix, visits, entries.totals(), column, n_states, j, entries.pairs)
-
-    def deviation(self, weights: np.ndarray) -> dict[str, np.ndarray]:
-        """(features, replicates) plug-in and bias-corrected squared deviations and shifts, each
-        cluster counted ``weights[cluster, r]`` times in replicate ``r``."""
-        r = weights.shape[1]
-        q = np.asarray(self.matrix @ weights).reshape(self.n_states, -1, r)
-        drawn = np.asarray(self.visits @ (weights > 0)).reshape(self.n_states, 2, r)
-        total = self.totals.T @ weights  # (2, r)
-        col = self.column
-
-        def get(*name):
-            return q[:, col[name]]
-
-        count = [get("N", k) for k in (0, 1)]
-        usable = (drawn >= MIN_UNITS).all(axis=1)
-        share = np.where(usable, 0.5 * (count[0] / total[0] + count[1] / total[1]), 0.0)
-        w = share / np.where(share.sum(axis=0) > 0, share.sum(axis=0), 1.0)
-        out = {name: np.zeros((self.features, r)) for name in ("plugin", "squared", "shift")}
-        with np.errstate(invalid="ignore", divide="ignore"):
-            inflate = [1.0 / (1.0 - np.minimum(get("NN", k) / count[k]**2, 1.0))
-                       for k in (0, 1)]  # leverage correction of the cluster variance
-            for j in range(self.features):
-                sides = [_side_moments(get, count[k], inflate[k], k, j) for k in (0, 1)]
-                a, b = sides
-                var_mean = a["var_mean"] + b["var_mean"]
-                var_sd = a["var_sd"] + b["var_sd"]
-                if self.pairs:  # the two members of a pair are resampled together
-                    cov_mean, cov_var = _pair_covariances(get, count, inflate, a, b, j)
-                    var_mean = var_mean - 2 * cov_mean
-                    rho = np.clip(cov_var / np.sqrt(a["var_v"] * b["var_v"]), -1.0, 1.0)
-                    var_sd = var_sd - 2 * np.nan_to_num(rho) * np.sqrt(a["var_sd"] * b["var_sd"])
-                d_mean = np.where(usable, a["mean"] - b["mean"], 0.0)
-                d_sd = np.where(usable, a["sd"] - b["sd"], 0.0)
-                plugin = d_mean**2 + d_sd**2
-                noise = np.where(usable, np.maximum(var_mean, 0.0) + np.maximum(var_sd, 0.0),
-                                 0.0)
-                out["plugin"][j] = (w * plugin).sum(axis=0)
-                out["squared"][j] = (w * (plugin - noise)).sum(axis=0)
-                out["shift"][j] = (w * d_mean).sum(axis=0)
-        return out
-
-
-def _product_spec(j: int, pairs: bool) -> list[tuple[tuple, tuple[int, int],
-                                                     tuple[int, int] | None]]:
-    """The columns kept per (state, cluster) row, as (name, factor, factor or None) with a
-    factor (side, sum) over N, S1 and S2 of each feature: the sums of each side, their products
-    and, for pairs, the products of the two members' sums."""
-    out: list = []
-    for k in (0, 1):
-        out += [(("N", k), (k, 0), None), (("NN", k), (k, 0), (k, 0))]
-        for f in range(j):
-            s1, s2 = (k, 1 + f), (k, 1 + j + f)
-            out += [(("S1", k, f), s1, None), (("S2", k, f), s2, None),
-                    (("NS1", k, f), (k, 0), s1), (("NS2", k, f), (k, 0), s2),
-                    (("S1S1", k, f), s1, s1), (("S1S2", k, f), s1, s2), (("S2S2", k, f), s2, s2)]
-    if pairs:
-        out.append((("NN", "AB"), (0, 0), (1, 0)))
-        for f in range(j):
-            parts = {"N": 0, "S1": 1 + f, "S2": 1 + j + f}
-            out += [((p + s, "AB", f), (0, ip), (1, is_)) for p, ip in parts.items()
-                    for s, is_ in parts.items() if p != "N" or s != "N"]
-    return out
-
-
-def _product(x: np.ndarray, one: tuple[int, int], two: tuple[int, int] | None) -> np.ndarray:
-    return x[:, one[0], one[1]] if two is None else x[:, one[0], one[1]] * x[:, two[0], two[1]]
-
-
-def _side_moments(get, n, inflate, k, j) -> dict[str, np.ndarray]:
-    """Mean, standard deviation and their cluster variances of one side in every state."""
-    mean = get("S1", k, j) / n
-    var = np.maximum(get("S2", k, j) / n - mean**2, 0.0)
-    nn, ns1, ns2 = get("NN", k), get("NS1", k, j), get("NS2", k, j)
-    s11, s12, s22 = get("S1S1", k, j), get("S1S2", k, j), get("S2S2", k, j)
-    # Σ_c w_c ψ_c² of the linearised mean (S1_c − μ N_c)/N and variance
-    # (S2_c − 2μ S1_c + (μ² − v) N_c)/N, expanded in the clusters' sums and products
-    a, b = -2 * mean, mean**2 - var
-    var_mean = np.maximum(s11 - 2 * mean * ns1 + mean**2 * nn, 0.0) / n**2 * inflate
-    var_v = np.maximum(s22 + a**2 * s11 + b**2 * nn + 2 * a * s12 + 2 * b * ns2
-                       + 2 * a * b * ns1, 0.0) / n**2 * inflate
-    var_sd = np.minimum(var_v / (4 * var), var)  # delta method, at most the variance itself
-    return {"mean": mean, "sd": np.sqrt(var), "var_mean": var_mean, "var_v": var_v,
-            "var_sd": np.nan_to_num(var_sd), "a": a, "b": b}
-
-
-def _pair_covariances(get, n, inflate, a, b, j):
-    """Σ_c w_c ψ_A,c ψ_B,c of the mean and the variance (the members of a pair together)."""
-    scale = n[0] * n[1] / np.sqrt(inflate[0] * inflate[1])
-    cov_mean = (get("S1S1", "AB", j) - b["mean"] * get("S1N", "AB", j)
-                - a["mean"] * get("NS1", "AB", j) + a["mean"] * b["mean"] * get("NN", "AB"))
-    cov_var = (get("S2S2", "AB", j) + b["a"] * get("S2S1", "AB", j)
-               + b["b"] * get("S2N", "AB", j) + a["a"] * get("S1S2", "AB", j)
-               + a["a"] * b["a"] * get("S1S1", "AB", j) + a["a"] * b["b"] * get("S1N", "AB", j)
-               + a["b"] * get("NS2", "AB", j) + a["b"] * b["a"] * get("NS1", "AB", j)
-               + a["b"] * b["b"] * get("NN", "AB"))
-    return cov_mean / scale, cov_var / scale
 
 
 def _signed_root(x: np.ndarray) -> np.ndarray:
@@ -475,17 +300,19 @@ def _feature_effects(names, observed, boot, alpha, level, margins, units
     for j, name in enumerate(names):
         plugin, squared = observed["plugin"][j, 0], observed["squared"][j, 0]
         shift, boot_shift = observed["shift"][j, 0], boot["shift"][j]
-        s_lo, s_hi = np.quantile(boot_shift, [tail, 1 - tail])
         margin = margins.get(name)
         effect = FeatureEffect(
             name, units.get(name, ""), float(np.sqrt(max(squared, 0.0))),
             float(np.sqrt(plugin)), float("nan"), float("nan"), float("nan"), float(shift),
-            float(2 * shift - s_hi), float(2 * shift - s_lo),
+            float("nan"), float("nan"),
             float(z * boot_shift.std(ddof=1)) if len(boot_shift) > 1 else float("nan"),
             margin, None, squared=float(squared),
-            replicates=np.sort(_signed_root(boot["squared"][j])))
+            replicates=np.sort(_signed_root(boot["squared"][j])),
+            shift_replicates=np.sort(boot_shift))
         low, high = effect.bounds(tail)
         lower, upper = effect.bounds(alpha)
+        shift_low, shift_high = effect.shift_bounds(tail)
         out.append(replace(effect, low=low, high=high, upper=upper, lower=lower,
+                           shift_low=shift_low, shift_high=shift_high,
                            equivalent=None if margin is None else bool(upper < margin)))
     return tuple(out)

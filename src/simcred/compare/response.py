@@ -179,15 +179,17 @@ class _FourierMap:
 
     def __call__(self, residual: np.ndarray) -> list[np.ndarray]:
         """Per response feature, the (rows, FOURIER) integer-valued features of a chunk of
-        residuals."""
+        residuals. The angle and its cosine are single precision (3-4x faster than double; the
+        value is rounded to 1 / LEVELS of √2 anyway: about 3 in 100,000 land one level apart)."""
         out = []
         for k, (scale, w, b) in enumerate(zip(self.scale, self.w, self.b, strict=True)):
-            block = np.multiply((residual[:, k] / scale)[:, None], w)
-            block += b
+            block = np.multiply((residual[:, k] / scale).astype(np.float32)[:, None],
+                                w.astype(np.float32))
+            block += b.astype(np.float32)
             np.cos(block, out=block)
-            block *= LEVELS * np.sqrt(2.0)
+            block *= np.float32(LEVELS * np.sqrt(2.0))
             np.rint(block, out=block)
-            out.append(block)
+            out.append(block.astype(np.float64))
         return out
 
 
@@ -206,7 +208,8 @@ def kernel_sums(data: Transitions, n_units: int, rng: np.random.Generator) -> Ke
     integers, so every sum here is exact (in any order): pair sums are one sparse product per
     chunk, written straight into the unit matrix (:class:`SumTarget`)."""
     spread = data.spread if data.spread is not None else np.zeros(data.residual.shape[1])
-    residual = data.residual + RESOLUTION * spread * rng.normal(size=data.residual.shape)
+    residual = np.asfortranarray(data.residual + RESOLUTION * spread
+                                 * rng.normal(size=data.residual.shape))  # columns contiguous
     feature_map = _FourierMap(residual, rng)
     noisy = noisy_responses(data)
     pairs = StatePairs.of(data)

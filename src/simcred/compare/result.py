@@ -287,5 +287,6 @@ def _without_replicates(response: dict[str, Any]) -> dict[str, Any]:
     """The response analysis without the bootstrap replicates (kept in memory for bounds at
     other levels, not written)."""
     effect = response["effect"]
-    features = [{k: v for k, v in f.items() if k != "replicates"} for f in effect["features"]]
+    features = [{k: v for k, v in f.items() if k not in ("replicates", "shift_replicates")}
+                for f in effect["features"]]
     return {**response, "effect": {**effect, "features": features}}

@@ -32,11 +32,15 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.linalg
 
 from simcred.errors import OptionError
 
 #: Pooled transitions per fitted coefficient before a state gets its linear adjustment.
 PER_COEFFICIENT = 5
+#: Largest condition number of the unit-diagonal Gram matrix solved by the normal equations
+#: (coefficients then good to ~1e-8, far below the comparison's resolution); beyond it an SVD.
+NORMAL_EQUATIONS_CONDITION = 1e8
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -101,9 +105,10 @@ def transitions(parts: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray, np.nda
     del run
     order = _order(state, unit)
     state, unit = np.take(state, order), np.take(unit, order)
-    covariates = np.take(covariates, order, axis=0)
+    # column-major from here on: every later pass (moments, fits, features) runs down columns
+    covariates = np.asfortranarray(np.take(covariates, order, axis=0))
+    rate = np.asfortranarray(np.take(rate, order, axis=0))
     spread = rate.std(axis=0)
-    rate = np.take(rate, order, axis=0)
     level = global_residual(covariates, rate)
     residual = per_state_residual(state, covariates, level)
     return Transitions(state, unit, residual, response, spread, level,
@@ -161,8 +166,8 @@ def adjusted(state: np.ndarray, covariates: np.ndarray, rate: np.ndarray) -> np.
 
 
 def global_residual(covariates: np.ndarray, rate: np.ndarray) -> np.ndarray:
-    """``rate`` less its pooled global cubic fit."""
-    return rate - _fitted(covariates, rate, cubic=True)
+    """``rate`` less its pooled global cubic fit (column-major)."""
+    return np.asfortranarray(rate - _fitted(covariates, rate, cubic=True))
 
 
 def per_state_residual(state: np.ndarray, covariates: np.ndarray, rate: np.ndarray
@@ -183,8 +188,22 @@ def _fitted(x: np.ndarray, y: np.ndarray, cubic: bool = False) -> np.ndarray:
     if basis is None:
         return np.broadcast_to(y.mean(axis=0), y.shape)
     design = basis.design(x)
-    coef, *_ = np.linalg.lstsq(design, y, rcond=None)
-    return design @ coef
+    return design @ _least_squares(design, y)
+
+
+def _least_squares(design: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Least-squares coefficients: by the normal equations where they are well conditioned
+    (one Gram product, 10-20x faster than an SVD on millions of rows), else by SVD (collinear
+    terms, e.g. the square of a covariate with two values)."""
+    gram = design.T @ design
+    norm = np.sqrt(np.diag(gram))
+    if (norm > 0).all():
+        scaled = gram / np.outer(norm, norm)
+        eigen = np.linalg.eigvalsh(scaled)
+        if eigen[0] * NORMAL_EQUATIONS_CONDITION > eigen[-1]:
+            factor = scipy.linalg.cho_factor(scaled)
+            return scipy.linalg.cho_solve(factor, (design.T @ y) / norm[:, None]) / norm[:, None]
+    return np.linalg.lstsq(design, y, rcond=None)[0]
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -200,8 +219,7 @@ class _Basis:
     @classmethod
     def of(cls, x: np.ndarray, cubic: bool = False) -> _Basis | None:
         """The basis for fit rows ``x``, or None when even a linear fit has too few rows."""
-        centre = x.mean(axis=0)
-        scale = (x - centre).std(axis=0)
+        centre, scale = x.mean(axis=0), x.std(axis=0)
         varying = scale > 0
         n, p = len(x), int(varying.sum())
         if n < PER_COEFFICIENT * (p + 1):

@@ -63,6 +63,19 @@ def unit_matrix(unit: np.ndarray, block: np.ndarray, rows: Callable[[slice], np.
                          shape=(n_units, n_blocks * width)).T
 
 
+def side_sums(matrix: np.ndarray | sp.spmatrix, paired: bool
+              ) -> Callable[[np.ndarray], np.ndarray]:
+    """``Z ↦ matrix @ Z.T`` (rows × batch) for bool assignments ``Z`` (batch, units) of a
+    float (rows × units) matrix; ``paired`` (:func:`~simcred.compare.side_counts.is_paired`):
+    through half the units, ``M Z = M_1 1 + (M_2 − M_1) F`` with ``F`` the second half of Z."""
+    if not paired:
+        return lambda z: np.asarray(matrix @ z.T.astype(np.float64))
+    half = matrix.shape[1] // 2
+    base = np.asarray(matrix[:, :half].sum(axis=1)).reshape(-1, 1)
+    difference = matrix[:, half:] - matrix[:, :half]
+    return lambda z: np.asarray(difference @ z[:, half:].T.astype(np.float64)) + base
+
+
 class DenseSides(SideCounts):
     """:class:`~simcred.compare.side_counts.SideCounts` of a dense integer-valued (columns ×
     units) matrix (``RunCounts.matrix`` an ndarray, float32 only where its entries and their
