@@ -44,7 +44,7 @@ nearly the squared scale. The shift's interval is the basic bootstrap interval o
 replicates. In a replicate a state enters ``θ̃*`` where at least ``MIN_UNITS`` drawn units of each
 side visit it (its variances need two) and the shift where at least one does: dropping from the
 shift the states a replicate happens to draw one unit of made its bootstrap spread 1.3× its
-sampling spread (coverage 96–97 % at 90 %, calibration.md).
+sampling spread (coverage 95.5–97 % at 90 %, calibration.md).
 
 **Equivalence** [6], [7], [8]. H0: ``E_j ≥ δ_j`` for some declared margin; H1: ``E_j < δ_j``
 for all. Rejected (equivalence shown) when every one-sided upper ``1 − α`` bound
