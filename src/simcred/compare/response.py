@@ -173,8 +173,8 @@ class _FourierMap:
             z = residual[:, k] / scale
             sigma = float(np.median(np.abs(z[i] - z[j]))) or 1.0
             self.scale.append(scale)
-            self.w.append(rng.normal(0.0, 1.0 / sigma, FOURIER))
-            self.b.append(rng.uniform(0.0, 2 * np.pi, FOURIER))
+            self.w.append(rng.normal(0.0, 1.0 / sigma, FOURIER).astype(np.float32))
+            self.b.append(rng.uniform(0.0, 2 * np.pi, FOURIER).astype(np.float32))
             self.bandwidth.append(sigma * scale)
 
     def __call__(self, residual: np.ndarray) -> list[np.ndarray]:
@@ -183,9 +183,8 @@ class _FourierMap:
         value is rounded to 1 / LEVELS of √2 anyway: about 3 in 100,000 land one level apart)."""
         out = []
         for k, (scale, w, b) in enumerate(zip(self.scale, self.w, self.b, strict=True)):
-            block = np.multiply((residual[:, k] / scale).astype(np.float32)[:, None],
-                                w.astype(np.float32))
-            block += b.astype(np.float32)
+            block = np.multiply((residual[:, k] / scale).astype(np.float32)[:, None], w)
+            block += b
             np.cos(block, out=block)
             block *= np.float32(LEVELS * np.sqrt(2.0))
             np.rint(block, out=block)
