@@ -4,7 +4,7 @@ deviation is computed from (:mod:`simcred.compare.effect` defines the estimand a
 :class:`Entries` holds, per (state, unit) of the pooled transitions, the count and the sums of
 the residual and of its square; :class:`ClusterSums` lays out, per entering state and cluster
 (a unit, a group, or a pair: both members drawn together), those sums and the products of sums
-that the cluster (between-unit) variances need, as one (states · width) × clusters matrix, so
+that the cluster (between-unit) variances need, as one (width · states) × clusters matrix, so
 that any resampling weights of the clusters give every replicate's moments, variances and
 deviation with one product.
 """
@@ -18,7 +18,7 @@ import scipy.sparse as sp
 
 from simcred.compare.design import Design, DesignKind
 from simcred.compare.transitions import Transitions
-from simcred.compare.unit_sums import unique_inverse, unit_matrix
+from simcred.compare.unit_sums import unit_matrix
 
 #: A state enters the effect when it holds at least this share of EACH side's transitions ...
 MIN_SHARE = 0.005
@@ -59,9 +59,8 @@ class Entries:
 
     def per_state(self, values: np.ndarray) -> np.ndarray:
         """(states, 2) sums of ``values`` per state and side."""
-        out = np.zeros((self.n_states, 2))
-        np.add.at(out, (self.state, self.side), values)
-        return out
+        return np.bincount(2 * self.state + self.side, weights=values,
+                           minlength=2 * self.n_states).reshape(self.n_states, 2)
 
     def entering(self) -> np.ndarray:
         """The states that enter the effect (module docs: :data:`ENTRY`)."""
@@ -72,18 +71,17 @@ class Entries:
 
     def totals(self) -> np.ndarray:
         """(clusters, 2) transitions per cluster and side over all states."""
-        out = np.zeros((self.n_clusters, 2))
-        np.add.at(out, (self.cluster, self.side), self.count)
-        return out
+        return np.bincount(2 * self.cluster + self.side, weights=self.count,
+                           minlength=2 * self.n_clusters).reshape(self.n_clusters, 2)
 
 
 @dataclass(frozen=True, slots=True, eq=False)
 class ClusterSums:
     """Per entering state and cluster: the sums and the products of sums the cluster variances
-    need, as a sparse (states · width) × clusters matrix, so that any resampling weights of the
+    need, as a (width · states) × clusters matrix, so that any resampling weights of the
     clusters give every replicate's moments and variances with one product."""
 
-    matrix: np.ndarray | sp.csc_matrix  # (states · width) × clusters
+    matrix: np.ndarray | sp.csc_matrix  # (width · states) × clusters
     visits: sp.csr_matrix  # (states · 2) × clusters: the cluster's side-k member visits
     totals: np.ndarray  # (clusters, 2)
     column: dict
@@ -99,21 +97,14 @@ class ClusterSums:
         side, cluster = entries.side[take], entries.cluster[take]
         n_states, n_clusters = int(keep.sum()), entries.n_clusters
         j = entries.first.shape[1]
-        key, inverse = unique_inverse(cluster * n_states + state)
-        width = 1 + 2 * j
-        # per (state, cluster): side A's N, S1, S2, side B's, then a 1 (the factor of a sum)
-        x = np.zeros((len(key), 2, width))
-        x[inverse, side] = np.hstack([entries.count[take, None], entries.first[take],
-                                      entries.second[take]])  # (state, unit) occurs once
-        x = np.hstack([x.reshape(len(key), 2 * width), np.ones((len(key), 1))])
+        sums = np.hstack([entries.count[take, None], entries.first[take], entries.second[take]])
+        width = sums.shape[1]  # per side N, S1, S2 of each feature
         spec = _product_spec(j, entries.pairs)
         column = {name: i for i, (name, _, _) in enumerate(spec)}
-        one, two = (np.array([2 * width if f is None else f[0] * width + f[1] for f in factors])
+        one, two = (np.array([-1 if f is None else f[0] * width + f[1] for f in factors])
                     for factors in zip(*(factors for _, *factors in spec), strict=True))
-        matrix = unit_matrix(key // n_states, key % n_states,
-                             lambda part: np.take(x[part], one, axis=1)
-                             * np.take(x[part], two, axis=1),
-                             len(spec), n_clusters, n_states)
+        parts = [(cluster[side == k], state[side == k], sums[side == k]) for k in (0, 1)]
+        matrix = unit_matrix(parts, n_clusters, n_states, products=(one, two))
         visits = sp.csr_matrix(
             (np.ones(int(take.sum())), (2 * state + side, cluster)),
             shape=(2 * n_states, n_clusters))
@@ -123,13 +114,13 @@ class ClusterSums:
         """(features, replicates) plug-in and bias-corrected squared deviations and shifts, each
         cluster counted ``weights[cluster, r]`` times in replicate ``r``."""
         r = weights.shape[1]
-        q = np.asarray(self.matrix @ weights).reshape(self.n_states, -1, r)
+        q = np.asarray(self.matrix @ weights).reshape(-1, self.n_states, r)
         drawn = np.asarray(self.visits @ (weights > 0)).reshape(self.n_states, 2, r)
         total = self.totals.T @ weights  # (2, r)
         col = self.column
 
         def get(*name):
-            return q[:, col[name]]
+            return q[col[name]]
 
         count = [get("N", k) for k in (0, 1)]
         usable = (drawn >= MIN_UNITS).all(axis=1)  # θ: a variance between units needs two

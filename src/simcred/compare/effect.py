@@ -261,31 +261,31 @@ def _permuted_plugin(entries: Entries, keep: np.ndarray, assignments: np.ndarray
     j = entries.first.shape[1]
     values = np.hstack([entries.count[take, None], entries.first[take], entries.second[take]])
     width = values.shape[1]
-    matrix = unit_matrix(unit, state, values.__getitem__, width, n_units, n_states)
+    matrix = unit_matrix([(unit, state, values)], n_units, n_states)
     totals = np.bincount(entries.unit, weights=entries.count, minlength=n_units)
-    pooled = np.asarray(matrix.sum(axis=1)).reshape(n_states, width, 1)
+    pooled = np.asarray(matrix.sum(axis=1)).reshape(width, n_states, 1)
     product = side_sums(matrix, is_paired(assignments))
     out = np.zeros((j, assignments.shape[0]))
     for start in range(0, assignments.shape[0], 256):
         rows = assignments[start:start + 256]
-        a = product(rows).reshape(n_states, width, -1)
+        a = product(rows).reshape(width, n_states, -1)
         total_a = rows @ totals
         out[:, start:start + 256] = _plugin([a, pooled - a], [total_a, totals.sum() - total_a], j)
     return out
 
 
 def _plugin(sides, total, j: int) -> np.ndarray:
-    """(features, assignments) plug-in squared deviation from per-side (states, 1 + 2J, k) sums
+    """(features, assignments) plug-in squared deviation from per-side (1 + 2J, states, k) sums
     (a state with fewer than 2 transitions on a side drops out)."""
-    count = [s[:, 0] for s in sides]
+    count = [s[0] for s in sides]
     usable = (count[0] >= 2) & (count[1] >= 2)
     w = normalised(np.where(usable, 0.5 * (count[0] / total[0] + count[1] / total[1]), 0.0))
     with np.errstate(invalid="ignore", divide="ignore"):
-        mean = [s[:, 1:1 + j] / c[:, None] for s, c in zip(sides, count, strict=True)]
-        sd = [np.sqrt(np.maximum(s[:, 1 + j:] / c[:, None] - m**2, 0.0))
+        mean = [s[1:1 + j] / c for s, c in zip(sides, count, strict=True)]
+        sd = [np.sqrt(np.maximum(s[1 + j:] / c - m**2, 0.0))
               for s, c, m in zip(sides, count, mean, strict=True)]
     squared = np.nan_to_num((mean[0] - mean[1])**2 + (sd[0] - sd[1])**2)
-    return (w[:, None] * squared).sum(axis=0)
+    return (w * squared).sum(axis=1)
 
 
 def _signed_root(x: np.ndarray) -> np.ndarray:

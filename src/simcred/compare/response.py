@@ -177,10 +177,11 @@ class _FourierMap:
             self.b.append(rng.uniform(0.0, 2 * np.pi, FOURIER).astype(np.float32))
             self.bandwidth.append(sigma * scale)
 
-    def __call__(self, residual: np.ndarray) -> list[np.ndarray]:
+    def __call__(self, residual: np.ndarray, dtype: type = np.float64) -> list[np.ndarray]:
         """Per response feature, the (rows, FOURIER) integer-valued features of a chunk of
-        residuals. The angle and its cosine are single precision (3-4x faster than double; the
-        value is rounded to 1 / LEVELS of √2 anyway: about 3 in 100,000 land one level apart)."""
+        residuals, as ``dtype`` (integers of at most 363: exact in single precision too). The
+        angle and its cosine are single precision (3-4x faster than double; the value is rounded
+        to 1 / LEVELS of √2 anyway: about 3 in 100,000 land one level apart)."""
         out = []
         for k, (scale, w, b) in enumerate(zip(self.scale, self.w, self.b, strict=True)):
             block = np.multiply((residual[:, k] / scale).astype(np.float32)[:, None], w)
@@ -188,7 +189,7 @@ class _FourierMap:
             np.cos(block, out=block)
             block *= np.float32(LEVELS * np.sqrt(2.0))
             np.rint(block, out=block)
-            out.append(block.astype(np.float64))
+            out.append(block.astype(dtype, copy=False))
         return out
 
 
@@ -228,13 +229,13 @@ def kernel_sums(data: Transitions, n_units: int, rng: np.random.Generator) -> Ke
         for first, last in pair_chunks(pairs.starts, p0, p1):
             lo, hi = pairs.starts[first], pairs.starts[last]
             ends = pairs.starts[first:last + 1] - lo
-            indicator = sp.csr_matrix((np.ones(hi - lo), np.arange(hi - lo), ends),
-                                      shape=(last - first, hi - lo))  # pair × transition
-            for k, phi in enumerate(feature_map(residual[lo:hi])):
+            indicator = sp.csr_matrix((np.ones(hi - lo, dtype=kernel.dtype), np.arange(hi - lo),
+                                       ends), shape=(last - first, hi - lo))  # pair × transition
+            for k, phi in enumerate(feature_map(residual[lo:hi], kernel.dtype)):
                 kernel.put(b, 1 + k * FOURIER, first, last, indicator @ phi)
             if moments is not None:
                 values = moment_map(residual[lo:hi])
-                moments.put(b, 1, first, last, indicator @ values)
+                moments.put(b, 1, first, last, indicator.astype(np.float64, copy=False) @ values)
     return KernelSums(kernel.counts(), tuple(feature_map.bandwidth),
                       None if moments is None else moments.counts(), noisy,
                       () if moment_map is None else moment_map.pairs)

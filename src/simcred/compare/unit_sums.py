@@ -1,7 +1,7 @@
 """Per-unit sums laid out for products with many weight columns (bootstrap, permutations).
 
 The response effect keeps, per (state, unit), a row of sums; every resample or assignment of
-the units is then one product ``matrix @ weights`` with a (states · width) × units matrix. With
+the units is then one product ``matrix @ weights`` with a (width · states) × units matrix. With
 a few hundred states and runs of some hundred steps almost every unit visits almost every
 state (74–92 % of the positions filled in benchmarks/response.py), and there a dense array
 multiplied by BLAS is 10–20× faster than a sparse product and no larger (a sparse value carries
@@ -10,7 +10,7 @@ a 4-byte index besides its 8 bytes). Sparse sets (many states, short runs) stay 
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 import scipy.sparse as sp
@@ -26,8 +26,6 @@ from simcred.compare.side_counts import (
 
 #: Fill share from which the matrix is dense: 8 bytes a position against 12 a stored value.
 DENSE_SHARE = 2 / 3
-#: Entries written at once into a dense matrix (their rows: a few MB).
-CHUNK = 1 << 16
 
 
 def unique_inverse(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -41,26 +39,44 @@ def unique_inverse(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.unique(values, return_inverse=True)
 
 
-def unit_matrix(unit: np.ndarray, block: np.ndarray, rows: Callable[[slice], np.ndarray],
-                width: int, n_units: int, n_blocks: int) -> np.ndarray | sp.csc_matrix:
-    """The (n_blocks · width) × n_units matrix with ``rows(part)[i, c]`` at row ``block[i] ·
-    width + c`` of column ``unit[i]`` for the entries ``i`` of ``part`` (a slice of them); each
-    (unit, block) at most once, empty positions 0. A dense array (a transposed C-ordered view)
-    when at least :data:`DENSE_SHARE` of the positions hold a value, built :data:`CHUNK`
-    entries at a time (their rows are written whole, not column by column), else CSC."""
-    n = len(unit)
-    if n >= DENSE_SHARE * n_units * n_blocks:
-        out = np.zeros((n_units, n_blocks, width))
-        for lo in range(0, n, CHUNK):
-            part = slice(lo, lo + CHUNK)
-            out[unit[part], block[part]] = rows(part)
-        return out.reshape(n_units, n_blocks * width).T
-    values = rows(slice(0, n))
-    order = np.lexsort((block, unit))
-    indptr = np.r_[0, np.cumsum(np.bincount(unit, minlength=n_units) * width)]
-    indices = (block[order][:, None] * width + np.arange(width)).ravel()
-    return sp.csr_matrix((values[order].ravel(), indices, indptr),
-                         shape=(n_units, n_blocks * width)).T
+def unit_matrix(parts: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]], n_units: int,
+                n_blocks: int, products: tuple[np.ndarray, np.ndarray] | None = None
+                ) -> np.ndarray | sp.csc_matrix:
+    """The (width · n_blocks) × n_units matrix of per-(unit, block) rows, row ``c · n_blocks +
+    b`` of column ``u`` holding column ``c`` of (unit ``u``, block ``b``)'s row, empty positions
+    0. ``parts``: ``(unit, block, values)`` triples whose columns lie side by side (a (unit,
+    block) at most once per part, in any number of parts: e.g. the two members of a pair). Given
+    ``products = (one, two)``, column ``c`` is instead ``row[one[c]] · row[two[c]]`` (``two[c]``
+    < 0: ``row[one[c]]`` alone). A dense C-ordered array when at least :data:`DENSE_SHARE` of
+    the positions hold a row (values scattered once, each product one contiguous multiply of
+    two (blocks × units) slabs), else CSC."""
+    offsets = np.r_[0, np.cumsum([values.shape[1] for _, _, values in parts])]
+    filled = np.zeros(n_units * n_blocks, dtype=bool)
+    for unit, block, _ in parts:
+        filled[unit * n_blocks + block] = True
+    if np.count_nonzero(filled) >= DENSE_SHARE * len(filled):
+        base = np.zeros((offsets[-1], n_blocks, n_units))
+        for (unit, block, values), lo in zip(parts, offsets, strict=False):
+            base[lo:lo + values.shape[1], block, unit] = values.T
+        if products is None:
+            return base.reshape(-1, n_units)
+        out = np.empty((len(products[0]), n_blocks, n_units))
+        for row, (i, k) in enumerate(zip(*products, strict=True)):
+            np.multiply(base[i], base[k], out=out[row]) if k >= 0 else np.copyto(out[row], base[i])
+        return out.reshape(-1, n_units)
+    key, inverse = unique_inverse(np.concatenate([unit * n_blocks + block
+                                                  for unit, block, _ in parts]))
+    rows = np.zeros((len(key), offsets[-1]))
+    at = np.split(inverse, np.cumsum([len(unit) for unit, _, _ in parts])[:-1])
+    for (_, _, values), lo, where in zip(parts, offsets, at, strict=False):
+        rows[where, lo:lo + values.shape[1]] = values
+    if products is not None:
+        one, two = products
+        rows = rows[:, one] * np.where(two >= 0, rows[:, np.maximum(two, 0)], 1.0)
+    width = rows.shape[1]
+    row_index = (np.arange(width)[:, None] * n_blocks + key % n_blocks).ravel()
+    return sp.csc_matrix((rows.T.ravel(), (row_index, np.tile(key // n_blocks, width))),
+                         shape=(width * n_blocks, n_units))
 
 
 def side_sums(matrix: np.ndarray | sp.spmatrix, paired: bool
