@@ -173,7 +173,8 @@ def main(argv=None):
         table[kind] = summary(rows, margins, t)
         print(f"{kind}: {args.reps} replications, {time.time() - start:.0f} s", flush=True)
     print_table(table)
-    out = {"args": vars(args), "version": __version__, "commit": commit(),
+    out = {"args": vars(args) | {"out": Path(args.out).name}, "version": __version__,
+           "commit": commit(),
            "seconds": round(time.time() - start, 1), "feature": FEATURE, "alpha": ALPHA,
            "comparison": {**options, "test": "response", "pair_by": "run_id", "alpha": ALPHA,
                           "permutations": args.permutations, "bootstrap": args.bootstrap,
