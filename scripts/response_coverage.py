@@ -33,20 +33,23 @@ from simcred.compare import compare  # noqa: E402
 LEVELS = (0.90, 0.95)
 
 
-def effects(d, seed, bootstrap, margin=None):
-    result = compare(d.a, d.b, features=list(d.features), test="response", pair_by=d.pair_by,
-                     bins=4, permutations=19, seed=seed, alpha=0.05, bootstrap=bootstrap,
-                     margin=margin)
+def effects(d, seed, bootstrap, margin=None, **options):
+    """Per response feature, the effect of ``d`` (``options`` override the comparison's
+    ``features``, ``inputs``, ``bins`` and ``permutations``: d.features, none, 4, 19)."""
+    settings = {"features": list(d.features), "bins": 4, "permutations": 19} | options
+    result = compare(d.a, d.b, test="response", pair_by=d.pair_by, seed=seed, alpha=0.05,
+                     bootstrap=bootstrap, margin=margin, **settings)
     return {f.feature: f for f in result.response.effect.features}
 
 
-def truth(kind, draws, runs):
+def truth(kind, draws, runs, **options):
     """Per feature: (true deviation, its standard error, true shift, its standard error) from
-    ``draws`` draws of ``runs`` (the shift's plug-in is its mean over the draws)."""
+    ``draws`` draws of ``runs`` (the shift's plug-in is its mean over the draws); ``options``
+    as :func:`effects` takes them."""
     squared, shifts = {}, {}
     for i in range(draws):
         for name, f in effects(defect(np.random.default_rng(10**6 + i), kind, runs=runs),
-                               i, 2).items():
+                               i, 2, **options).items():
             squared.setdefault(name, []).append(f.squared)
             shifts.setdefault(name, []).append(f.shift)
     out = {}
