@@ -576,3 +576,21 @@ def test_least_squares_equals_svd_solution(seed):
     design = _Basis.of(x, cubic=True).design(x)
     expected = design @ np.linalg.lstsq(design, y, rcond=None)[0]
     assert np.allclose(design @ _least_squares(design, y), expected, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_fit_in_row_chunks_equals_svd_solution(monkeypatch, seed):
+    """The design built a few rows at a time (Gram matrix and moments summed over the chunks;
+    the whole design only for the SVD of a collinear case) fits as ``np.linalg.lstsq`` on the
+    whole design does."""
+    from simcred.compare import transitions
+
+    rng = np.random.default_rng(seed)
+    x = np.column_stack([rng.normal(size=3001), rng.standard_t(3, size=3001),
+                         rng.integers(0, 2, 3001) if seed % 2 else rng.normal(size=3001)])
+    y = np.asfortranarray(rng.normal(size=(3001, 2)) + x[:, :1] ** 2)
+    design = transitions._Basis.of(x, cubic=True).design(x)
+    expected = design @ np.linalg.lstsq(design, y, rcond=None)[0]
+    monkeypatch.setattr(transitions, "FIT_ROWS", 256)  # 12 chunks, the last one short
+    got = transitions._fitted(np.asfortranarray(x), y, cubic=True)
+    assert np.allclose(got, expected, rtol=0, atol=1e-9)

@@ -50,6 +50,21 @@ def test_unit_matrix_equals_literal(monkeypatch, dense_share, with_products, see
     products = (np.array([0, 1, 3, 4, 2]), np.array([-1, 1, 0, -1, 4])) if with_products \
         else None
     matrix = unit_sums.unit_matrix(parts, n_units, n_blocks, products=products)
-    assert isinstance(matrix, np.ndarray) == (dense_share == 0.0)
-    got = matrix if isinstance(matrix, np.ndarray) else matrix.toarray()
-    np.testing.assert_array_equal(got, _literal(parts, n_units, n_blocks, products))
+    assert isinstance(matrix, np.ndarray | unit_sums.ProductColumns) == (dense_share == 0.0)
+    np.testing.assert_array_equal(matrix @ np.eye(n_units),
+                                  _literal(parts, n_units, n_blocks, products))
+
+
+@pytest.mark.parametrize("chunk", [1, 20, 10**6])  # one block at a time, some, all at once
+def test_product_columns_in_chunks(monkeypatch, chunk):
+    """The products formed in chunks of blocks give the whole matrix's product."""
+    monkeypatch.setattr(unit_sums, "DENSE_SHARE", 0.0)
+    monkeypatch.setattr(unit_sums, "CHUNK_ELEMENTS", chunk)
+    rng = np.random.default_rng(7)
+    n_units, n_blocks = 6, 5
+    parts = _parts(rng, n_units, n_blocks, fill=0.7)
+    products = (np.array([0, 3, 2]), np.array([4, -1, 2]))
+    weights = rng.integers(0, 3, (n_units, 4)).astype(np.float64)
+    expected = _literal(parts, n_units, n_blocks, products) @ weights
+    got = unit_sums.unit_matrix(parts, n_units, n_blocks, products=products) @ weights
+    np.testing.assert_allclose(got, expected, rtol=1e-13, atol=1e-13)

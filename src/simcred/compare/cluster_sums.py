@@ -18,7 +18,7 @@ import scipy.sparse as sp
 
 from simcred.compare.design import Design, DesignKind
 from simcred.compare.transitions import Transitions
-from simcred.compare.unit_sums import unit_matrix
+from simcred.compare.unit_sums import ProductColumns, unit_matrix
 
 #: A state enters the effect when it holds at least this share of EACH side's transitions ...
 MIN_SHARE = 0.005
@@ -81,7 +81,7 @@ class ClusterSums:
     need, as a (width · states) × clusters matrix, so that any resampling weights of the
     clusters give every replicate's moments and variances with one product."""
 
-    matrix: np.ndarray | sp.csc_matrix  # (width · states) × clusters
+    matrix: np.ndarray | sp.csc_matrix | ProductColumns  # (width · states) × clusters
     visits: sp.csr_matrix  # (states · 2) × clusters: the cluster's side-k member visits
     totals: np.ndarray  # (clusters, 2)
     column: dict

@@ -103,7 +103,6 @@ ENTRY = (f"holds {100 * MIN_SHARE:g} % of each side's transitions and is visited
 #: docs; chosen among 0.5–4 on the known-truth designs, calibration.md).
 STABILISER = 2.0
 POWER = 0.8
-_CHUNK = 64  # bootstrap replicates evaluated at once
 
 
 @dataclass(frozen=True, slots=True)
@@ -227,10 +226,9 @@ def response_effects(data: Transitions, design: Design, replicates: int, alpha: 
     sums = ClusterSums.of(entries, keep)
     if entries.pairs:
         weights = weights[:design.units_a]  # a pair's members are drawn together
-    observed = sums.deviation(np.ones((sums.totals.shape[0], 1)))
-    boot = [sums.deviation(weights[:, i:i + _CHUNK])
-            for i in range(0, weights.shape[1], _CHUNK)]
-    boot = {name: np.hstack([b[name] for b in boot]) for name in observed}
+    every = sums.deviation(np.hstack([np.ones((len(weights), 1)), weights]))  # observed first
+    observed = {name: value[:, :1] for name, value in every.items()}
+    boot = {name: value[:, 1:] for name, value in every.items()}
     features = _feature_effects(data.response, observed, boot, alpha, level, dict(margins),
                                 units)
     if assignments is not None:

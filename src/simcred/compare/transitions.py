@@ -41,6 +41,8 @@ PER_COEFFICIENT = 5
 #: Largest condition number of the unit-diagonal Gram matrix solved by the normal equations
 #: (coefficients then good to ~1e-8, far below the comparison's resolution); beyond it an SVD.
 NORMAL_EQUATIONS_CONDITION = 1e8
+#: Rows of a fit's design matrix built at once (≈ 20 MB for the global cubic fit's 10 columns).
+FIT_ROWS = 2**18
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -183,27 +185,51 @@ def per_state_residual(state: np.ndarray, covariates: np.ndarray, rate: np.ndarr
 
 def _fitted(x: np.ndarray, y: np.ndarray, cubic: bool = False) -> np.ndarray:
     """Least-squares polynomial fit of ``y`` on ``x`` (:class:`_Basis`; the mean where too few
-    rows for a linear fit)."""
+    rows for a linear fit). The design matrix is built :data:`FIT_ROWS` rows at a time (the
+    global fit's would be 10 columns × every transition), whole only for the SVD."""
     basis = _Basis.of(x, cubic)
     if basis is None:
         return np.broadcast_to(y.mean(axis=0), y.shape)
-    design = basis.design(x)
-    return design @ _least_squares(design, y)
+    parts = [slice(lo, lo + FIT_ROWS) for lo in range(0, len(x), FIT_ROWS)]
+    if len(parts) == 1:
+        design = basis.design(x)
+        return design @ _least_squares(design, y)
+    gram, moment = 0.0, 0.0
+    for part in parts:
+        design = basis.design(x[part])
+        gram, moment = gram + design.T @ design, moment + design.T @ y[part]
+    coefficients = _normal_equations(gram, moment)
+    if coefficients is None:
+        design = basis.design(x)
+        return design @ np.linalg.lstsq(design, y, rcond=None)[0]
+    out = np.empty_like(y)
+    for part in parts:
+        out[part] = basis.design(x[part]) @ coefficients
+    return out
 
 
 def _least_squares(design: np.ndarray, y: np.ndarray) -> np.ndarray:
     """Least-squares coefficients: by the normal equations where they are well conditioned
     (one Gram product, 10-20x faster than an SVD on millions of rows), else by SVD (collinear
     terms, e.g. the square of a covariate with two values)."""
-    gram = design.T @ design
+    coefficients = _normal_equations(design.T @ design, design.T @ y)
+    if coefficients is None:
+        return np.linalg.lstsq(design, y, rcond=None)[0]
+    return coefficients
+
+
+def _normal_equations(gram: np.ndarray, moment: np.ndarray) -> np.ndarray | None:
+    """The solution of ``gram · β = moment`` where the unit-diagonal ``gram`` has a condition
+    number ≤ :data:`NORMAL_EQUATIONS_CONDITION`; None else (the caller takes the SVD)."""
     norm = np.sqrt(np.diag(gram))
-    if (norm > 0).all():
-        scaled = gram / np.outer(norm, norm)
-        eigen = np.linalg.eigvalsh(scaled)
-        if eigen[0] * NORMAL_EQUATIONS_CONDITION > eigen[-1]:
-            factor = scipy.linalg.cho_factor(scaled)
-            return scipy.linalg.cho_solve(factor, (design.T @ y) / norm[:, None]) / norm[:, None]
-    return np.linalg.lstsq(design, y, rcond=None)[0]
+    if not (norm > 0).all():
+        return None
+    scaled = gram / np.outer(norm, norm)
+    eigen = np.linalg.eigvalsh(scaled)
+    if eigen[0] * NORMAL_EQUATIONS_CONDITION <= eigen[-1]:
+        return None
+    factor = scipy.linalg.cho_factor(scaled)
+    return scipy.linalg.cho_solve(factor, moment / norm[:, None]) / norm[:, None]
 
 
 @dataclass(frozen=True, slots=True, eq=False)

@@ -26,6 +26,8 @@ from simcred.compare.side_counts import (
 
 #: Fill share from which the matrix is dense: 8 bytes a position against 12 a stored value.
 DENSE_SHARE = 2 / 3
+#: Elements of the product columns formed at once (:class:`ProductColumns`; 64 MB).
+CHUNK_ELEMENTS = 2**23
 
 
 def unique_inverse(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -47,9 +49,9 @@ def unit_matrix(parts: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]], n_un
     0. ``parts``: ``(unit, block, values)`` triples whose columns lie side by side (a (unit,
     block) at most once per part, in any number of parts: e.g. the two members of a pair). Given
     ``products = (one, two)``, column ``c`` is instead ``row[one[c]] · row[two[c]]`` (``two[c]``
-    < 0: ``row[one[c]]`` alone). A dense C-ordered array when at least :data:`DENSE_SHARE` of
-    the positions hold a row (values scattered once, each product one contiguous multiply of
-    two (blocks × units) slabs), else CSC."""
+    < 0: ``row[one[c]]`` alone). Where at least :data:`DENSE_SHARE` of the positions hold a
+    row: a dense C-ordered array, or with ``products`` a :class:`ProductColumns` (the values
+    scattered once, the products formed when multiplied); else CSC."""
     offsets = np.r_[0, np.cumsum([values.shape[1] for _, _, values in parts])]
     filled = np.zeros(n_units * n_blocks, dtype=bool)
     for unit, block, _ in parts:
@@ -58,12 +60,7 @@ def unit_matrix(parts: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]], n_un
         base = np.zeros((offsets[-1], n_blocks, n_units))
         for (unit, block, values), lo in zip(parts, offsets, strict=False):
             base[lo:lo + values.shape[1], block, unit] = values.T
-        if products is None:
-            return base.reshape(-1, n_units)
-        out = np.empty((len(products[0]), n_blocks, n_units))
-        for row, (i, k) in enumerate(zip(*products, strict=True)):
-            np.multiply(base[i], base[k], out=out[row]) if k >= 0 else np.copyto(out[row], base[i])
-        return out.reshape(-1, n_units)
+        return base.reshape(-1, n_units) if products is None else ProductColumns(base, *products)
     key, inverse = unique_inverse(np.concatenate([unit * n_blocks + block
                                                   for unit, block, _ in parts]))
     rows = np.zeros((len(key), offsets[-1]))
@@ -77,6 +74,34 @@ def unit_matrix(parts: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]], n_un
     row_index = (np.arange(width)[:, None] * n_blocks + key % n_blocks).ravel()
     return sp.csc_matrix((rows.T.ravel(), (row_index, np.tile(key // n_blocks, width))),
                          shape=(width * n_blocks, n_units))
+
+
+class ProductColumns:
+    """The dense (products · blocks) × units matrix of :func:`unit_matrix` with ``products``,
+    never held whole (it is several times the sums it is made of: 49 columns from 11 for a
+    paired design, and its first touch of fresh memory cost more than the products): ``self @
+    weights`` forms the product columns :data:`CHUNK_ELEMENTS` at a time in one buffer, each
+    one contiguous multiply of two (blocks × units) slabs of ``base`` (sums, blocks, units)."""
+
+    def __init__(self, base: np.ndarray, one: np.ndarray, two: np.ndarray) -> None:
+        self.base, self.one, self.two = base, one, two
+        self.shape = (len(one) * base.shape[1], base.shape[2])
+
+    def __matmul__(self, weights: np.ndarray) -> np.ndarray:
+        width, (_, n_blocks, n_units) = len(self.one), self.base.shape
+        out = np.empty((width, n_blocks, weights.shape[1]))
+        step = max(1, min(n_blocks, CHUNK_ELEMENTS // max(width * n_units, 1)))
+        buffer = np.empty(width * step * n_units)
+        for b0 in range(0, n_blocks, step):
+            b1 = min(b0 + step, n_blocks)
+            part = buffer[:width * (b1 - b0) * n_units].reshape(width, b1 - b0, n_units)
+            for row, (i, k) in enumerate(zip(self.one, self.two, strict=True)):
+                if k >= 0:
+                    np.multiply(self.base[i, b0:b1], self.base[k, b0:b1], out=part[row])
+                else:
+                    part[row] = self.base[i, b0:b1]
+            out[:, b0:b1] = (part.reshape(-1, n_units) @ weights).reshape(width, b1 - b0, -1)
+        return out.reshape(-1, weights.shape[1])
 
 
 def side_sums(matrix: np.ndarray | sp.spmatrix, paired: bool
