@@ -160,10 +160,13 @@ def read(path: str | Path, *, layout: str = "obstacles", missing: str = "error")
 
 
 def lanelets(path: str | Path) -> dict[int, dict]:
-    """The scenario's lanelet network: per lanelet id its ``centre`` line ((n, 2) array, in
-    driving direction) and its ``successors`` and ``predecessors`` (ids)."""
+    """The scenario's lanelet network: per lanelet id its ``centre`` line and its ``left`` and
+    ``right`` bounds ((n, 2) arrays, in driving direction, vertices paired) and its
+    ``successors`` and ``predecessors`` (ids)."""
     scenario = _open(Path(path))
     return {int(lane.lanelet_id): {"centre": np.asarray(lane.center_vertices, dtype=np.float64),
+                                   "left": np.asarray(lane.left_vertices, dtype=np.float64),
+                                   "right": np.asarray(lane.right_vertices, dtype=np.float64),
                                    "successors": [int(i) for i in lane.successor],
                                    "predecessors": [int(i) for i in lane.predecessor]}
             for lane in scenario.lanelet_network.lanelets}

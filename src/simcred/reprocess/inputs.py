@@ -300,7 +300,8 @@ def long_drive(path: str | Path, columns: LongColumns = LongColumns(), *,
         sd, gt_recording = (None if r is None else _moved(r, to_frenet(r.tracks, line))
                             for r in (sd, gt_recording))
         frame = {"road": f"Frenet frame along the reference path {columns.reference} (x: arc "
-                         "length, y: left offset)", "vertices": len(line)}
+                         "length, y: left offset)", "vertices": len(line),
+                 "path": str(columns.reference)}
     else:
         frame = _long_frame(Path(path), sd, columns.road_frame)
         if frame is not None:

@@ -11,7 +11,9 @@ Layout::
     reaction.json       reactions (time, manoeuvre) and eqs. (4)-(7)
     risk.json           risk, TTC and THW time series of every assessed representation
     descriptions/       every scenario description (JSON), e.g. fit_GT.json, fit_rGT_sb.json
-    scenario.xosc       OpenSCENARIO export of the measurement's description (GT, else SD)
+    scenario.xosc       OpenSCENARIO export of the measurement's description (GT, else SD),
+                        in map coordinates (:mod:`simcred.reprocess.map_export`)
+    scenario.xodr       its RoadNetwork: a CommonRoad scenario's lanelets as OpenDRIVE
     resimulations/      every resimulation as Parquet, e.g. rGT.parquet
 """
 
@@ -22,9 +24,9 @@ from typing import Any
 
 from simcred._json import dumps, envelope
 from simcred.io import parquet
+from simcred.reprocess.map_export import write_scenario
 from simcred.reprocess.pipeline import Reprocessed
-from simcred.reprocess.representation import GT, SD, Rep
-from simcred.scenario.openscenario import to_openscenario, validate_openscenario
+from simcred.reprocess.representation import Rep
 
 
 def write(result: Reprocessed, directory: str | Path) -> dict[str, Path]:
@@ -52,10 +54,7 @@ def write(result: Reprocessed, directory: str | Path) -> dict[str, Path]:
     for name, traces in result.resimulations.items():
         (out / "resimulations").mkdir(exist_ok=True)
         parquet.write(traces, out / "resimulations" / f"{Rep(name).file_stem}.parquet")
-    source = GT.fit() if GT.fit() in result.descriptions else SD.fit()
-    files["openscenario"] = to_openscenario(result.descriptions[source], out / "scenario.xosc",
-                                            ego=result.config.ego)
-    validate_openscenario(files["openscenario"])
+    files.update(write_scenario(result, out))
     return files
 
 

@@ -82,9 +82,19 @@ def lanelet_line(network: Mapping[int, Mapping[str, Any]], ego: Track, where: st
                 break
             current = min(options, key=lambda i: _distance(network[i]["centre"], points))
             chain = [*chain, current] if direction > 0 else [current, *chain]
+    return chain_line(network, chain, where), chain
+
+
+def chain_line(network: Mapping[int, Mapping[str, Any]], chain: list[int], where: str
+               ) -> np.ndarray:
+    """The centre lines of the lanelets ``chain`` (in driving order) joined into one line (a
+    successor's first vertex, its predecessor's last, is kept once)."""
+    missing = [i for i in chain if i not in network]
+    if missing:
+        raise SimcredError(f"{where}: no lanelet {missing[0]} in the lanelet network")
     line = np.concatenate([network[i]["centre"] if k == 0 else network[i]["centre"][1:]
                            for k, i in enumerate(chain)])
-    return _checked(line, where), chain
+    return _checked(line, where)
 
 
 def _start_lanelet(network: Mapping[int, Mapping[str, Any]], ego: Track, where: str) -> int:

@@ -46,6 +46,33 @@ def path_coordinates(px: np.ndarray, py: np.ndarray, x: np.ndarray, y: np.ndarra
     return s0[best] + clipped[rows, best], cross, heading
 
 
+def path_points(px: np.ndarray, py: np.ndarray, s: np.ndarray, d: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The inverse of :func:`path_coordinates`: the points at arc length ``s`` and signed
+    lateral offset ``d`` (left positive) of the polyline ``(px, py)``, and the tangent heading
+    there. Each point lies on the segment that holds ``s`` (before the start and beyond the end:
+    on the end segments' extensions), offset along that segment's left normal.
+
+    Exact where :func:`path_coordinates` projected onto a segment's interior; a point that
+    projected onto a vertex (outside a bend of angle α) comes back up to |d|·α away.
+    """
+    seg = np.column_stack([np.diff(px), np.diff(py)])
+    length = np.hypot(seg[:, 0], seg[:, 1])
+    keep = length > 1e-9
+    if keep.sum() < 1:
+        raise SimcredError("the reference line has no length: no points along it")
+    start = np.column_stack([px[:-1], py[:-1]])[keep]
+    seg, length = seg[keep], length[keep]
+    s0 = np.concatenate([[0.0], np.cumsum(length)[:-1]])
+    unit = seg / length[:, None]
+    s, d = np.asarray(s, dtype=np.float64), np.asarray(d, dtype=np.float64)
+    k = np.clip(np.searchsorted(s0, s, side="right") - 1, 0, len(length) - 1)
+    along = s - s0[k]
+    x = start[k, 0] + along * unit[k, 0] - d * unit[k, 1]
+    y = start[k, 1] + along * unit[k, 1] + d * unit[k, 0]
+    return x, y, np.arctan2(unit[k, 1], unit[k, 0])
+
+
 def to_path_frame(traces: TraceSet, *, ego: str = "ego",
                   objects: Sequence[str] = ("to",)) -> TraceSet:
     """The one-run trace set in path coordinates (see the module docstring)."""

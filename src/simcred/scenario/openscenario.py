@@ -33,6 +33,7 @@ from simcred.scenario.description import (
     ScenarioDescription,
     sample_times,
 )
+from simcred.scenario.map_frame import MapFrame, PathFrame, RigidFrame
 
 STEP = 0.1
 #: OpenSCENARIO vehicle category per recorded (CommonRoad) type; other types are cars.
@@ -67,6 +68,7 @@ def build_openscenario(
     *,
     ego: str = "ego",
     road_file: str | None = None,
+    frame: MapFrame | None = None,
     step: float = STEP,
     ego_trajectory: bool = False,
     osc_minor_version: int = MINOR_VERSION,
@@ -84,7 +86,12 @@ def build_openscenario(
         The object under test: it is placed by the Init (TeleportAction to its WorldPosition at
         the start, AbsoluteSpeedAction with a step) and gets no trajectory.
     road_file : str, optional
-        OpenDRIVE file for the RoadNetwork (written as given).
+        OpenDRIVE file for the RoadNetwork's ``LogicFile`` (written as given: a relative path
+        is read from the .xosc's directory).
+    frame : RigidFrame or PathFrame, optional
+        Where the description's frame lies in the map (:mod:`simcred.scenario.map_frame`):
+        every exported position and heading is taken back to map coordinates, so the file
+        lines up with ``road_file``. Default: positions as the description holds them.
     step : float, default: 0.1
         Vertex spacing (s); vertices at t0 + k·step of every object's span, plus its t1.
     ego_trajectory : bool, default: False
@@ -113,7 +120,7 @@ def build_openscenario(
     tracks), not the rear axle; axles are placed at ±30 % of the length. scenariogeneration and
     xmlschema are imported on first use (they take most of a second to import).
     """
-    _to_openscenario_iv(description, ego, step, osc_minor_version)
+    _to_openscenario_iv(description, ego, frame, step, osc_minor_version)
     from scenariogeneration import xosc
 
     start = min(track.t0 for track in description.objects.values())
@@ -125,13 +132,14 @@ def build_openscenario(
     for obj, track in description.objects.items():
         entities.add_scenario_object(obj, _entity(xosc, obj, track,
                                                   object_type(description, obj)))
-        first = track.states(np.array([track.t0]))
+        first = _placed(track.states(np.array([track.t0])), frame)
         init.add_init_action(obj, xosc.TeleportAction(_position(xosc, first, 0)))
         init.add_init_action(obj, xosc.AbsoluteSpeedAction(
             float(first.v[0]), xosc.TransitionDynamics(xosc.DynamicsShapes.step,
                                                        xosc.DynamicsDimension.time, 0.0)))
         if obj != ego or ego_trajectory:
-            act.add_maneuver_group(_follow(xosc, obj, track, step, start, osc_minor_version))
+            act.add_maneuver_group(_follow(xosc, obj, track, step, start, osc_minor_version,
+                                           frame))
             followers += 1
     storyboard = xosc.StoryBoard(init, _at_time(xosc, end - start, "stop"))
     if followers:
@@ -148,13 +156,16 @@ def trajectory_times(track: ObjectTrack, step: float = STEP) -> np.ndarray:
     return sample_times(track.t0, track.t1, step)
 
 
-def _to_openscenario_iv(description: ScenarioDescription, ego: str, step: float,
+def _to_openscenario_iv(description: ScenarioDescription, ego: str, frame: Any, step: float,
                         minor: int) -> None:
     if not isinstance(description, ScenarioDescription):
         raise OptionError(f"expected a ScenarioDescription, got {type(description).__name__}")
     if ego not in description.objects:
         raise OptionError(f"ego object '{ego}' is not in the description (objects: "
                           f"{', '.join(description.objects)})")
+    if frame is not None and not isinstance(frame, RigidFrame | PathFrame):
+        raise OptionError(f"frame must be a RigidFrame or a PathFrame, got "
+                          f"{type(frame).__name__}")
     if not (math.isfinite(step) and step > 0):
         raise OptionError(f"step must be a finite number > 0, got {step!r}")
     if isinstance(minor, bool) or minor not in (1, 2, 3):
@@ -193,10 +204,14 @@ def _position(xosc: Any, states: Track, i: int) -> Any:
                               h=float(states.heading[i]))
 
 
-def _follow(xosc: Any, name: str, track: ObjectTrack, step: float, start: float, minor: int
-            ) -> Any:
+def _placed(states: Track, frame: MapFrame | None) -> Track:
+    return states if frame is None else frame.to_map(states)
+
+
+def _follow(xosc: Any, name: str, track: ObjectTrack, step: float, start: float, minor: int,
+            frame: MapFrame | None) -> Any:
     times = trajectory_times(track, step)
-    states = track.states(times)
+    states = _placed(track.states(times), frame)
     polyline = xosc.Polyline([float(t) for t in times],
                              [_position(xosc, states, i) for i in range(len(times))])
     trajectory = xosc.Trajectory(f"{name}_trajectory", False)
