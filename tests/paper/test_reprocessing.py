@@ -12,11 +12,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from types import SimpleNamespace
 
 import pytest
 
 from simcred.paper import reprocessing
 from simcred.reprocess.pipeline import ReprocessConfig, reprocess
+from simcred.reprocess.reaction import Reaction, reaction_analysis
 from simcred.sim.experiments import cutin
 from simcred.sim.sensors import OffsetDelaySensor, TrackerSensor, estimate_sensor
 
@@ -76,6 +78,24 @@ def test_eqs_4_and_6_are_claimed_on_the_paper_reading_the_speed_drop(checked):
     assert 0 < a.dt_onset_gt_rgt < 0.5 * reprocessing.PAPER_SHIFT
     assert not claims["reaction_shift_eq4"].passed and not claims["reaction_shift_eq6"].passed
     assert claims["reaction_rgt_rsd_offset"].passed
+
+
+def test_each_reading_is_judged_on_its_own_times():
+    """Oracle by hand: speed drops 1.0 s apart (eq. 4 holds on the onset, eq. 6: 1.0 / 0.05 =
+    20), emergency braking 0.2 s apart (eq. 4 fails on the braking, eq. 6: 4)."""
+    reactions = {k: Reaction(brake, "brake", 27.0, -8.0, 0.0, onset) for k, brake, onset in
+                 (("GT", 3.7, 3.2), ("rGT", 3.5, 2.2), ("rSD", 3.55, 2.25))}
+    timing = reaction_analysis(reactions, sensor_offset=1.4, ego_speed=28.0)
+    drive = SimpleNamespace(reactions=reactions, analysis=SimpleNamespace(ideal=timing))
+    claims = by_id(reprocessing.eq4_to_7_claims(drive))
+    assert claims["reaction_shift_eq4"].value == pytest.approx(1.0)
+    assert claims["reaction_shift_eq6"].value == pytest.approx(20.0)
+    assert claims["reaction_shift_eq4"].passed and claims["reaction_shift_eq6"].passed
+    assert claims["reaction_shift_eq6_braking"].value == pytest.approx(4.0)
+    assert not claims["reaction_shift_eq4_braking"].passed
+    assert not claims["reaction_shift_eq6_braking"].passed
+    assert claims["reaction_rgt_rsd_offset"].passed  # 0.05 s < 3 × 0.05 s, on both readings
+    assert claims["reaction_rgt_rsd_offset_braking"].passed
 
 
 def test_reaction_shift_json_reports_both_readings(checked):
