@@ -317,7 +317,7 @@ def _reprocess_job(job: tuple[ReprocessConfig, int | None]
 
 def reading_values(result: Reprocessed) -> dict[str, dict[str, object]]:
     """Eqs. (4), (6), (7) per reading of the reaction (:data:`READINGS`, ``onset`` first: the
-    claims' reading), each with its reaction times and manoeuvres, ideal sensor."""
+    claims' reading), each with the representations' times on it, ideal sensor."""
     a, out = _timing(result), {}
     for suffix, what, fields, reading in READINGS:
         shift, ratio, dt_rsd = (getattr(a, k) for k in fields)
