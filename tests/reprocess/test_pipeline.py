@@ -158,10 +158,10 @@ def test_reaction_analysis_eqs_4_to_7():
 def test_reaction_analysis_reports_undefined_terms_as_none():
     result = reaction_analysis({"GT": at(3.0), "rGT": at(math.nan, "none")}, sensor_offset=0.0,
                                ego_speed=28.0)
-    assert result == ReactionTiming(None, 0.0, None, None, None, None)
+    assert result == ReactionTiming(None, 0.0, None, None, None, None, None)
     assert result.to_dict() == {"dt_react_GT_rGT": None, "t_offset": 0.0, "ratio_eq6": None,
                                 "dt_react_rGT_rSD": None, "dt_onset_GT_rGT": None,
-                                "dt_onset_rGT_rSD": None}
+                                "dt_onset_rGT_rSD": None, "ratio_onset_eq6": None}
 
 
 def test_the_onset_is_where_the_speed_first_drops_below_its_running_maximum():
@@ -182,6 +182,7 @@ def test_reaction_analysis_reports_onset_differences():
                                 "rSD": replace(at(3.05), onset=2.8)}, 1.4, 28.0)
     assert result.dt_onset_gt_rgt == pytest.approx(0.2)
     assert result.dt_onset_rgt_rsd == pytest.approx(0.1)
+    assert result.ratio_onset_eq6 == pytest.approx(0.2 / 0.05)  # eq. (6) on the onset
 
 
 # -- the path frame -------------------------------------------------------------------------------
@@ -276,7 +277,7 @@ def test_the_analysis_writes_the_flat_layout_of_reprocess_json(result):
     [1]'s symbols with the suffix [sb]: the keys reprocess.json has always had."""
     a = result.analysis
     eqs = ["dt_react_GT_rGT", "t_offset", "ratio_eq6", "dt_react_rGT_rSD", "dt_onset_GT_rGT",
-           "dt_onset_rGT_rSD"]
+           "dt_onset_rGT_rSD", "ratio_onset_eq6"]
     assert list(a.to_dict()) == ["sensor_offset_d", "ego_speed", *eqs, *(f"{k}[sb]" for k in eqs)]
     assert a.to_dict()["dt_react_GT_rGT[sb]"] == a.scenario_based.dt_react_gt_rgt
     assert result.to_dict()["analysis"] == a.to_dict() == result.analysis_report

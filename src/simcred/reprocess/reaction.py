@@ -88,8 +88,9 @@ class ReactionTiming(JsonResult):
     """Eqs. (4)-(7) of [1] for one sensor model (s; None: a difference that involves a reaction
     that is absent or not measurable): Δt_react(GT, rGT) (eq. 4, positive: the resimulation
     reacts earlier), t_ΔS,d = ΔS,d / v_EGO (eq. 5), their ratio (eq. 6), Δt_react(rGT, rSD)
-    = t_rSD − t_rGT (eq. 7), and the same two differences for the onset of the speed drop.
-    Its document is its fields, under [1]'s names (``dt_react_GT_rGT``, ...)."""
+    = t_rSD − t_rGT (eq. 7), and the same for the onset of the speed drop (``dt_onset_*``, eq. 6's
+    ratio ``ratio_onset_eq6``: [1] reads the reaction as the drop of the speed profile). Its
+    document is its fields, under [1]'s names (``dt_react_GT_rGT``, ...)."""
 
     dt_react_gt_rgt: float | None = field(metadata=json_key("dt_react_GT_rGT"))
     t_offset: float | None
@@ -97,6 +98,7 @@ class ReactionTiming(JsonResult):
     dt_react_rgt_rsd: float | None = field(metadata=json_key("dt_react_rGT_rSD"))
     dt_onset_gt_rgt: float | None = field(metadata=json_key("dt_onset_GT_rGT"))
     dt_onset_rgt_rsd: float | None = field(metadata=json_key("dt_onset_rGT_rSD"))
+    ratio_onset_eq6: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         return fields_dict(self)
@@ -143,13 +145,18 @@ def reaction_analysis(reactions: dict[str, Reaction], sensor_offset: float, ego_
     def defined(value: float) -> float | None:
         return None if math.isnan(value) else value
 
+    def ratio(shift: float) -> float | None:  # [1] eq. (6)
+        return defined(shift / offset_time if offset_time > 0 else math.nan)
+
     gt_vs_rgt = time("GT") - time("rGT")
+    onset_gt_vs_rgt = time("GT", "onset") - time("rGT", "onset")
     offset_time = sensor_offset / ego_speed
     return ReactionTiming(
         dt_react_gt_rgt=defined(gt_vs_rgt),
         t_offset=defined(offset_time),
-        ratio_eq6=defined(gt_vs_rgt / offset_time if offset_time > 0 else math.nan),
+        ratio_eq6=ratio(gt_vs_rgt),
         dt_react_rgt_rsd=defined(time("rSD") - time("rGT")),
-        dt_onset_gt_rgt=defined(time("GT", "onset") - time("rGT", "onset")),
+        dt_onset_gt_rgt=defined(onset_gt_vs_rgt),
         dt_onset_rgt_rsd=defined(time("rSD", "onset") - time("rGT", "onset")),
+        ratio_onset_eq6=ratio(onset_gt_vs_rgt),
     )
