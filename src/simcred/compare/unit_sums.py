@@ -43,7 +43,7 @@ def unique_inverse(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def unit_matrix(parts: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]], n_units: int,
                 n_blocks: int, products: tuple[np.ndarray, np.ndarray] | None = None
-                ) -> np.ndarray | sp.csc_matrix:
+                ) -> np.ndarray | sp.csc_matrix | ProductColumns:
     """The (width · n_blocks) × n_units matrix of per-(unit, block) rows, row ``c · n_blocks +
     b`` of column ``u`` holding column ``c`` of (unit ``u``, block ``b``)'s row, empty positions
     0. ``parts``: ``(unit, block, values)`` triples whose columns lie side by side (a (unit,
@@ -53,16 +53,15 @@ def unit_matrix(parts: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]], n_un
     row: a dense C-ordered array, or with ``products`` a :class:`ProductColumns` (the values
     scattered once, the products formed when multiplied); else CSC."""
     offsets = np.r_[0, np.cumsum([values.shape[1] for _, _, values in parts])]
-    filled = np.zeros(n_units * n_blocks, dtype=bool)
-    for unit, block, _ in parts:
-        filled[unit * n_blocks + block] = True
-    if np.count_nonzero(filled) >= DENSE_SHARE * len(filled):
+    keys = [unit * n_blocks + block for unit, block, _ in parts]
+    dense = DENSE_SHARE * n_units * n_blocks
+    if sum(map(len, keys)) >= dense and (  # distinct positions counted only where it matters
+            len(parts) == 1 or len(unique_inverse(np.concatenate(keys))[0]) >= dense):
         base = np.zeros((offsets[-1], n_blocks, n_units))
         for (unit, block, values), lo in zip(parts, offsets, strict=False):
             base[lo:lo + values.shape[1], block, unit] = values.T
         return base.reshape(-1, n_units) if products is None else ProductColumns(base, *products)
-    key, inverse = unique_inverse(np.concatenate([unit * n_blocks + block
-                                                  for unit, block, _ in parts]))
+    key, inverse = unique_inverse(np.concatenate(keys))
     rows = np.zeros((len(key), offsets[-1]))
     at = np.split(inverse, np.cumsum([len(unit) for unit, _, _ in parts])[:-1])
     for (_, _, values), lo, where in zip(parts, offsets, at, strict=False):
