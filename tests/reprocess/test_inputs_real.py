@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from asam_qc import assert_accepted, quality_check
 from simcred import data
 from simcred.cli import run
 from simcred.reprocess.inputs import NOT_DRIVEN
@@ -176,3 +177,5 @@ def test_cli_reprocesses_the_a9_lane_changer_with_figures(tmp_path):
     assert summary["input"]["drive"]["object"] == 1
     assert summary["input"]["gaps"] == [] and summary["input"]["time_base"] == "SD"
     assert (out / "figures" / "fig3_fit.png").is_file()
+    # issue 24: every real scene's .xosc passes the ASAM Quality Checker (no map: no road file)
+    assert_accepted(quality_check(out / "scenario.xosc", tmp_path), road=False)
