@@ -23,8 +23,8 @@ SRC = Path(__file__).resolve().parents[1] / "src"
 #: it may import the core and io (io registers the TraceSet file formats), nothing imports it
 #: from inside the package but the CLI.
 #: The core is ordered within itself (0.00 … 0.10), so its modules cannot import in a circle.
-CORE = ("_version", "_lazy", "_display", "errors", "limits", "data", "_json", "outputs", "seeds",
-        "engine", "traces", "kinematics")
+CORE = ("_version", "_lazy", "_display", "errors", "limits", "data", "_json", "_xml", "outputs",
+        "seeds", "engine", "traces", "kinematics")
 LAYERS: dict[str, float] = {
     **{unit: i / 100 for i, unit in enumerate(CORE)},
     "io": 1,

@@ -38,6 +38,7 @@ from typing import Any
 
 import numpy as np
 
+from simcred._xml import read_xml
 from simcred.errors import OptionError, SimcredError
 
 MIN_SEGMENT = 1e-6  # m: shorter centre-line segments are dropped (OpenDRIVE lengths are > 0)
@@ -183,12 +184,7 @@ def validate_opendrive(path: str | Path) -> None:
     scenariogeneration); one-line :class:`~simcred.errors.SimcredError` naming the file and the
     first schema error."""
     path = Path(path)
-    try:
-        tree = ET.parse(path)
-    except OSError as exc:
-        raise SimcredError(f"{path}: cannot read: {exc.strerror or exc}") from None
-    except ET.ParseError as exc:
-        raise SimcredError(f"{path}: not well-formed XML: {exc}") from None
+    tree = read_xml(path)
     error = next(_schema().iter_errors(tree), None)
     if error is not None:
         raise SimcredError(f"{path}: not valid OpenDRIVE 1.7: {error.reason or error.message} "

@@ -20,12 +20,12 @@ from __future__ import annotations
 import datetime as dt
 import functools
 import math
-import xml.etree.ElementTree as ET
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from simcred._xml import read_xml
 from simcred.errors import OptionError, SimcredError
 from simcred.kinematics import Track
 from simcred.scenario.description import (
@@ -277,12 +277,7 @@ def validate_openscenario(path: str | Path) -> None:
     schema error (its reason and XPath), or what keeps the file from being read.
     """
     path = Path(path)
-    try:
-        tree = ET.parse(path)
-    except OSError as exc:
-        raise SimcredError(f"{path}: cannot read: {exc.strerror or exc}") from None
-    except ET.ParseError as exc:
-        raise SimcredError(f"{path}: not well-formed XML: {exc}") from None
+    tree = read_xml(path)
     header = tree.getroot().find("FileHeader")
     if header is None:
         raise SimcredError(f"{path}: no FileHeader: not an OpenSCENARIO file")
