@@ -17,20 +17,27 @@ from simcred.errors import SimcredError
 from simcred.traces import TIME, TraceSet
 
 
+def _segments(px: np.ndarray, py: np.ndarray, empty: str
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The polyline's segments of positive length: start points, lengths, arc length at each
+    start and unit directions (``empty``: the one-line error where none is left)."""
+    seg = np.column_stack([np.diff(px), np.diff(py)])
+    length = np.hypot(seg[:, 0], seg[:, 1])
+    keep = length > 1e-9
+    if keep.sum() < 1:
+        raise SimcredError(empty)
+    seg, length = seg[keep], length[keep]
+    return (np.column_stack([px[:-1], py[:-1]])[keep], length,
+            np.concatenate([[0.0], np.cumsum(length)[:-1]]), seg / length[:, None])
+
+
 def path_coordinates(px: np.ndarray, py: np.ndarray, x: np.ndarray, y: np.ndarray
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Arc length, signed lateral offset and tangent heading of points ``(x, y)`` on the polyline
     ``(px, py)``, by projection onto its nearest segment (beyond the ends: on the end segments'
     extensions)."""
-    seg = np.column_stack([np.diff(px), np.diff(py)])
-    length = np.hypot(seg[:, 0], seg[:, 1])
-    keep = length > 1e-9
-    if keep.sum() < 1:
-        raise SimcredError("the EGO's path has no length: it cannot serve as a road")
-    start = np.column_stack([px[:-1], py[:-1]])[keep]
-    seg, length = seg[keep], length[keep]
-    s0 = np.concatenate([[0.0], np.cumsum(length)[:-1]])
-    unit = seg / length[:, None]
+    start, length, s0, unit = _segments(
+        px, py, "the EGO's path has no length: it cannot serve as a road")
     rel = np.stack([x, y], axis=1)[:, None, :] - start[None]  # (points, segments, 2)
     along = np.einsum("psc,sc->ps", rel, unit)
     last = len(length) - 1
@@ -56,15 +63,8 @@ def path_points(px: np.ndarray, py: np.ndarray, s: np.ndarray, d: np.ndarray
     Exact where :func:`path_coordinates` projected onto a segment's interior; a point that
     projected onto a vertex (outside a bend of angle α) comes back up to |d|·α away.
     """
-    seg = np.column_stack([np.diff(px), np.diff(py)])
-    length = np.hypot(seg[:, 0], seg[:, 1])
-    keep = length > 1e-9
-    if keep.sum() < 1:
-        raise SimcredError("the reference line has no length: no points along it")
-    start = np.column_stack([px[:-1], py[:-1]])[keep]
-    seg, length = seg[keep], length[keep]
-    s0 = np.concatenate([[0.0], np.cumsum(length)[:-1]])
-    unit = seg / length[:, None]
+    start, length, s0, unit = _segments(px, py,
+                                        "the reference line has no length: no points along it")
     s, d = np.asarray(s, dtype=np.float64), np.asarray(d, dtype=np.float64)
     k = np.clip(np.searchsorted(s0, s, side="right") - 1, 0, len(length) - 1)
     along = s - s0[k]
