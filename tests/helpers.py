@@ -37,6 +37,17 @@ def ar_set(rng, runs, phi, length=30, source="<test>"):
     )
 
 
+def tied_set(rng, runs, shift, source):
+    """A feature with a 60 % atom at 0 (a quantile edge at the minimum is dropped) and one with
+    three values (midpoint edges)."""
+    out = []
+    for _ in range(runs):
+        n = int(rng.integers(2, 25))
+        x = np.where(rng.random(n) < 0.6, 0.0, np.round(rng.exponential(1, n) + shift, 1))
+        out.append({"t": np.arange(n) * 0.1, "x": x, "y": rng.integers(0, 3, n) * 1.0})
+    return TraceSet.from_runs(out, source=source)
+
+
 def leaf_commands(group, prefix=()):
     """(path, command) of every leaf command of a click/typer group (duck-typed: typer vendors
     click)."""

@@ -46,6 +46,10 @@ def _run_task(item: Any, task: Callable, values: Mapping[str, Any]) -> Any:
 class Engine:
     """In-process execution; :class:`DaskEngine` distributes the same calls."""
 
+    #: Whether tasks run in other processes (then results held where they were computed save
+    #: transfers; in-process they would only add up in memory).
+    distributed = False
+
     def map(self, task: Callable[[T], R], items: Sequence[T], *,
             shared_values: dict[str, Any] | None = None,
             progress: Progress | None = None,
@@ -93,6 +97,8 @@ class DaskEngine(Engine):
 
     Large shared inputs are scattered once to every worker, not shipped with each task.
     """
+
+    distributed = True
 
     def __init__(self, workers: int | None = None, scheduler: str | None = None) -> None:
         import dask
@@ -155,6 +161,10 @@ class Checkpointed(Engine):
     def __init__(self, runner: Engine, store: Any) -> None:
         self.runner, self.store = runner, store
         self.calls = self.done = self.total = 0
+
+    @property
+    def distributed(self) -> bool:
+        return self.runner.distributed
 
     def map(self, task, items, *, shared_values=None, progress=None, on_result=None):
         import pickle

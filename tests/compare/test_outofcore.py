@@ -10,7 +10,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-from helpers import ar_set
+from helpers import ar_set, tied_set
 from simcred.compare import compare
 from simcred.compare.outofcore import compare_datasets
 from simcred.compare.process import Prepared, common_space, comparison_options
@@ -33,17 +33,6 @@ def write_partitions(traces: TraceSet, folder, cuts, *, empty_at=None, hive=Fals
             table = to_table(take(traces, [lo]), where="test").slice(0, 0)
             pq.write_table(table, sub / f"p{i:03d}e.parquet")
     return folder
-
-
-def tied_set(rng, runs, shift, source):
-    """A feature with a 60 % atom at 0 (a quantile edge at the minimum is dropped) and one with
-    three values (midpoint edges)."""
-    out = []
-    for _ in range(runs):
-        n = int(rng.integers(2, 25))
-        x = np.where(rng.random(n) < 0.6, 0.0, np.round(rng.exponential(1, n) + shift, 1))
-        out.append({"t": np.arange(n) * 0.1, "x": x, "y": rng.integers(0, 3, n) * 1.0})
-    return TraceSet.from_runs(out, source=source)
 
 
 OPTIONS = [

@@ -50,7 +50,7 @@ from simcred.compare.method import Method
 from simcred.compare.quantiles import EdgePlan, Sketch, Tally
 from simcred.compare.resample import within_run_steps
 from simcred.compare.result import Comparison, InputInfo
-from simcred.compare.run_counts import RunCounts
+from simcred.compare.run_counts import RunCounts, relabelled_keys
 from simcred.compare.run_level import counts_comparison
 from simcred.engine import Progress
 from simcred.errors import OptionError
@@ -291,8 +291,8 @@ class _Passes:
         _check_size(space)
         keys, matrix = _pooled_matrix(self.blocks)
         self.blocks = []
-        return space, RunCounts.from_matrix(matrix, _relabel(keys, self.shape, kept, space),
-                                            space.n_states)
+        keys = relabelled_keys(keys, self.shape, kept, space.shape)
+        return space, RunCounts.from_matrix(matrix, keys, space.n_states)
 
 
 def _middle(n: int) -> np.ndarray:
@@ -355,25 +355,3 @@ def _pooled_matrix(blocks: list) -> tuple[np.ndarray, sp.csr_matrix]:
         cursor += np.bincount(column, minlength=len(keys))
         first_run += len(per_run)
     return keys, sp.csr_matrix((data, indices, indptr), shape=(len(keys), n_runs))
-
-
-def _relabel(keys: np.ndarray, shape: tuple[int, ...], kept: list[np.ndarray],
-             space: StateSpace) -> np.ndarray:
-    """Pair keys on the candidate grid as keys on the final grid (dropped edges merge an empty
-    bin into its right neighbour: the map of bins is increasing on the bins that hold data, so
-    the keys keep their order)."""
-    if all(k.all() for k in kept):
-        return keys
-    size = np.int64(np.prod(shape))
-    origin, successor = keys // size - 1, keys % size
-    maps = [np.r_[0, np.cumsum(k)] for k in kept]
-
-    def moved(codes: np.ndarray) -> np.ndarray:
-        coordinates = np.unravel_index(codes, shape)
-        return np.ravel_multi_index(tuple(m[c] for m, c in zip(maps, coordinates, strict=True)),
-                                    space.shape).astype(np.int64)
-
-    start = origin < 0
-    new_origin = np.full(len(keys), -1, dtype=np.int64)
-    new_origin[~start] = moved(origin[~start])
-    return (new_origin + 1) * np.int64(space.n_states) + moved(successor)

@@ -14,10 +14,12 @@ import numpy as np
 
 import simcred._display as _display
 from simcred._json import dumps, envelope
+from simcred.compare import sorted_sets
 from simcred.compare.facts import SetFacts
 from simcred.compare.method import Method
 from simcred.compare.process import Prepared, compare_prepared, comparison_options, load
 from simcred.compare.result import Comparison, ComparisonOptions
+from simcred.compare.sorted_sets import SortedSet
 from simcred.compare.tables import matrix_frame
 from simcred.engine import Engine, Progress, engine
 from simcred.errors import OptionError, TraceSetError
@@ -131,11 +133,17 @@ def matrix(
     if len(labels) != len(facts) or len(set(labels)) != len(labels):
         raise OptionError(f"names must be {len(facts)} unique labels, got {list(labels)}")
     settings = comparison_options(facts, method)
-    prepared = runner.keep(_prepare, [(traces, settings) for traces in loaded])
+    split = sorted_sets.supports(settings)
+    prepared = runner.keep(_prepare_sorted if split else _prepare,
+                           [(traces, settings) for traces in loaded])
     del loaded  # on Dask: the workers drop the raw sets
     pairs = list(combinations(range(len(facts)), 2))
-    comparisons = runner.map(_compare_pair, [(prepared[i], prepared[j], settings)
-                                             for i, j in pairs], progress=progress)
+    if split and runner.distributed:
+        comparisons = _split_pairs(runner, prepared, pairs, settings, progress)
+    else:
+        comparisons = runner.map(_compare_sorted if split else _compare_pair,
+                                 [(prepared[i], prepared[j], settings) for i, j in pairs],
+                                 progress=progress)
     distances = np.zeros((len(facts), len(facts)))
     for (i, j), c in zip(pairs, comparisons, strict=True):
         distances[i, j] = distances[j, i] = np.nan if c.distance is None else c.distance
@@ -149,6 +157,58 @@ def _prepare(item: tuple[TraceSet, ComparisonOptions]) -> Prepared:
 
 def _compare_pair(item: tuple[Prepared, Prepared, ComparisonOptions]) -> Comparison:
     return compare_prepared(*item)
+
+
+def _prepare_sorted(item: tuple[TraceSet, ComparisonOptions]) -> SortedSet:
+    return SortedSet.of(_prepare(item), item[1].bins)
+
+
+def _compare_sorted(item: tuple[SortedSet, SortedSet, ComparisonOptions]) -> Comparison:
+    return sorted_sets.compare_sorted(*item)
+
+
+def _split_pairs(runner: Engine, held: list[Any], pairs: list[tuple[int, int]],
+                 settings: ComparisonOptions, progress: Progress | None) -> list[Comparison]:
+    """Every pair from small messages (:mod:`simcred.compare.sorted_sets`): a set's tallies
+    and counts are computed by tasks that hold the set (Dask places a task with its largest
+    input), and only sketches, tallies and count matrices move."""
+    sketches = runner.keep(_sketches, held)
+    plans = [(sketches[i], sketches[j], settings) for i, j in pairs]
+    first, second = (runner.keep(_tallies, [(held[ij[s]], *plan)
+                                            for ij, plan in zip(pairs, plans, strict=True)])
+                     for s in (0, 1))
+    counted = [(t, u, *plan) for t, u, plan in zip(first, second, plans, strict=True)]
+    sides = [runner.keep(_side_counts, [(held[ij[s]], *c)
+                                        for ij, c in zip(pairs, counted, strict=True)])
+             for s in (0, 1)]
+    return runner.map(_combine, [(*c, a, b) for c, a, b in zip(counted, *sides, strict=True)],
+                      progress=progress)
+
+
+def _sketches(side: SortedSet):
+    return side.sketches
+
+
+def _plan(sketches_a, sketches_b, settings: ComparisonOptions) -> sorted_sets.PairPlan:
+    return sorted_sets.PairPlan.of(sketches_a, sketches_b, settings.bins)
+
+
+def _tallies(item) -> sorted_sets.Tallies:
+    side, *plan = item
+    return _plan(*plan).tallies(side)
+
+
+def _side_counts(item) -> sorted_sets.SideCounts:
+    side, first, second, *given = item
+    plan = _plan(*given)
+    return sorted_sets.side_counts(side, plan, plan.candidates(first, second),
+                                   given[-1].features)
+
+
+def _combine(item) -> Comparison:
+    first, second, *given, a, b = item
+    plan = _plan(*given)
+    return sorted_sets.pair_comparison(plan, plan.candidates(first, second), a, b, given[-1])
 
 
 def _default_names(sets: Sequence[SetFacts]) -> list[str]:

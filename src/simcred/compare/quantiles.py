@@ -80,7 +80,12 @@ class Sketch:
     def of(cls, values: np.ndarray, *, cap: int, size: int = SKETCH_SIZE) -> Sketch:
         """The sketch of one partition's (finite, float64) values; ``cap``: the most distinct
         values to keep (the number of bins), ``size``: sampled ranks (at least 2)."""
-        ordered = np.sort(np.asarray(values, dtype=np.float64), kind="stable")
+        return cls.of_sorted(np.sort(np.asarray(values, dtype=np.float64), kind="stable"),
+                             cap=cap, size=size)
+
+    @classmethod
+    def of_sorted(cls, ordered: np.ndarray, *, cap: int, size: int = SKETCH_SIZE) -> Sketch:
+        """:meth:`of` on values already sorted (float64)."""
         n = len(ordered)
         if n == 0:
             return cls.empty(cap)
@@ -136,7 +141,10 @@ class Brackets:
 
     def tally(self, values: np.ndarray) -> Tally:
         """Pass 2 on one partition's values."""
-        ordered = np.sort(np.asarray(values, dtype=np.float64), kind="stable")
+        return self.tally_sorted(np.sort(np.asarray(values, dtype=np.float64), kind="stable"))
+
+    def tally_sorted(self, ordered: np.ndarray) -> Tally:
+        """:meth:`tally` on values already sorted (float64)."""
         lo_left = np.searchsorted(ordered, self.lower, side="left")
         lo_right = np.searchsorted(ordered, self.lower, side="right")
         hi_left = np.searchsorted(ordered, self.upper, side="left")
@@ -270,6 +278,14 @@ class EdgePlan:
 def bin_counts(edges: np.ndarray, values: np.ndarray) -> np.ndarray:
     """How many ``values`` fall into each of the ``len(edges) + 1`` bins."""
     return np.bincount(np.searchsorted(edges, values, side="right"), minlength=len(edges) + 1)
+
+
+def sorted_bin_counts(edges: np.ndarray, ordered: np.ndarray) -> np.ndarray:
+    """:func:`bin_counts` of values already sorted: bin ``k`` holds ``edges[k-1] ≤ v <
+    edges[k]``, so the values below ``edges[k]`` are the first ``searchsorted(ordered,
+    edges[k], "left")``."""
+    below = np.searchsorted(ordered, edges, side="left")
+    return np.diff(np.r_[0, below, len(ordered)]).astype(np.int64)
 
 
 def partitioned_edges(partitions: Sequence[np.ndarray], bins: int,

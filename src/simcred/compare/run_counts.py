@@ -43,31 +43,7 @@ class RunCounts:
         """:meth:`from_codes` of the parts' runs one after the other (set A's, then B's),
         without joining them: small state spaces are counted block by block of runs
         (:data:`BLOCK_ROWS` rows), so the working memory does not grow with the data."""
-        size = np.int64(n_states)
-        if (size + 1) * size > DIRECT_KEYS:
-            codes = np.concatenate([c for c, _ in parts])
-            starts = np.cumsum([0] + [len(c) for c, _ in parts[:-1]])
-            offsets = np.concatenate([[0]] + [o[1:] + s for (_, o), s in zip(parts, starts,
-                                                                             strict=True)])
-            keys, runs = _pair_keys(codes, offsets, size)
-            columns, column_of, run_of, count = _pair_counts(keys, runs, len(offsets) - 1)
-            indptr = np.r_[0, np.cumsum(np.bincount(column_of, minlength=len(columns)))]
-            matrix = sp.csr_matrix((count.astype(np.float64), run_of, indptr),
-                                   shape=(len(columns), len(offsets) - 1))  # (column, run)
-            return cls.from_matrix(matrix, columns, n_states)
-        blocks = [(codes, offsets, lo, hi) for codes, offsets in parts
-                  for lo, hi in _run_blocks(offsets)]
-        # two passes over the blocks (their keys computed twice) rather than keeping every
-        # block's keys: the columns must be known before any block's counts are placed
-        present = np.zeros(int((size + 1) * size), dtype=bool)
-        for block in blocks:
-            present[_pair_keys(*_block(*block), size)[0]] = True
-        columns = np.flatnonzero(present)
-        column_index = np.cumsum(present) - 1
-        del present
-        matrix = sp.hstack([_block_counts(*_block(*block), size, column_index, len(columns))
-                            for block in blocks], format="csr")
-        return cls.from_matrix(matrix, columns, n_states)
+        return cls.from_matrix(*keyed_counts(parts, n_states), n_states)
 
     @classmethod
     def from_matrix(cls, matrix: sp.csr_matrix, columns: np.ndarray, n_states: int
@@ -92,6 +68,74 @@ class RunCounts:
         bounds = np.r_[0, np.flatnonzero(np.diff(block)) + 1, len(used)]
         return RunCounts(matrix[used], self.blocks[block[bounds[:-1]]], bounds,
                          self.successors[used])
+
+
+def keyed_counts(parts: Sequence[tuple[np.ndarray, np.ndarray]], n_states: int
+                 ) -> tuple[sp.csr_matrix, np.ndarray]:
+    """The (columns × runs) counts of :meth:`RunCounts.from_parts` and the columns' pair keys
+    ``(state + 1) · n_states + successor`` (sorted)."""
+    size = np.int64(n_states)
+    if (size + 1) * size > DIRECT_KEYS:
+        codes = np.concatenate([c for c, _ in parts])
+        starts = np.cumsum([0] + [len(c) for c, _ in parts[:-1]])
+        offsets = np.concatenate([[0]] + [o[1:] + s for (_, o), s in zip(parts, starts,
+                                                                         strict=True)])
+        keys, runs = _pair_keys(codes, offsets, size)
+        columns, column_of, run_of, count = _pair_counts(keys, runs, len(offsets) - 1)
+        indptr = np.r_[0, np.cumsum(np.bincount(column_of, minlength=len(columns)))]
+        matrix = sp.csr_matrix((count.astype(np.float64), run_of, indptr),
+                               shape=(len(columns), len(offsets) - 1))  # (column, run)
+        return matrix, columns
+    blocks = [(codes, offsets, lo, hi) for codes, offsets in parts
+              for lo, hi in _run_blocks(offsets)]
+    # two passes over the blocks (their keys computed twice) rather than keeping every
+    # block's keys: the columns must be known before any block's counts are placed
+    present = np.zeros(int((size + 1) * size), dtype=bool)
+    for block in blocks:
+        present[_pair_keys(*_block(*block), size)[0]] = True
+    columns = np.flatnonzero(present)
+    column_index = np.cumsum(present) - 1
+    del present
+    matrix = sp.hstack([_block_counts(*_block(*block), size, column_index, len(columns))
+                        for block in blocks], format="csr")
+    return matrix, columns
+
+
+def joined_counts(parts: Sequence[tuple[sp.csr_matrix, np.ndarray]]
+                  ) -> tuple[sp.csr_matrix, np.ndarray]:
+    """:func:`keyed_counts` of several parts' runs one after the other, from each part's own
+    (matrix, columns): the same matrix and columns as counting the joined codes."""
+    columns = np.unique(np.concatenate([c for _, c in parts]))
+    placed = []
+    for matrix, own in parts:
+        per_row = np.zeros(len(columns), dtype=np.int64)
+        per_row[np.searchsorted(columns, own)] = np.diff(matrix.indptr)
+        placed.append(sp.csr_matrix((matrix.data, matrix.indices, np.r_[0, np.cumsum(per_row)]),
+                                    shape=(len(columns), matrix.shape[1])))
+    return sp.hstack(placed, format="csr"), columns
+
+
+def relabelled_keys(keys: np.ndarray, shape: tuple[int, ...], kept: Sequence[np.ndarray],
+                    new_shape: tuple[int, ...]) -> np.ndarray:
+    """Pair keys on a grid of ``shape`` as keys on the grid whose edges are the kept ones
+    (``kept[j]``: per edge of feature ``j``, whether it stays). A dropped edge merges an empty
+    bin into its right neighbour: the map of bins is increasing on the bins that hold data, so
+    the keys of data keep their order."""
+    if all(k.all() for k in kept):
+        return keys
+    size = np.int64(np.prod(shape))
+    origin, successor = keys // size - 1, keys % size
+    maps = [np.r_[0, np.cumsum(k)] for k in kept]
+
+    def moved(codes: np.ndarray) -> np.ndarray:
+        coordinates = np.unravel_index(codes, shape)
+        return np.ravel_multi_index(tuple(m[c] for m, c in zip(maps, coordinates, strict=True)),
+                                    new_shape).astype(np.int64)
+
+    start = origin < 0
+    new_origin = np.full(len(keys), -1, dtype=np.int64)
+    new_origin[~start] = moved(origin[~start])
+    return (new_origin + 1) * np.int64(np.prod(new_shape)) + moved(successor)
 
 
 def _run_blocks(offsets: np.ndarray) -> list[tuple[int, int]]:

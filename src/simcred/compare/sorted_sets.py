@@ -1,0 +1,148 @@
+"""Many pairs of trace sets compared from small messages: each set sorted once, and a pair's
+edges and counts computed where its sets are.
+
+A distance matrix (:mod:`simcred.compare.pairwise`) compares every set with every other. The
+run-level comparison of a pair (Neurohr et al. 2023 [1], sec. V-A) needs the equal-frequency
+edges of the two sets' pooled values and, per run, the counts of (state, successor) pairs on
+those edges. Both split by set, exactly:
+
+* the edges by the two-pass order statistic of :mod:`simcred.compare.quantiles`: a
+  :class:`~simcred.compare.quantiles.Sketch` per set (once), a
+  :class:`~simcred.compare.quantiles.Tally` per set and pair; on a column sorted once both are
+  binary searches, not passes over the data;
+* the counts by set: the pooled (columns × runs) matrix is the two sets' matrices side by side
+  (:func:`~simcred.compare.run_counts.joined_counts`), counted on the candidate edges and
+  relabelled to the final ones as the out-of-core comparison does.
+
+So a set is sorted and sketched once, on the worker that holds it; per pair only sketches,
+tallies and the per-run count matrices travel (a few MB instead of two sets), and the pair's
+test combines them. The result is the :class:`~simcred.compare.result.Comparison` of
+:func:`~simcred.compare.process.compare_prepared`, byte for byte in JSON (tested), with the
+out-of-core comparison's one caveat: an edge that is a zero order statistic may print as
+``0.0`` where numpy's partition picked ``-0.0`` (every count is the same).
+
+References
+----------
+[1] Neurohr et al., Determining the Validity of Simulation Models for the Verification of ADSs,
+    IEEE Access, 2023.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from simcred.compare.discretize import StateSpace, _check_size
+from simcred.compare.encoding import encode
+from simcred.compare.process import Prepared
+from simcred.compare.quantiles import EdgePlan, Sketch, Tally, sorted_bin_counts
+from simcred.compare.result import Comparison, ComparisonOptions, InputInfo
+from simcred.compare.run_counts import RunCounts, joined_counts, keyed_counts, relabelled_keys
+from simcred.compare.run_level import counts_comparison
+
+Tallies = tuple[Tally | None, ...]
+
+
+def supports(options: ComparisonOptions) -> bool:
+    """Whether a pair with ``options`` can be compared from its sets' parts (the run-level
+    test on a first-order chain of the features as they are)."""
+    return (options.test == "runs" and options.history == 1 and options.time_bins is None
+            and options.resample is None and not options.inputs and options.pair_by is None
+            and options.group_by is None and not options.margin)
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class SortedSet:
+    """A prepared set with every feature's values also sorted, and their sketches."""
+
+    prepared: Prepared
+    ordered: tuple[np.ndarray, ...]
+    sketches: tuple[Sketch, ...]
+
+    @classmethod
+    def of(cls, prepared: Prepared, bins: Sequence[int]) -> SortedSet:
+        values = prepared.values
+        ordered = tuple(np.sort(values[:, j], kind="stable") for j in range(values.shape[1]))
+        return cls(prepared, ordered,
+                   tuple(Sketch.of_sorted(o, cap=b) for o, b in zip(ordered, bins, strict=True)))
+
+    def __sizeof__(self) -> int:
+        return object.__sizeof__(self) + self.prepared.__sizeof__() \
+            + sum(o.nbytes for o in self.ordered)
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class PairPlan:
+    """A pair's edges in the making, from its two sets' sketches: per feature the
+    :class:`~simcred.compare.quantiles.EdgePlan` and the pooled (minimum, maximum)."""
+
+    plans: tuple[EdgePlan, ...]
+    bounds: tuple[tuple[float, float], ...]
+
+    @classmethod
+    def of(cls, a: Sequence[Sketch], b: Sequence[Sketch], bins: Sequence[int]) -> PairPlan:
+        merged = [x.merge(y) for x, y in zip(a, b, strict=True)]
+        return cls(tuple(EdgePlan.of(s, n) for s, n in zip(merged, bins, strict=True)),
+                   tuple((float(s.minimum), float(s.maximum)) for s in merged))
+
+    def tallies(self, side: SortedSet) -> Tallies:
+        """One set's tallies of the brackets (None where the plan needs none)."""
+        return tuple(p.brackets.tally_sorted(o) if p.needs_counts else None
+                     for p, o in zip(self.plans, side.ordered, strict=True))
+
+    def candidates(self, a: Tallies, b: Tallies) -> tuple[np.ndarray, ...]:
+        """Per feature the distinct pooled quantiles (or midpoints), exactly."""
+        return tuple(p.candidates(None if x is None else x.merge(y))
+                     for p, x, y in zip(self.plans, a, b, strict=True))
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class SideCounts:
+    """One set's part of a pair: its per-run counts on the pair's candidate grid (``matrix``:
+    columns × runs, ``columns``: their pair keys) and per feature its values per candidate
+    bin."""
+
+    matrix: sp.csr_matrix
+    columns: np.ndarray
+    held: tuple[np.ndarray, ...]
+    info: InputInfo
+
+    @property
+    def n_runs(self) -> int:
+        return self.matrix.shape[1]
+
+
+def side_counts(side: SortedSet, plan: PairPlan, candidates: Sequence[np.ndarray],
+                features: Sequence[str]) -> SideCounts:
+    grid = StateSpace(tuple(features), tuple(candidates), plan.bounds)
+    p = side.prepared
+    codes = encode(grid, p.values, p.time, p.offsets, source=p.info.source).codes
+    matrix, columns = keyed_counts([(codes, p.offsets)], grid.n_states)
+    held = tuple(sorted_bin_counts(c, o) for c, o in zip(candidates, side.ordered, strict=True))
+    return SideCounts(matrix, columns, held, p.info)
+
+
+def pair_comparison(plan: PairPlan, candidates: Sequence[np.ndarray], a: SideCounts,
+                    b: SideCounts, options: ComparisonOptions) -> Comparison:
+    """The run-level comparison of the pair from its two sides."""
+    kept = [p.kept(c, x + y) for p, c, x, y in zip(plan.plans, candidates, a.held, b.held,
+                                                     strict=True)]
+    space = StateSpace(options.features, tuple(c[k] for c, k in zip(candidates, kept,
+                                                                       strict=True)),
+                       plan.bounds)
+    _check_size(space)
+    matrix, keys = joined_counts([(a.matrix, a.columns), (b.matrix, b.columns)])
+    keys = relabelled_keys(keys, tuple(len(c) + 1 for c in candidates), kept, space.shape)
+    counts = RunCounts.from_matrix(matrix, keys, space.n_states)
+    return counts_comparison(counts, a.n_runs, space, options, (a.info, b.info))
+
+
+def compare_sorted(a: SortedSet, b: SortedSet, options: ComparisonOptions) -> Comparison:
+    """All steps of one pair in one place (in-process)."""
+    plan = PairPlan.of(a.sketches, b.sketches, options.bins)
+    candidates = plan.candidates(plan.tallies(a), plan.tallies(b))
+    return pair_comparison(plan, candidates, side_counts(a, plan, candidates, options.features),
+                           side_counts(b, plan, candidates, options.features), options)
