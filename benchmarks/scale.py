@@ -26,6 +26,7 @@ import time
 from collections import defaultdict
 from contextlib import nullcontext
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 from dask.utils import key_split
@@ -82,8 +83,8 @@ class TimedEngine(Engine):
     def map(self, task, items, **options):
         return super().map(self._timed(task), items, **options)
 
-    def keep(self, task, items):
-        return super().keep(self._timed(task), items)
+    def keep(self, task, items, near=None):
+        return super().keep(self._timed(task), items, near)
 
 
 def stream_seconds(records: list[dict]) -> dict[str, float]:
@@ -96,9 +97,17 @@ def stream_seconds(records: list[dict]) -> dict[str, float]:
     return dict(out)
 
 
-def run_one(paths: list[str], workers: int, permutations: int) -> dict:
-    """One configuration in this process: 0 workers = in-process."""
+def run_one(paths: list[str], workers: int, permutations: int, whole: bool = False) -> dict:
+    """One configuration in this process: 0 workers = in-process; ``whole``: every pair
+    compared from its two whole prepared sets, as before the split into per-set parts (the
+    reference of the same run)."""
     from distributed import get_task_stream
+
+    if whole:
+        from simcred.compare import pairwise
+
+        pairwise.sorted_sets = SimpleNamespace(**{**vars(pairwise.sorted_sets),
+                                                  "supports": lambda _options: False})
 
     start = time.perf_counter()
     runner = TimedEngine() if workers == 0 else DaskEngine(workers=workers)
@@ -115,27 +124,29 @@ def run_one(paths: list[str], workers: int, permutations: int) -> dict:
         tasks = stream_seconds(stream.data) if workers else dict(runner.task_seconds)
     finally:
         runner.close()
-    return {"workers": workers, "seconds": seconds, "startup_seconds": startup,
+    return {"workers": workers, "path": "whole" if whole else "split", "seconds": seconds,
+            "startup_seconds": startup,
             "bytes_between_workers": moved, "pairs": len(result.comparisons),
             "peak_rss_client": peak_rss_bytes(), "peak_rss_worker": worker_peak,
             "task_seconds": tasks,
             "sha256": hashlib.sha256(result.to_json().encode()).hexdigest()}
 
 
-def measure(paths: list[str], workers: int, permutations: int) -> dict:
+def measure(paths: list[str], workers: int, permutations: int, whole: bool = False) -> dict:
     """:func:`run_one` in a fresh process, so that its peaks are its own."""
     out = subprocess.run([sys.executable, __file__, "--one", str(workers), "--permutations",
-                          str(permutations), *paths], check=True, capture_output=True, text=True)
+                          str(permutations), *(["--whole-one"] if whole else []), *paths],
+                         check=True, capture_output=True, text=True)
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
 def table(rows: list[dict], title: str) -> Table:
     view = Table(title=title)
-    for name in ("workers", "matrix s", "start s", "speed-up", "efficiency", "MB moved",
-                 "MB/pair", "client peak MB", "worker peak MB", "identical"):
+    for name in ("workers", "pairs compared", "matrix s", "start s", "speed-up", "efficiency",
+                 "MB moved", "MB/pair", "client peak MB", "worker peak MB", "identical"):
         view.add_column(name, justify="right")
     for r in rows:
-        view.add_row(str(r["workers"] or "in-process"), f"{r['seconds']:.1f}",
+        view.add_row(str(r["workers"] or "in-process"), r["path"], f"{r['seconds']:.1f}",
                      f"{r['startup_seconds']:.1f}", f"{r['speedup']:.2f}",
                      f"{r['efficiency']:.0%}", f"{r['bytes_between_workers'] / 1e6:.0f}",
                      f"{r['bytes_between_workers'] / 1e6 / r['pairs']:.1f}",
@@ -149,10 +160,11 @@ def phases(rows: list[dict]) -> Table:
     names = sorted({name for r in rows for name in r["task_seconds"]})
     view = Table(title="task seconds, added over workers (more than in-process: contention)")
     view.add_column("workers", justify="right")
+    view.add_column("pairs compared")
     for name in names:
         view.add_column(name, justify="right")
     for r in rows:
-        view.add_row(str(r["workers"] or "in-process"),
+        view.add_row(str(r["workers"] or "in-process"), r["path"],
                      *(f"{r['task_seconds'].get(name, 0.0):.1f}" for name in names))
     return view
 
@@ -164,25 +176,36 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=200)
     parser.add_argument("--permutations", type=int, default=199)
     parser.add_argument("--workers", default="1,2", help="comma-separated worker counts")
+    parser.add_argument("--whole", default="", help="worker counts (comma-separated) to run "
+                        "also with every pair compared from its two whole sets, as before the "
+                        "per-set split; its in-process reference is added")
+    parser.add_argument("--repeats", type=int, default=1, help="each worker count this often")
     parser.add_argument("--out", type=Path, help="JSON file (default: "
                         "benchmarks/results/scale_<cpus>cpu.json)")
     parser.add_argument("--one", type=int, help=argparse.SUPPRESS)
+    parser.add_argument("--whole-one", dest="whole_one", action="store_true",
+                        help=argparse.SUPPRESS)
     parser.add_argument("paths", nargs="*", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.one is not None:
-        print(json.dumps(run_one(args.paths, args.one, args.permutations)))
+        print(json.dumps(run_one(args.paths, args.one, args.permutations, args.whole_one)))
         return
-    counts = [int(w) for w in args.workers.split(",")]
+    configs = [(w, False) for w in [0, *_counts(args.workers)] * args.repeats]
+    if args.whole:
+        configs += [(w, True) for w in [0, *_counts(args.whole)]]
     with tempfile.TemporaryDirectory(prefix="simcred-scale-") as folder:
         start = time.perf_counter()
         paths = write_sets(Path(folder), args.sets, args.runs, args.steps)
         written = time.perf_counter() - start
-        rows = [measure(paths, w, args.permutations) for w in [0, *counts]]
-    reference = rows[0]
+        rows = []
+        for w, whole in configs:
+            rows.append(measure(paths, w, args.permutations, whole))
+            print(f"{rows[-1]['path']} {w} workers: {rows[-1]['seconds']:.1f} s", flush=True)
+    reference = {r["path"]: r for r in reversed(rows) if r["workers"] == 0}
     for r in rows:
-        r["speedup"] = reference["seconds"] / r["seconds"]
+        r["speedup"] = reference[r["path"]]["seconds"] / r["seconds"]
         r["efficiency"] = r["speedup"] / max(r["workers"], 1)
-        r["identical"] = r["sha256"] == reference["sha256"]
+        r["identical"] = r["sha256"] == reference["split"]["sha256"]
     case = (f"matrix of {args.sets} sets × {args.runs:,} runs × {args.steps} steps, 2 features, "
             f"10 bins, runs test, {args.permutations} permutations")
     console = Console(width=150)
@@ -191,6 +214,10 @@ def main() -> None:
     out = args.out or ROOT / "benchmarks" / "results" / f"scale_{os.cpu_count()}cpu.json"
     save_results(out, {"machine": machine(), "case": case, "write_seconds": written,
                        "rows": rows})
+
+
+def _counts(text: str) -> list[int]:
+    return [int(w) for w in text.split(",") if w]
 
 
 if __name__ == "__main__":

@@ -64,13 +64,17 @@ class Engine:
                 on_result(index, results[-1])
         return results
 
-    def keep(self, task: Callable[[T], R], items: Sequence[T]) -> list[Any]:
+    def keep(self, task: Callable[[T], R], items: Sequence[T],
+             near: Sequence[Any] | None = None) -> list[Any]:
         """``task(item)`` for every item, each result left where it was computed.
 
         Returns handles: placed in the items of a later :meth:`map` (alone or inside a tuple), a
         handle stands for its result. In-process a handle is the result itself; on Dask it is a
         future, so a result is computed once, on one worker, and travels only to the workers
         whose tasks hold its handle (not to every worker, as ``shared_values`` do).
+
+        ``near[k]``: a handle whose holder should run item ``k`` (its large input), so that it
+        does not move; on Dask a preference that a dead worker's absence overrides.
         """
         return [_run_task(item, task, {}) for item in items]
 
@@ -127,11 +131,22 @@ class DaskEngine(Engine):
                     on_result(position[future.key], future.result())
             return self.client.gather(futures)
 
-    def keep(self, task, items):
+    def keep(self, task, items, near=None):
         # not waited for: a later map's tasks start as soon as their handles' results exist,
         # and a failed task's error is raised where its result (or a task using it) is fetched
-        return self.client.map(_run_task, items, task=task, values={},
-                               key=_keys(task, len(items)))
+        keys = _keys(task, len(items))
+        if near is None:
+            return self.client.map(_run_task, items, task=task, values={}, key=keys)
+        # Dask's own placement weighs a large input's transfer against queues whose task
+        # durations it does not know yet, and moves the input to most workers (measured)
+        from dask.distributed import wait
+
+        wait(list({h.key: h for h in near}.values()))
+        holders = self.client.who_has(list(near))
+        return [self.client.submit(_run_task, item, task=task, values={}, key=key,
+                                   workers=list(holders.get(h.key, ())) or None,
+                                   allow_other_workers=True)
+                for item, h, key in zip(items, near, keys, strict=True)]
 
     def put(self, values):
         return self.client.scatter(list(values), hash=False)
@@ -187,8 +202,8 @@ class Checkpointed(Engine):
         results.update(zip(missing, computed, strict=True))
         return [results[i] for i in range(len(items))]
 
-    def keep(self, task, items):
-        return self.runner.keep(task, items)  # handles are not kept across runs
+    def keep(self, task, items, near=None):
+        return self.runner.keep(task, items, near)  # handles are not kept across runs
 
     def put(self, values):
         return self.runner.put(values)

@@ -174,14 +174,16 @@ def _split_pairs(runner: Engine, held: list[Any], pairs: list[tuple[int, int]],
     input), and only sketches, tallies and count matrices move."""
     sketches = runner.keep(_sketches, held)
     plans = [(sketches[i], sketches[j], settings) for i, j in pairs]
-    first, second = (runner.keep(_tallies, [(held[ij[s]], *plan)
-                                            for ij, plan in zip(pairs, plans, strict=True)])
+    near = [[held[ij[s]] for ij in pairs] for s in (0, 1)]
+    first, second = (runner.keep(_tallies, [(h, *plan) for h, plan in zip(near[s], plans,
+                                                                            strict=True)],
+                                 near[s])
                      for s in (0, 1))
     counted = [(t, u, *plan) for t, u, plan in zip(first, second, plans, strict=True)]
-    sides = [runner.keep(_side_counts, [(held[ij[s]], *c)
-                                        for ij, c in zip(pairs, counted, strict=True)])
+    sides = [runner.keep(_side_counts, [(h, *c) for h, c in zip(near[s], counted, strict=True)],
+                         near[s])
              for s in (0, 1)]
-    return runner.map(_combine, [(*c, a, b) for c, a, b in zip(counted, *sides, strict=True)],
+    return runner.map(_combine, [(a, b, settings) for a, b in zip(*sides, strict=True)],
                       progress=progress)
 
 
@@ -199,16 +201,12 @@ def _tallies(item) -> sorted_sets.Tallies:
 
 
 def _side_counts(item) -> sorted_sets.SideCounts:
-    side, first, second, *given = item
-    plan = _plan(*given)
-    return sorted_sets.side_counts(side, plan, plan.candidates(first, second),
-                                   given[-1].features)
+    side, first, second, *plan = item
+    return sorted_sets.side_counts(side, _plan(*plan), first, second, plan[-1].features)
 
 
 def _combine(item) -> Comparison:
-    first, second, *given, a, b = item
-    plan = _plan(*given)
-    return sorted_sets.pair_comparison(plan, plan.candidates(first, second), a, b, given[-1])
+    return sorted_sets.pair_comparison(*item)
 
 
 def _default_names(sets: Sequence[SetFacts]) -> list[str]:

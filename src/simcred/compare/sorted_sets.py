@@ -65,7 +65,7 @@ class SortedSet:
     @classmethod
     def of(cls, prepared: Prepared, bins: Sequence[int]) -> SortedSet:
         values = prepared.values
-        ordered = tuple(np.sort(values[:, j], kind="stable") for j in range(values.shape[1]))
+        ordered = tuple(np.sort(values[:, j]) for j in range(values.shape[1]))
         return cls(prepared, ordered,
                    tuple(Sketch.of_sorted(o, cap=b) for o, b in zip(ordered, bins, strict=True)))
 
@@ -102,40 +102,57 @@ class PairPlan:
 @dataclass(frozen=True, slots=True, eq=False)
 class SideCounts:
     """One set's part of a pair: its per-run counts on the pair's candidate grid (``matrix``:
-    columns × runs, ``columns``: their pair keys) and per feature its values per candidate
-    bin."""
+    columns × runs, ``columns``: their pair keys), per feature its values per candidate bin,
+    and what the pair's test needs of the plan (both sides carry the same)."""
 
-    matrix: sp.csr_matrix
+    counts: np.ndarray  # the matrix's CSR arrays in the smallest integer types (it travels)
+    runs: np.ndarray
+    indptr: np.ndarray
+    n_runs: int
     columns: np.ndarray
     held: tuple[np.ndarray, ...]
     info: InputInfo
+    candidates: tuple[np.ndarray, ...]
+    bounds: tuple[tuple[float, float], ...]
+    quantiles: tuple[bool, ...]  # per feature: candidates are quantiles (else midpoints)
+
+    @classmethod
+    def compact(cls, matrix: sp.csr_matrix, *rest) -> SideCounts:
+        counts = matrix.data.astype(np.min_scalar_type(int(matrix.data.max(initial=0))))
+        runs = matrix.indices.astype(np.min_scalar_type(max(matrix.shape[1] - 1, 0)))
+        return cls(counts, runs, matrix.indptr, matrix.shape[1], *rest)
 
     @property
-    def n_runs(self) -> int:
-        return self.matrix.shape[1]
+    def matrix(self) -> sp.csr_matrix:
+        """The (columns × runs) counts as counted: float64 counts, int32 run indices."""
+        return sp.csr_matrix((self.counts.astype(np.float64), self.runs.astype(np.int32),
+                              self.indptr), shape=(len(self.indptr) - 1, self.n_runs))
 
 
-def side_counts(side: SortedSet, plan: PairPlan, candidates: Sequence[np.ndarray],
+def side_counts(side: SortedSet, plan: PairPlan, a: Tallies, b: Tallies,
                 features: Sequence[str]) -> SideCounts:
-    grid = StateSpace(tuple(features), tuple(candidates), plan.bounds)
+    """One set's counts on the pair's candidate edges (from both sets' tallies)."""
+    candidates = plan.candidates(a, b)
+    grid = StateSpace(tuple(features), candidates, plan.bounds)
     p = side.prepared
     codes = encode(grid, p.values, p.time, p.offsets, source=p.info.source).codes
     matrix, columns = keyed_counts([(codes, p.offsets)], grid.n_states)
     held = tuple(sorted_bin_counts(c, o) for c, o in zip(candidates, side.ordered, strict=True))
-    return SideCounts(matrix, columns, held, p.info)
+    return SideCounts.compact(matrix, columns, held, p.info, candidates, plan.bounds,
+                              tuple(p.needs_counts for p in plan.plans))
 
 
-def pair_comparison(plan: PairPlan, candidates: Sequence[np.ndarray], a: SideCounts,
-                    b: SideCounts, options: ComparisonOptions) -> Comparison:
-    """The run-level comparison of the pair from its two sides."""
-    kept = [p.kept(c, x + y) for p, c, x, y in zip(plan.plans, candidates, a.held, b.held,
-                                                     strict=True)]
-    space = StateSpace(options.features, tuple(c[k] for c, k in zip(candidates, kept,
+def pair_comparison(a: SideCounts, b: SideCounts, options: ComparisonOptions) -> Comparison:
+    """The run-level comparison of the pair from its two sides: quantile edges whose left bin
+    holds no value of either set dropped (``feature_edges``), keys relabelled to the rest."""
+    kept = [(x + y)[:-1] > 0 if q else np.ones(len(c), dtype=bool)
+            for c, x, y, q in zip(a.candidates, a.held, b.held, a.quantiles, strict=True)]
+    space = StateSpace(options.features, tuple(c[k] for c, k in zip(a.candidates, kept,
                                                                        strict=True)),
-                       plan.bounds)
+                       a.bounds)
     _check_size(space)
     matrix, keys = joined_counts([(a.matrix, a.columns), (b.matrix, b.columns)])
-    keys = relabelled_keys(keys, tuple(len(c) + 1 for c in candidates), kept, space.shape)
+    keys = relabelled_keys(keys, tuple(len(c) + 1 for c in a.candidates), kept, space.shape)
     counts = RunCounts.from_matrix(matrix, keys, space.n_states)
     return counts_comparison(counts, a.n_runs, space, options, (a.info, b.info))
 
@@ -143,6 +160,6 @@ def pair_comparison(plan: PairPlan, candidates: Sequence[np.ndarray], a: SideCou
 def compare_sorted(a: SortedSet, b: SortedSet, options: ComparisonOptions) -> Comparison:
     """All steps of one pair in one place (in-process)."""
     plan = PairPlan.of(a.sketches, b.sketches, options.bins)
-    candidates = plan.candidates(plan.tallies(a), plan.tallies(b))
-    return pair_comparison(plan, candidates, side_counts(a, plan, candidates, options.features),
-                           side_counts(b, plan, candidates, options.features), options)
+    tallies = plan.tallies(a), plan.tallies(b)
+    return pair_comparison(side_counts(a, plan, *tallies, options.features),
+                           side_counts(b, plan, *tallies, options.features), options)
