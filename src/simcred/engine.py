@@ -53,9 +53,11 @@ class Engine:
     def map(self, task: Callable[[T], R], items: Sequence[T], *,
             shared_values: dict[str, Any] | None = None,
             progress: Progress | None = None,
-            on_result: Callable[[int, R], None] | None = None) -> list[R]:
+            on_result: Callable[[int, R], None] | None = None,
+            near: Sequence[Any] | None = None) -> list[R]:
         """``[task(item) for item in items]``; ``shared_values`` are read with :func:`shared`;
-        ``on_result(index, result)`` is called as each task finishes (in any order)."""
+        ``on_result(index, result)`` is called as each task finishes (in any order); ``near``:
+        as :meth:`keep` takes it."""
         values = shared_values or {}
         results = []
         for index in (progress(range(len(items)), len(items)) if progress else range(len(items))):
@@ -73,8 +75,10 @@ class Engine:
         future, so a result is computed once, on one worker, and travels only to the workers
         whose tasks hold its handle (not to every worker, as ``shared_values`` do).
 
-        ``near[k]``: a handle whose holder should run item ``k`` (its large input), so that it
-        does not move; on Dask a preference that a dead worker's absence overrides.
+        ``near[k]``: a handle, or a tuple of handles, where item ``k`` should run (next to its
+        large inputs, which then do not move): on Dask on a worker that holds one of them, the
+        items spread evenly over those workers; a preference that a dead worker's absence
+        overrides. The handles must stand for results that exist or will (they are waited for).
         """
         return [_run_task(item, task, {}) for item in items]
 
@@ -112,17 +116,18 @@ class DaskEngine(Engine):
         if scheduler is not None:
             self.client = _connect(Client, scheduler)
         else:
-            with dask.config.set({"distributed.nanny.pre-spawn-environ": WORKER_ENVIRON}):
+            with dask.config.set({"distributed.nanny.pre-spawn-environ": WORKER_ENVIRON,
+                                  "distributed.scheduler.work-stealing": False}):
                 self._cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
                                              processes=True, dashboard_address=None)
             self.client = Client(self._cluster)
 
-    def map(self, task, items, *, shared_values=None, progress=None, on_result=None):
+    def map(self, task, items, *, shared_values=None, progress=None, on_result=None,
+            near=None):
         from dask.distributed import as_completed
 
         [values] = self.client.scatter([shared_values or {}], broadcast=True, hash=False)
-        futures = self.client.map(_run_task, items, task=task, values=values,
-                                  key=_keys(task, len(items)))
+        futures = self._submit(task, items, values, near)
         position = {future.key: index for index, future in enumerate(futures)}
         done = as_completed(futures)
         with _worker_deaths():
@@ -134,19 +139,30 @@ class DaskEngine(Engine):
     def keep(self, task, items, near=None):
         # not waited for: a later map's tasks start as soon as their handles' results exist,
         # and a failed task's error is raised where its result (or a task using it) is fetched
+        return self._submit(task, items, {}, near)
+
+    def _submit(self, task, items, values, near):
         keys = _keys(task, len(items))
         if near is None:
-            return self.client.map(_run_task, items, task=task, values={}, key=keys)
-        # Dask's own placement weighs a large input's transfer against queues whose task
-        # durations it does not know yet, and moves the input to most workers (measured)
+            return self.client.map(_run_task, items, task=task, values=values, key=keys)
+        return [self.client.submit(_run_task, item, task=task, values=values, key=key,
+                                   workers=where, allow_other_workers=True)
+                for item, key, where in zip(items, keys, self._placements(near), strict=True)]
+
+    def _placements(self, near):
+        """Per item one worker holding one of its handles (None: none holds them), the
+        fewest items first. Dask's own placement weighs a large input's transfer against
+        queues of tasks whose durations it does not know yet, and its work stealing moves
+        them after: both copied sets to most workers (measured, docs/benchmarks.md)."""
         from dask.distributed import wait
 
-        wait(list({h.key: h for h in near}.values()))
-        holders = self.client.who_has(list(near))
-        return [self.client.submit(_run_task, item, task=task, values={}, key=key,
-                                   workers=list(holders.get(h.key, ())) or None,
-                                   allow_other_workers=True)
-                for item, h, key in zip(items, near, keys, strict=True)]
+        groups = [h if isinstance(h, tuple) else (h,) for h in near]
+        handles = list({h.key: h for g in groups for h in g}.values())
+        wait(handles)
+        holders = self.client.who_has(handles)
+        options = [sorted({w for h in g for w in holders.get(h.key, ())}) for g in groups]
+        chosen = _balanced(options)
+        return [None if w is None else [w] for w in chosen]
 
     def put(self, values):
         return self.client.scatter(list(values), hash=False)
@@ -181,7 +197,8 @@ class Checkpointed(Engine):
     def distributed(self) -> bool:
         return self.runner.distributed
 
-    def map(self, task, items, *, shared_values=None, progress=None, on_result=None):
+    def map(self, task, items, *, shared_values=None, progress=None, on_result=None,
+            near=None):
         import pickle
 
         keys = [f"map{self.calls:03d}-{i:06d}" for i in range(len(items))]
@@ -198,7 +215,8 @@ class Checkpointed(Engine):
                 on_result(missing[j], result)
 
         computed = self.runner.map(task, [items[i] for i in missing], shared_values=shared_values,
-                                   progress=progress, on_result=save)
+                                   progress=progress, on_result=save,
+                                   near=None if near is None else [near[i] for i in missing])
         results.update(zip(missing, computed, strict=True))
         return [results[i] for i in range(len(items))]
 
@@ -222,6 +240,31 @@ def _keys(task: Callable, n: int) -> list[str]:
 
     token = uuid.uuid4().hex
     return [f"{getattr(task, '__qualname__', 'task')}-{token}-{i}" for i in range(n)]
+
+
+def _balanced(options: Sequence[Sequence[str]]) -> list[str | None]:
+    """One of its options per item (None where it has none), the counts per option as even as
+    moves of one item at a time make them: greedy, then any item moved to a less loaded option
+    while that lowers the spread (each move lowers the sum of squared counts, so it ends)."""
+    load: dict[str, int] = {}
+    chosen: list[str | None] = []
+    for opts in options:
+        best = min(opts, key=lambda w: load.get(w, 0)) if opts else None
+        if best is not None:
+            load[best] = load.get(best, 0) + 1
+        chosen.append(best)
+    moved = True
+    while moved:
+        moved = False
+        for k, opts in enumerate(options):
+            if not opts:
+                continue
+            best = min(opts, key=lambda w: load.get(w, 0))
+            if load.get(best, 0) + 1 < load[chosen[k]]:
+                load[chosen[k]] -= 1
+                load[best] = load.get(best, 0) + 1
+                chosen[k], moved = best, True
+    return chosen
 
 
 @contextmanager

@@ -127,7 +127,12 @@ def matrix(
     if runner is None:
         with engine(workers, scheduler) as started:
             return matrix(sets, method, names=names, runner=started, progress=progress)
-    loaded = runner.keep(load, runner.put(sets))  # a path is read where it is used
+    # a path is read where it is used, by a task that can run again (a dead worker's sets are
+    # read anew); sets in memory are sent once (scattered: lost with their worker)
+    in_memory = [k for k, given in enumerate(sets) if isinstance(given, TraceSet)]
+    placed = dict(zip(in_memory, runner.put([sets[k] for k in in_memory]) if in_memory else [],
+                      strict=True))
+    loaded = runner.keep(load, [placed.get(k, given) for k, given in enumerate(sets)])
     facts = runner.fetch(runner.keep(SetFacts.of, loaded))
     labels = tuple(names) if names is not None else tuple(_default_names(facts))
     if len(labels) != len(facts) or len(set(labels)) != len(labels):
@@ -184,7 +189,7 @@ def _split_pairs(runner: Engine, held: list[Any], pairs: list[tuple[int, int]],
                          near[s])
              for s in (0, 1)]
     return runner.map(_combine, [(a, b, settings) for a, b in zip(*sides, strict=True)],
-                      progress=progress)
+                      progress=progress, near=list(zip(*near, strict=True)))
 
 
 def _sketches(side: SortedSet):

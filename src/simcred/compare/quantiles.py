@@ -97,6 +97,11 @@ class Sketch:
         return cls(n, float(ordered[0]), float(ordered[-1]), ordered[ranks], below, upto,
                    distinct, int(cap))
 
+    def __sizeof__(self) -> int:
+        """Bytes held (Dask weighs transfers by it)."""
+        return object.__sizeof__(self) + sum(a.nbytes for a in (
+            self.values, self.below, self.upto, self.distinct) if a is not None)
+
     def merge(self, other: Sketch) -> Sketch:
         """The sketch of both groups of values together (commutative and associative)."""
         cap = min(self.cap, other.cap)
@@ -169,6 +174,10 @@ class Tally:
     at_lower: np.ndarray
     at_upper: np.ndarray
     inside: tuple[np.ndarray, ...]
+
+    def __sizeof__(self) -> int:
+        return object.__sizeof__(self) + sum(a.nbytes for a in (
+            self.below, self.at_lower, self.at_upper, *self.inside))
 
     def merge(self, other: Tally) -> Tally:
         return Tally(self.below + other.below, self.at_lower + other.at_lower,

@@ -122,6 +122,11 @@ class SideCounts:
         runs = matrix.indices.astype(np.min_scalar_type(max(matrix.shape[1] - 1, 0)))
         return cls(counts, runs, matrix.indptr, matrix.shape[1], *rest)
 
+    def __sizeof__(self) -> int:
+        """Bytes held (Dask weighs transfers by it)."""
+        return object.__sizeof__(self) + sum(a.nbytes for a in (
+            self.counts, self.runs, self.indptr, self.columns, *self.held, *self.candidates))
+
     @property
     def matrix(self) -> sp.csr_matrix:
         """The (columns × runs) counts as counted: float64 counts, int32 run indices."""
