@@ -140,6 +140,55 @@ def measure(paths: list[str], workers: int, permutations: int, whole: bool = Fal
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
+def _pair_seconds(paths: list[str], pairs: list[tuple[int, int]], permutations: int,
+                  barrier=None) -> float:
+    """Seconds of comparing ``pairs`` in this process, the sets read and sorted before (and,
+    with a barrier, every process starting its pairs at the same moment)."""
+    from itertools import chain
+
+    from simcred.compare import pairwise
+    from simcred.compare.facts import SetFacts
+    from simcred.compare.method import Method
+    from simcred.compare.process import comparison_options, load
+
+    needed = sorted(set(chain.from_iterable(pairs)))
+    sets = {k: load(paths[k]) for k in needed}
+    settings = comparison_options([SetFacts.of(sets[k]) for k in needed],
+                                  Method.of(None, features=FEATURES, bins=10,
+                                            permutations=permutations, seed=0))
+    held = {k: pairwise._prepare_sorted((sets[k], settings)) for k in needed}
+    if barrier is not None:
+        barrier.wait()
+    start = time.perf_counter()
+    for i, j in pairs:
+        pairwise._compare_sorted((held[i], held[j], settings))
+    return time.perf_counter() - start
+
+
+def ceiling(paths: list[str], processes: int, permutations: int) -> dict:
+    """The pairs' compute alone, dealt round robin to ``processes`` processes that start
+    together (no Dask, no transfers, each set read by every process that needs it), against
+    all pairs in one process: the speed-up that contention for memory and cores leaves to any
+    scheduler."""
+    import multiprocessing as mp
+    from itertools import combinations
+
+    pairs = list(combinations(range(len(paths)), 2))
+    context = mp.get_context("spawn")
+    with context.Pool(1) as pool:
+        alone = pool.apply(_pair_seconds, (paths, pairs, permutations))
+    manager = context.Manager()
+    barrier = manager.Barrier(processes)
+    with context.Pool(processes) as pool:
+        shares = [pool.apply_async(_pair_seconds, (paths, pairs[k::processes], permutations,
+                                                   barrier)) for k in range(processes)]
+        together = [r.get() for r in shares]
+    manager.shutdown()
+    return {"processes": processes, "alone_seconds": alone, "slowest_seconds": max(together),
+            "sum_seconds": sum(together), "ceiling": alone / max(together),
+            "inflation": sum(together) / alone}
+
+
 def table(rows: list[dict], title: str) -> Table:
     view = Table(title=title)
     for name in ("workers", "pairs compared", "matrix s", "start s", "speed-up", "efficiency",
@@ -180,6 +229,8 @@ def main() -> None:
                         "also with every pair compared from its two whole sets, as before the "
                         "per-set split; its in-process reference is added")
     parser.add_argument("--repeats", type=int, default=1, help="each worker count this often")
+    parser.add_argument("--ceiling", type=int, default=0, help="also measure the pairs' compute "
+                        "in this many processes started together, without Dask (0: not)")
     parser.add_argument("--out", type=Path, help="JSON file (default: "
                         "benchmarks/results/scale_<cpus>cpu.json)")
     parser.add_argument("--one", type=int, help=argparse.SUPPRESS)
@@ -201,6 +252,12 @@ def main() -> None:
         for w, whole in configs:
             rows.append(measure(paths, w, args.permutations, whole))
             print(f"{rows[-1]['path']} {w} workers: {rows[-1]['seconds']:.1f} s", flush=True)
+        bound = ceiling(paths, args.ceiling, args.permutations) if args.ceiling else None
+        if bound:
+            print(f"ceiling at {bound['processes']} processes: {bound['ceiling']:.2f}x (pairs "
+                  f"alone {bound['alone_seconds']:.1f} s, slowest share "
+                  f"{bound['slowest_seconds']:.1f} s, work inflated {bound['inflation']:.2f}x)",
+                  flush=True)
     reference = {r["path"]: r for r in reversed(rows) if r["workers"] == 0}
     for r in rows:
         r["speedup"] = reference[r["path"]]["seconds"] / r["seconds"]
@@ -213,7 +270,7 @@ def main() -> None:
     console.print(phases(rows))
     out = args.out or ROOT / "benchmarks" / "results" / f"scale_{os.cpu_count()}cpu.json"
     save_results(out, {"machine": machine(), "case": case, "write_seconds": written,
-                       "rows": rows})
+                       "rows": rows, "ceiling": bound})
 
 
 def _counts(text: str) -> list[int]:
