@@ -300,7 +300,7 @@ def _print_ad_function(ad: dict) -> None:
     """The resimulated EGO's AD function and where its parameters came from."""
     lanes = ", ".join(f"{y:.2f}" for y in ad["lane_centres"])
     say(f"AD function: set speed {ad['set_speed']:.2f} m/s ({ad['from']['set_speed']}), lanes "
-        f"at y = {lanes} m ({ad['from']['lanes']})")
+        f"at y = {lanes} m, {ad['lane_width']:.2f} m wide ({ad['from']['lanes']})")
 
 
 def _print_reactions(result) -> None:
