@@ -138,3 +138,19 @@ def test_an_unknown_lane_source_is_refused():
 
     with pytest.raises(OptionError, match="lanes: one of map, configuration"):
         ReprocessConfig(lanes="osm")
+
+
+def test_cli_lanes_configuration_keeps_the_configured_lanes(tmp_path):
+    import json
+
+    from simcred.cli import run
+
+    out = tmp_path / "configured"
+    assert run(["reprocess", str(US101), "--object", "394", "--lanes", "configuration",
+                "--no-scenario-based", "--out", str(out), "--json"]) == 0
+    document = json.loads((out / "reprocess.json").read_text())
+    ad = document["ad_function"]
+    assert ad["from"]["lanes"] == "recorded EGO" and "map" not in ad
+    assert ad["lane_width"] == ad["reaction_lane_width"] == 3.5
+    assert document["options"]["lanes"] == "configuration"
+    assert document["input"]["drive"]["lanes"]["lane_width"] == pytest.approx(3.26, abs=0.01)
