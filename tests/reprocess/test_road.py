@@ -115,7 +115,13 @@ def test_cli_reprocesses_a_commonroad_obstacle_in_the_lanelet_frame(tmp_path):
     out = tmp_path / "lanelet"
     assert run(["reprocess", str(US101), "--object", "394", "--road-frame", "lanelet",
                 "--no-scenario-based", "--out", str(out), "--json"]) == 0
-    frame = json.loads((out / "reprocess.json").read_text())["input"]["drive"]["frame"]
+    document = json.loads((out / "reprocess.json").read_text())
+    frame = document["input"]["drive"]["frame"]
     assert frame["road"].startswith("Frenet frame along the lanelet centre line")
+    # the map's lanes by default (tests/reprocess/test_lanes.py)
+    assert document["ad_function"]["from"]["lanes"] == "map"
+    assert document["ad_function"]["lane_width"] == document["input"]["drive"]["lanes"][
+        "lane_width"] == document["ad_function"]["reaction_lane_width"]
+    assert document["options"]["lanes"] == "map"
     assert frame["lanelets"] == commonroad_drive(US101, 394, frame="lanelet"
                                                  ).metadata["frame"]["lanelets"]

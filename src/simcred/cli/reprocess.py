@@ -45,6 +45,11 @@ class AdParameters(StrEnum):
     default = "default"
 
 
+class LaneSource(StrEnum):
+    map = "map"
+    configuration = "configuration"
+
+
 class LongGaps(StrEnum):
     error = "error"
     longest = "longest"
@@ -100,6 +105,10 @@ def reprocess(
     set_speed: Annotated[float | None, typer.Option(
         help="Set speed [m/s] of the resimulated EGO's ACC (instead of the recorded or "
              "default one).")] = None,
+    lanes: Annotated[LaneSource, typer.Option(
+        help="Lane width and centres of the AD function, the risk and the reaction rules: "
+             "'map' (a CommonRoad scenario's lanelets under the EGO; input without a map keeps "
+             "the others) or 'configuration' (3.5 m lanes as --ad-parameters says).")] = "map",
     seed: Annotated[int, typer.Option(min=0, help="Seed of the resimulations' sensor noise.")] = 0,
     threshold: Annotated[float, typer.Option(help="Position RMSE [m] at which the fit stops "
                                                   "adding sections.")] = 0.02,
@@ -133,7 +142,7 @@ def reprocess(
     frame = road_frame.value if is_xml and road_frame is not None else None
     config = ReprocessConfig(vehicle=vehicle, seed=seed, threshold=threshold,
                              scenario_based=scenario_based, max_gap=max_gap,
-                             long_gaps=long_gaps.value,
+                             long_gaps=long_gaps.value, lanes=LaneSource(lanes).value,
                              **_ad_options(measurement, ad_parameters, set_speed))
     if object_id is not None and object_id.lower() == "all":
         _reprocess_all(measurement, ego, config, out, as_json, overwrite, frame or "ego")
@@ -300,7 +309,7 @@ def _print_ad_function(ad: dict) -> None:
     """The resimulated EGO's AD function and where its parameters came from."""
     lanes = ", ".join(f"{y:.2f}" for y in ad["lane_centres"])
     say(f"AD function: set speed {ad['set_speed']:.2f} m/s ({ad['from']['set_speed']}), lanes "
-        f"at y = {lanes} m ({ad['from']['lanes']})")
+        f"at y = {lanes} m, {ad['lane_width']:.2f} m wide ({ad['from']['lanes']})")
 
 
 def _print_reactions(result) -> None:

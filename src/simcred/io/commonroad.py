@@ -161,15 +161,25 @@ def read(path: str | Path, *, layout: str = "obstacles", missing: str = "error")
 
 def lanelets(path: str | Path) -> dict[int, dict]:
     """The scenario's lanelet network: per lanelet id its ``centre`` line and its ``left`` and
-    ``right`` bounds ((n, 2) arrays, in driving direction, vertices paired) and its
-    ``successors`` and ``predecessors`` (ids)."""
+    ``right`` bounds ((n, 2) arrays, in driving direction, vertices paired), its
+    ``successors`` and ``predecessors`` (ids) and its ``left_neighbour`` and
+    ``right_neighbour`` (the adjacent lanelet's id where it runs in the same direction, else
+    None)."""
     scenario = _open(Path(path))
     return {int(lane.lanelet_id): {"centre": np.asarray(lane.center_vertices, dtype=np.float64),
                                    "left": np.asarray(lane.left_vertices, dtype=np.float64),
                                    "right": np.asarray(lane.right_vertices, dtype=np.float64),
                                    "successors": [int(i) for i in lane.successor],
-                                   "predecessors": [int(i) for i in lane.predecessor]}
+                                   "predecessors": [int(i) for i in lane.predecessor],
+                                   "left_neighbour": _same_way(lane.adj_left,
+                                                               lane.adj_left_same_direction),
+                                   "right_neighbour": _same_way(lane.adj_right,
+                                                                lane.adj_right_same_direction)}
             for lane in scenario.lanelet_network.lanelets}
+
+
+def _same_way(neighbour, same_direction) -> int | None:
+    return int(neighbour) if neighbour is not None and same_direction else None
 
 
 def _obstacle_kind(obstacle) -> dict:

@@ -10,7 +10,8 @@
   each one's CommonRoad type and footprint (rectangle; a circle's diameter) go into the
   metadata (``objects``), and a pedestrian or bicycle is refused as the EGO; with
   ``frame="lanelet"`` the road frame is instead the Frenet frame along the lanelet centre line
-  through the EGO's start (:mod:`simcred.reprocess.road`);
+  through the EGO's start (:mod:`simcred.reprocess.road`); the map's lanes under the EGO
+  (:mod:`simcred.reprocess.lanes`) go into the metadata (``lanes``);
 * a **long-format CSV/Parquet** table (:mod:`simcred.io.longformat`): the EGO's and the TO's
   ``x, y`` and optionally ``v, heading`` per time (by object column, or as ``<name>.x``
   columns; a missing ``v`` / ``heading`` column is derived from the positions, central
@@ -50,6 +51,7 @@ from simcred.io.a9_lanes import lane_changer
 from simcred.io.formats import PARQUET_SUFFIXES as LONG_SUFFIXES
 from simcred.io.sources import detect_source, read_source
 from simcred.kinematics import TIME_TOLERANCE, Track
+from simcred.reprocess.lanes import map_lanes
 from simcred.reprocess.road import lanelet_line, reference_line_file, to_frenet
 from simcred.reprocess.timebase import Drive, RecordedTracks, tracks_digest
 from simcred.scenario.fit import MIN_SAMPLES
@@ -203,8 +205,9 @@ def commonroad_drive(path: str | Path, obstacle: int | str, ego: int | str | Non
     if frame not in COMMONROAD_FRAMES:
         raise OptionError(f"a CommonRoad scenario's road frame is one of "
                           f"{', '.join(COMMONROAD_FRAMES)}, got {frame!r}")
+    network, on_map = commonroad.lanelets(path), tracks[EGO]
     if frame == "lanelet":
-        line, chain = lanelet_line(commonroad.lanelets(path), tracks[EGO], str(path))
+        line, chain = lanelet_line(network, tracks[EGO], str(path))
         tracks = to_frenet(tracks, line)
         placed = {"road": "Frenet frame along the lanelet centre line through the EGO's start",
                   "lanelets": chain}
@@ -214,7 +217,7 @@ def commonroad_drive(path: str | Path, obstacle: int | str, ego: int | str | Non
     metadata = {"source": str(path), "format": "commonroad",
                 "scenario_id": traces.metadata.get("scenario_id"), "object": int(to_run[3:]),
                 "ego": int(ego_run[3:]), "ego_choice": rule, "frame": placed,
-                "objects": objects}
+                "objects": objects, "lanes": map_lanes(network, on_map, placed, str(path))}
     digest = tracks_digest(tracks, file_digest(path), selection)
     return Drive(RecordedTracks(str(path), tracks, digest), None, metadata)
 

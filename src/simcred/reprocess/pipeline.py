@@ -43,7 +43,7 @@ from simcred.reprocess.reaction import (
 from simcred.reprocess.representation import GT, SD, Rep, SensorKind, Source
 from simcred.reprocess.timebase import MAX_GAP, Aligned, Drive, align
 from simcred.reprocess.units import check_units
-from simcred.risk import VehicleStates, risk, time_headway, time_to_collision
+from simcred.risk import Lanes, VehicleStates, risk, time_headway, time_to_collision
 from simcred.scenario.description import ScenarioDescription
 from simcred.scenario.fit import ScenarioFit, fit_scenario
 from simcred.sim.driver import DriverConfig
@@ -55,6 +55,7 @@ from simcred.traces import TIME, TraceSet
 SENSORS = tuple(sensor.value for sensor in SensorKind)
 LOG_RISK_FLOOR = 1e-9  # risk below this counts as this on the log scale
 RECORDED_PARAMETERS = ("set_speed", "lanes")
+LANE_SOURCES = ("map", "configuration")
 
 Progress = Callable[[str], None]
 
@@ -81,8 +82,15 @@ class ReprocessConfig:
     # AD-function parameters taken from the recorded EGO instead of ``driver``: "set_speed"
     # (its highest described speed) and/or "lanes" (its lane centred on its first position)
     from_recording: tuple[str, ...] = ()
+    # "map": where the drive carries its map's lanes (a CommonRoad scenario, metadata ``lanes``,
+    # :mod:`simcred.reprocess.lanes`) they are the AD function's lanes (before ``from_recording``)
+    # and the risk's and the reaction rules' lane geometry; "configuration": ``driver`` and
+    # ``criteria`` as given, the risk's lanes 3.5 m about y = 0 (as without a map)
+    lanes: str = "map"
 
     def __post_init__(self) -> None:
+        if self.lanes not in LANE_SOURCES:
+            raise OptionError(f"lanes: one of {', '.join(LANE_SOURCES)}, got {self.lanes!r}")
         unknown = sorted(set(self.from_recording) - set(RECORDED_PARAMETERS))
         if unknown:
             raise OptionError(f"from_recording: unknown parameter(s) {', '.join(unknown)} "
@@ -159,7 +167,7 @@ class Reprocessed(JsonResult):
             "options": {"vehicle": c.vehicle, "dt": c.dt, "risk_dt": c.risk_dt, "seed": c.seed,
                         "ego": c.ego, "objects": list(c.objects), "threshold": c.threshold,
                         "scenario_based": c.scenario_based, "max_gap": c.max_gap,
-                        "long_gaps": c.long_gaps},
+                        "long_gaps": c.long_gaps, "lanes": c.lanes},
             "input": self.input_report,
             "ad_function": self.ad_function,
             "fits": {name: {obj: {"sections": f.sections, "rmse": f.rmse,
@@ -197,7 +205,9 @@ def reprocess(measurement: Measurement | Drive, config: ReprocessConfig | None =
                                         dimensions=dimensions, metadata=kinds)
     sensor_model = c.sensor_model if c.sensor_model is not None else (
         _sensor_model(times, states, c) if c.scenario_based and GT in raw else None)
-    driver, ad_report = _ad_function(fits[(GT if GT in raw else SD).fit()].description, c)
+    road = drive.metadata.get("lanes") if c.lanes == "map" else None
+    driver, ad_report = _ad_function(fits[(GT if GT in raw else SD).fit()].description, c,
+                                     road, "lanes" in drive.metadata)
     for name in raw:
         for kind, sensor in _sensors(name, sensor_model):
             say(f"resimulate {name} ({sensor.name} sensor)")
@@ -215,8 +225,13 @@ def reprocess(measurement: Measurement | Drive, config: ReprocessConfig | None =
         states[key] = _description_tracks(description, times, objects)
     say("assess")
     assessed = {k.unfitted: d for k, d in descriptions.items()}
-    reactions = {k: _reaction(d, c) for k, d in assessed.items()}
-    risk = {k: _risk(d, c) for k, d in assessed.items()}
+    criteria = c.criteria if road is None else replace(c.criteria,
+                                                       lane_width=road["lane_width"])
+    lanes = Lanes() if road is None else Lanes(road["lane_width"], road["lane_centres"][0])
+    ad_report.update(risk_lanes={"width": lanes.width, "centre": lanes.centre},
+                     reaction_lane_width=criteria.lane_width)
+    reactions = {k: _reaction(d, c, criteria) for k, d in assessed.items()}
+    risk = {k: _risk(d, c, lanes) for k, d in assessed.items()}
     errors = {SensorKind.IDEAL: decompose(states, objects)}
     if sensor_model is not None:
         errors[SensorKind.SCENARIO_BASED] = decompose(_as_ideal(states), objects)
@@ -227,23 +242,37 @@ def reprocess(measurement: Measurement | Drive, config: ReprocessConfig | None =
                        drive_metadata=dict(drive.metadata))
 
 
-def _ad_function(description: ScenarioDescription, c: ReprocessConfig
+def _ad_function(description: ScenarioDescription, c: ReprocessConfig,
+                 road: dict[str, Any] | None, has_map: bool = False
                  ) -> tuple[DriverConfig, dict[str, Any]]:
     """The resimulations' AD function: ``c.driver`` with the parameters ``c.from_recording``
     names taken from the recorded EGO's ``description`` (GT's if there is one, else SD's):
     the set speed is its highest speed (sampled every ``c.dt``), the lanes keep their spacing
-    with the EGO's lane centred on its first position (the EGO starts in the first lane)."""
+    with the EGO's lane centred on its first position (the EGO starts in the first lane).
+    The map's lanes ``road`` (:mod:`simcred.reprocess.lanes`), where given, are the lanes and
+    the lane width instead (``has_map``: the drive has a map, none of whose lanelets lies
+    under the EGO; stated)."""
     driver, ego = c.driver, description.objects[c.ego]
     if "set_speed" in c.from_recording:
         driver = replace(driver, set_speed=float(ego.speed(description.times(c.dt)).max()))
-    if "lanes" in c.from_recording:
+    if road is not None:
+        driver = replace(driver, lane_centres=tuple(road["lane_centres"]),
+                         lane_width=road["lane_width"])
+    elif "lanes" in c.from_recording:
         y0 = float(ego.states(np.array([description.t0])).y[0])
         first = driver.lane_centres[0]
         driver = replace(driver, lane_centres=tuple(y0 + y - first for y in driver.lane_centres))
     source = {p: ("recorded EGO" if p in c.from_recording else "configuration")
               for p in RECORDED_PARAMETERS}
-    return driver, {"set_speed": driver.set_speed, "lane_centres": list(driver.lane_centres),
-                    "lane_width": driver.lane_width, "from": source}
+    report = {"set_speed": driver.set_speed, "lane_centres": list(driver.lane_centres),
+              "lane_width": driver.lane_width, "from": source}
+    if road is not None:
+        source["lanes"] = "map"
+        report["map"] = {k: v for k, v in road.items()
+                         if k not in ("lane_centres", "lane_width")}
+    elif has_map and c.lanes == "map":
+        report["map"] = "no lanelet under the EGO: lanes not from the map"
+    return driver, report
 
 
 def footprints(drive: Drive, objects: tuple[str, ...]) -> dict[str, tuple[float, float]]:
@@ -302,12 +331,13 @@ def _as_ideal(states: dict[Rep, dict[str, Track]]) -> dict[Rep, dict[str, Track]
     return renamed
 
 
-def _reaction(description: ScenarioDescription, c: ReprocessConfig) -> Reaction:
+def _reaction(description: ScenarioDescription, c: ReprocessConfig,
+              criteria: ReactionCriteria) -> Reaction:
     s = description.objects[c.ego].states(description.times(c.dt))
-    return reaction(s.t, s.y, s.v, s.heading, s.acceleration, c.criteria)
+    return reaction(s.t, s.y, s.v, s.heading, s.acceleration, criteria)
 
 
-def _risk(description: ScenarioDescription, c: ReprocessConfig) -> RiskSeries:
+def _risk(description: ScenarioDescription, c: ReprocessConfig, lanes: Lanes) -> RiskSeries:
     """Risk, TTC and THW per scene every ``risk_dt`` on the description ([1] §II-D)."""
     t = description.times(c.risk_dt)
     ego_track, tracks = description.objects[c.ego], [description.objects[o] for o in c.objects]
@@ -316,7 +346,7 @@ def _risk(description: ScenarioDescription, c: ReprocessConfig) -> RiskSeries:
     others = VehicleStates.of_tracks([track.states(t) for track in tracks], name="objects",
                                      length=np.array([track.length for track in tracks]),
                                      width=np.array([track.width for track in tracks]))
-    result = risk(ego, others)
+    result = risk(ego, others, lanes=lanes)
     return RiskSeries(t, result.risk, result.ttr_min, time_to_collision(ego, others),
                       time_headway(ego, others))
 
