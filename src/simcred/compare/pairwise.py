@@ -109,8 +109,13 @@ def matrix(
 
     Data go to the work once: every set is read (a path: by the worker itself) and prepared once,
     on one worker, and stays there; only its facts (signals, runs, sample period) come back for
-    the option checks. A pair's task then receives just its two prepared sets, so what travels
-    per pair does not grow with the number of sets (docs/benchmarks.md, scaling).
+    the option checks. For the run-level test (first order, no time windows or resampling) a
+    set is also sorted and sketched once, and each pair is compared from its sets' parts
+    (:mod:`simcred.compare.sorted_sets`): the tasks that tally and count a set run where it is
+    held, and only sketches, tallies and one set's per-run counts move (2.8 MB per pair instead
+    of 25 at 6,000 runs × 200 steps). Other options: a pair's task receives its two prepared
+    sets. Either way what travels per pair does not grow with the number of sets
+    (docs/benchmarks.md, scaling).
 
     >>> from simcred.examples import lane_change_sets
     >>> a, b = lane_change_sets(runs=40, steps=30, seed=2)
@@ -185,7 +190,7 @@ def _split_pairs(runner: Engine, held: list[Any], pairs: list[tuple[int, int]],
                                  near[s])
                      for s in (0, 1))
     counted = [(t, u, *plan) for t, u, plan in zip(first, second, plans, strict=True)]
-    sides = [runner.keep(_side_counts, [(h, *c) for h, c in zip(near[s], counted, strict=True)],
+    sides = [runner.keep(_pair_side, [(h, *c) for h, c in zip(near[s], counted, strict=True)],
                          near[s])
              for s in (0, 1)]
     return runner.map(_combine, [(a, b, settings) for a, b in zip(*sides, strict=True)],
@@ -205,9 +210,9 @@ def _tallies(item) -> sorted_sets.Tallies:
     return _plan(*plan).tallies(side)
 
 
-def _side_counts(item) -> sorted_sets.SideCounts:
+def _pair_side(item) -> sorted_sets.PairSide:
     side, first, second, *plan = item
-    return sorted_sets.side_counts(side, _plan(*plan), first, second, plan[-1].features)
+    return sorted_sets.pair_side(side, _plan(*plan), first, second, plan[-1].features)
 
 
 def _combine(item) -> Comparison:

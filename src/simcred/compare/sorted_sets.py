@@ -100,7 +100,7 @@ class PairPlan:
 
 
 @dataclass(frozen=True, slots=True, eq=False)
-class SideCounts:
+class PairSide:
     """One set's part of a pair: its per-run counts on the pair's candidate grid (``matrix``:
     columns × runs, ``columns``: their pair keys), per feature its values per candidate bin,
     and what the pair's test needs of the plan (both sides carry the same)."""
@@ -117,7 +117,7 @@ class SideCounts:
     quantiles: tuple[bool, ...]  # per feature: candidates are quantiles (else midpoints)
 
     @classmethod
-    def compact(cls, matrix: sp.csr_matrix, *rest) -> SideCounts:
+    def compact(cls, matrix: sp.csr_matrix, *rest) -> PairSide:
         counts = matrix.data.astype(np.min_scalar_type(int(matrix.data.max(initial=0))))
         runs = matrix.indices.astype(np.min_scalar_type(max(matrix.shape[1] - 1, 0)))
         return cls(counts, runs, matrix.indptr, matrix.shape[1], *rest)
@@ -134,8 +134,8 @@ class SideCounts:
                               self.indptr), shape=(len(self.indptr) - 1, self.n_runs))
 
 
-def side_counts(side: SortedSet, plan: PairPlan, a: Tallies, b: Tallies,
-                features: Sequence[str]) -> SideCounts:
+def pair_side(side: SortedSet, plan: PairPlan, a: Tallies, b: Tallies,
+                features: Sequence[str]) -> PairSide:
     """One set's counts on the pair's candidate edges (from both sets' tallies)."""
     candidates = plan.candidates(a, b)
     grid = StateSpace(tuple(features), candidates, plan.bounds)
@@ -143,11 +143,11 @@ def side_counts(side: SortedSet, plan: PairPlan, a: Tallies, b: Tallies,
     codes = encode(grid, p.values, p.time, p.offsets, source=p.info.source).codes
     matrix, columns = keyed_counts([(codes, p.offsets)], grid.n_states)
     held = tuple(sorted_bin_counts(c, o) for c, o in zip(candidates, side.ordered, strict=True))
-    return SideCounts.compact(matrix, columns, held, p.info, candidates, plan.bounds,
+    return PairSide.compact(matrix, columns, held, p.info, candidates, plan.bounds,
                               tuple(p.needs_counts for p in plan.plans))
 
 
-def pair_comparison(a: SideCounts, b: SideCounts, options: ComparisonOptions) -> Comparison:
+def pair_comparison(a: PairSide, b: PairSide, options: ComparisonOptions) -> Comparison:
     """The run-level comparison of the pair from its two sides: quantile edges whose left bin
     holds no value of either set dropped (``feature_edges``), keys relabelled to the rest."""
     kept = [(x + y)[:-1] > 0 if q else np.ones(len(c), dtype=bool)
@@ -166,5 +166,5 @@ def compare_sorted(a: SortedSet, b: SortedSet, options: ComparisonOptions) -> Co
     """All steps of one pair in one place (in-process)."""
     plan = PairPlan.of(a.sketches, b.sketches, options.bins)
     tallies = plan.tallies(a), plan.tallies(b)
-    return pair_comparison(side_counts(a, plan, *tallies, options.features),
-                           side_counts(b, plan, *tallies, options.features), options)
+    return pair_comparison(pair_side(a, plan, *tallies, options.features),
+                           pair_side(b, plan, *tallies, options.features), options)
