@@ -58,7 +58,7 @@ import numpy as np
 
 from simcred.compare.kernels import Kernel, KernelOperator, pooled_bandwidth
 from simcred.compare.mmd import Estimator, kernel_statistics
-from simcred.compare.run_counts import RunCounts
+from simcred.compare.run_counts import RunCounts, matvec, row_sums
 from simcred.compare.side_counts import SideCounts
 
 #: Elements of one dense (columns × batch) or (runs × batch) array of a permutation batch.
@@ -155,7 +155,8 @@ def run_level_test(counts: RunCounts, in_a: np.ndarray, grid_of, spec: RunTestSp
     in_a = np.asarray(in_a, dtype=bool)
     states = StateModels.build(counts, grid_of, spec, n_bins)
     if null is None:
-        assignments = random_assignments(in_a, spec.permutations, counts.matrix.shape[0], rng)
+        assignments = PackedAssignments.random(in_a, spec.permutations, counts.matrix.shape[0],
+                                               rng)
     else:
         assignments = np.vstack([in_a[None, :], np.asarray(null, dtype=bool)])
     stats = assignment_statistics(counts, states, assignments, spec.estimator,
@@ -171,7 +172,7 @@ def run_level_test(counts: RunCounts, in_a: np.ndarray, grid_of, spec: RunTestSp
     adjusted[~in_family] = 1.0
     if spec.multiplicity is Multiplicity.FDR:
         adjusted = benjamini_hochberg(adjusted, in_family)
-    observed_a = counts.matrix @ in_a.astype(np.float64)
+    observed_a = matvec(counts.matrix, in_a)
     m = np.add.reduceat(observed_a, counts.bounds[:-1])
     n = states.totals - m
     return RunLevelOutcome(
@@ -224,7 +225,7 @@ class StateModels:
 
     @classmethod
     def build(cls, counts: RunCounts, grid_of, spec: RunTestSpec, n_bins) -> StateModels:
-        column_totals = np.asarray(counts.matrix.sum(axis=1)).ravel()
+        column_totals = row_sums(counts.matrix)
         operators, bandwidths = [], []
         for lo, hi in zip(counts.bounds[:-1], counts.bounds[1:], strict=True):
             grid = grid_of(counts.successors[lo:hi])
@@ -248,24 +249,69 @@ def random_assignments(in_a: np.ndarray, permutations: int, n_cols: int,
     Drawn in batches whose size depends only on the data's dimensions, each batch one
     ``Generator.permuted`` call.
     """
-    total, n_runs = permutations + 1, len(in_a)
-    batch = batch_size(n_cols, n_runs)
-    pattern = np.sort(in_a)[::-1].copy()  # n_A ones, then zeros
-    assignments = np.empty((total, n_runs), dtype=bool)
-    for start in range(0, total, batch):
-        size = min(batch, total - start)
-        assignments[start:start + size] = rng.permuted(np.broadcast_to(pattern, (size, n_runs)),
-                                                       axis=1)
-    assignments[0] = in_a
+    assignments = np.empty((permutations + 1, len(in_a)), dtype=bool)
+    for start, rows in _assignment_batches(in_a, permutations, n_cols, rng):
+        assignments[start:start + len(rows)] = rows
     return assignments
 
 
-def assignment_statistics(counts: RunCounts, states: StateModels, assignment: np.ndarray,
-                          estimator: Estimator, batch: int = 256) -> np.ndarray:
-    """(k, blocks) size-scaled statistics of k assignments of runs to A (bool, (k, runs))."""
+def _assignment_batches(in_a: np.ndarray, permutations: int, n_cols: int,
+                        rng: np.random.Generator):
+    """(first row, bool rows) of :func:`random_assignments`, batch by batch."""
+    total, n_runs = permutations + 1, len(in_a)
+    batch = batch_size(n_cols, n_runs)
+    pattern = np.sort(in_a)[::-1].copy()  # n_A ones, then zeros
+    for start in range(0, total, batch):
+        size = min(batch, total - start)
+        rows = rng.permuted(np.broadcast_to(pattern, (size, n_runs)), axis=1)
+        if start == 0:
+            rows[0] = in_a
+        yield start, rows
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class PackedAssignments:
+    """(k, runs) bool assignments held as bits (``numpy.packbits`` along the runs: one eighth
+    of the bytes); a slice of rows unpacks to the bool rows (``assignments[start:stop]``)."""
+
+    bits: np.ndarray
+    n_runs: int
+
+    @classmethod
+    def pack(cls, assignments: np.ndarray) -> PackedAssignments:
+        assignments = np.asarray(assignments, dtype=bool)
+        return cls(np.packbits(assignments, axis=1), assignments.shape[1])
+
+    @classmethod
+    def random(cls, in_a: np.ndarray, permutations: int, n_cols: int,
+               rng: np.random.Generator) -> PackedAssignments:
+        """:func:`random_assignments`, the same rows, packed batch by batch (the bool rows of
+        all permutations are never held at once)."""
+        bits = np.empty((permutations + 1, (len(in_a) + 7) // 8), dtype=np.uint8)
+        for start, rows in _assignment_batches(in_a, permutations, n_cols, rng):
+            bits[start:start + len(rows)] = np.packbits(rows, axis=1)
+        return cls(bits, len(in_a))
+
+    def __len__(self) -> int:
+        return len(self.bits)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return len(self.bits), self.n_runs
+
+    def __getitem__(self, rows: slice) -> np.ndarray:
+        return np.unpackbits(self.bits[rows], axis=1, count=self.n_runs).view(bool)
+
+
+def assignment_statistics(counts: RunCounts, states: StateModels,
+                          assignment: np.ndarray | PackedAssignments, estimator: Estimator,
+                          batch: int = 256) -> np.ndarray:
+    """(k, blocks) size-scaled statistics of k assignments of runs to A (bool, (k, runs), or
+    packed)."""
     product = SideCounts(counts)
     out = np.empty((len(assignment), len(counts.blocks)))
     for first, last, lo, hi in product.chunks:
+        rows = None  # the last chunk's dense rows go before this one's are made
         rows = product.rows(lo, hi)
         for start in range(0, len(assignment), batch):
             side_a = product.product(rows, assignment[start:start + batch])
