@@ -21,7 +21,8 @@ def literal_counts(codes: np.ndarray, offsets: np.ndarray, n_states: int) -> dic
     out: dict = {}
     for run, (lo, hi) in enumerate(zip(offsets[:-1], offsets[1:], strict=True)):
         states = [int(s) for s in codes[lo:hi]]
-        keys = [states[0]] + [(s + 1) * n_states + u for s, u in zip(states, states[1:])]
+        keys = [states[0]] + [(s + 1) * n_states + u
+                              for s, u in zip(states[:-1], states[1:], strict=True)]
         for key in keys:
             out[run, key] = out.get((run, key), 0) + 1
     return out
