@@ -19,9 +19,9 @@ partitions of both sets:
 The pooled count matrix then goes through the same run-level test as in memory
 (:func:`~simcred.compare.run_level.counts_comparison`). Memory: one partition, the sketches and
 tallies (about ``2 N / SKETCH_SIZE`` values per edge), the run ids and lengths, and the count
-matrix: 12 bytes per non-zero (run, state, successor) entry, plus 2 to 8 bytes per entry while
-the partitions' entries are sorted into it; then the run-level test's own arrays (among them
-one byte per run and permutation).
+matrix: 8 bytes per non-zero (run, state, successor) entry (int32 run, float32 count), plus 2 to
+8 bytes per entry while the partitions' entries are sorted into it; then the run-level test's
+own arrays (among them one bit per run and permutation).
 
 Supported: ``test="runs"`` with ``history=1``, no ``time_bins``, no ``resample``, no
 ``relevance``; other options are refused with one line (:data:`SUPPORTED`).
@@ -50,7 +50,7 @@ from simcred.compare.method import Method
 from simcred.compare.quantiles import EdgePlan, Sketch, Tally
 from simcred.compare.resample import within_run_steps
 from simcred.compare.result import Comparison, InputInfo
-from simcred.compare.run_counts import RunCounts, relabelled_keys
+from simcred.compare.run_counts import RunCounts, count_dtype, relabelled_keys
 from simcred.compare.run_level import counts_comparison
 from simcred.engine import Progress
 from simcred.errors import OptionError
@@ -323,10 +323,11 @@ def _partition_pairs(codes: np.ndarray, offsets: np.ndarray, n_states: int):
 
 def _pooled_matrix(blocks: list) -> tuple[np.ndarray, sp.csr_matrix]:
     """Sorted distinct keys and the (keys × runs) CSR matrix of all partitions' entries, as
-    ``RunCounts.from_codes`` builds it (entries sorted by (key, run), float64 counts).
+    ``RunCounts.from_codes`` builds it (entries sorted by (key, run), counts in its dtype:
+    float32 below 2**24).
 
-    A counting sort by key, partition by partition: the output arrays (12 bytes per entry) are
-    filled while the partitions' compact entries are released.
+    A counting sort by key, partition by partition: the output arrays (8 bytes per entry: int32
+    run, float32 count) are filled while the partitions' compact entries are released.
     """
     keys = np.unique(np.concatenate([b[0] for b in blocks]))
     where = [np.searchsorted(keys, b[0]) for b in blocks]
@@ -337,7 +338,8 @@ def _pooled_matrix(blocks: list) -> tuple[np.ndarray, sp.csr_matrix]:
     n_runs = int(sum(len(b[3]) for b in blocks))
     run_index = np.int32 if n_runs < 2**31 else np.int64
     indices = np.empty(int(indptr[-1]), dtype=run_index)
-    data = np.empty(int(indptr[-1]), dtype=np.float64)
+    largest = np.array([max((int(b[2].max()) for b in blocks if len(b[2])), default=0)])
+    data = np.empty(int(indptr[-1]), dtype=count_dtype(largest))
     cursor = indptr[:-1].copy()
     first_run = 0
     for i, w in enumerate(where):

@@ -107,8 +107,12 @@ def compare(
     prepared = [Prepared.for_options(traces, settings) for traces in (a, b)]
     design = build_design(a, b, pair_by=settings.pair_by, group_by=settings.group_by) \
         if Test(settings.test) is Test.RESPONSE else None
-    units = dict(zip(settings.features, feature_units(a, b, settings.features), strict=True))
-    result = with_units(compare_prepared(*prepared, settings, progress, design, units), a, b)
+    named = feature_units(a, b, settings.features)
+    units = dict(zip(settings.features, named, strict=True))
+    a = b = None  # sets read here are dropped: their time stamps, unless prepared, go too
+    result = compare_prepared(*prepared, settings, progress, design, units)
+    if any(named):  # as with_units
+        result = dataclasses.replace(result, units=named)
     if method.relevance:
         from simcred.compare.run_level import feature_relevance
 

@@ -1,5 +1,9 @@
 """Per run, the counts of (state, successor) pairs: the sparse (columns × runs) matrix every
 run-level and response test permutes, counted block by block of runs from the state codes.
+
+The counts are integers stored as float32 (4 bytes per entry instead of 8) wherever every count
+is below 2**24, where float32 holds them exactly; float64 else (:func:`count_dtype`). Sums over
+them are taken in float64 (:func:`row_sums`, :func:`matvec`): exact integers either way.
 """
 
 from __future__ import annotations
@@ -16,6 +20,10 @@ START = -1  # state code of the start-distribution block
 DIRECT_KEYS = 2**22
 #: Rows per block of runs when counting through the lookup table.
 BLOCK_ROWS = 2**20
+#: Counts below this are exact in float32 (its 24-bit significand).
+EXACT_FLOAT32 = 2**24
+#: Entries per slice in :func:`row_sums` and :func:`matvec` (their float64 working copies).
+SUM_ENTRIES = 2**22
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -24,7 +32,9 @@ class RunCounts:
 
     ``blocks[b]`` is the state of column block ``b`` (``START`` for the start distribution),
     ``bounds[b]:bounds[b + 1]`` its columns, ``successors[c]`` the successor state of column
-    ``c``. Columns are sorted by (state, successor), the start block first.
+    ``c``. Columns are sorted by (state, successor), the start block first. Built from codes,
+    the matrix holds its counts as float32 where they are all below :data:`EXACT_FLOAT32`
+    (:func:`count_dtype`); sum them with :func:`row_sums` and :func:`matvec` (float64).
     """
 
     matrix: sp.csr_matrix
@@ -83,7 +93,7 @@ def keyed_counts(parts: Sequence[tuple[np.ndarray, np.ndarray]], n_states: int
         keys, runs = _pair_keys(codes, offsets, size)
         columns, column_of, run_of, count = _pair_counts(keys, runs, len(offsets) - 1)
         indptr = np.r_[0, np.cumsum(np.bincount(column_of, minlength=len(columns)))]
-        matrix = sp.csr_matrix((count.astype(np.float64), run_of, indptr),
+        matrix = sp.csr_matrix((count.astype(count_dtype(count)), run_of, indptr),
                                shape=(len(columns), len(offsets) - 1))  # (column, run)
         return matrix, columns
     blocks = [(codes, offsets, lo, hi) for codes, offsets in parts
@@ -96,9 +106,9 @@ def keyed_counts(parts: Sequence[tuple[np.ndarray, np.ndarray]], n_states: int
     columns = np.flatnonzero(present)
     column_index = np.cumsum(present) - 1
     del present
-    matrix = sp.hstack([_block_counts(*_block(*block), size, column_index, len(columns))
-                        for block in blocks], format="csr")
-    return matrix, columns
+    counted = [_block_counts(*_block(*block), size, column_index, len(columns))
+               for block in blocks]
+    return _stacked(counted), columns
 
 
 def joined_counts(parts: Sequence[tuple[sp.csr_matrix, np.ndarray]]
@@ -112,7 +122,13 @@ def joined_counts(parts: Sequence[tuple[sp.csr_matrix, np.ndarray]]
         per_row[np.searchsorted(columns, own)] = np.diff(matrix.indptr)
         placed.append(sp.csr_matrix((matrix.data, matrix.indices, np.r_[0, np.cumsum(per_row)]),
                                     shape=(len(columns), matrix.shape[1])))
-    return sp.hstack(placed, format="csr"), columns
+    return _stacked(placed), columns
+
+
+def _stacked(matrices: Sequence[sp.csr_matrix]) -> sp.csr_matrix:
+    """The matrices side by side, their counts in the type that holds all of them exactly."""
+    dtype = np.result_type(*(count_dtype(m.data) for m in matrices))
+    return sp.hstack([m.astype(dtype, copy=False) for m in matrices], format="csr", dtype=dtype)
 
 
 def relabelled_keys(keys: np.ndarray, shape: tuple[int, ...], kept: Sequence[np.ndarray],
@@ -136,6 +152,44 @@ def relabelled_keys(keys: np.ndarray, shape: tuple[int, ...], kept: Sequence[np.
     new_origin = np.full(len(keys), -1, dtype=np.int64)
     new_origin[~start] = moved(origin[~start])
     return (new_origin + 1) * np.int64(np.prod(new_shape)) + moved(successor)
+
+def count_dtype(counts: np.ndarray) -> type:
+    """float32 where every one of the (non-negative integer) ``counts`` is below
+    :data:`EXACT_FLOAT32`, so that float32 holds them exactly; float64 else."""
+    return np.float32 if len(counts) == 0 or counts.max() < EXACT_FLOAT32 else np.float64
+
+
+def row_sums(matrix: sp.csr_matrix) -> np.ndarray:
+    """Per row, the sum of a CSR matrix's entries in float64 (exact for integer counts; no
+    float64 copy of the whole matrix: :data:`SUM_ENTRIES` entries at a time)."""
+    return _sliced(matrix)
+
+
+def matvec(matrix: sp.csr_matrix, vector: np.ndarray) -> np.ndarray:
+    """``matrix @ vector`` in float64, :data:`SUM_ENTRIES` entries at a time (scipy would copy
+    a float32 matrix's entries to float64 whole)."""
+    vector = np.asarray(vector, dtype=np.float64)
+    return _sliced(matrix, vector)
+
+
+def _sliced(matrix: sp.csr_matrix, vector: np.ndarray | None = None) -> np.ndarray:
+    """Per row the float64 sum of its entries (times ``vector`` at their columns), slices of
+    whole rows of about :data:`SUM_ENTRIES` entries each, summed in entry order per row."""
+    indptr = matrix.indptr
+    out = np.zeros(matrix.shape[0])
+    cuts = np.unique(np.r_[0, np.searchsorted(indptr, np.arange(SUM_ENTRIES, indptr[-1],
+                                                                SUM_ENTRIES)),
+                           matrix.shape[0]])
+    for lo, hi in zip(cuts[:-1], cuts[1:], strict=True):
+        a, b = int(indptr[lo]), int(indptr[hi])
+        if a == b:
+            continue
+        values = matrix.data[a:b].astype(np.float64)
+        if vector is not None:
+            values *= vector[matrix.indices[a:b]]
+        rows = np.repeat(np.arange(hi - lo), np.diff(indptr[lo:hi + 1]))
+        out[lo:hi] = np.bincount(rows, weights=values, minlength=hi - lo)
+    return out
 
 
 def _run_blocks(offsets: np.ndarray) -> list[tuple[int, int]]:
@@ -168,14 +222,17 @@ def _pair_keys(codes: np.ndarray, offsets: np.ndarray, size: np.int64
 
 def _block_counts(codes: np.ndarray, offsets: np.ndarray, size: np.int64,
                   column_index: np.ndarray, n_columns: int) -> sp.csr_matrix:
-    """The (column × run) counts of one block of runs, without sorting.
+    """The (column × run) counts of one block of runs, without sorting; float32 where no run
+    has :data:`EXACT_FLOAT32` rows (every count, a sum of ones, is then exact in float32).
 
     Runs never decrease within one key (starts and transitions are listed run by run), so the
     COO → CSR conversion leaves each row's runs sorted and adding up duplicates is one linear
     pass.
     """
     keys, runs = _pair_keys(codes, offsets, size)
-    matrix = sp.csr_matrix((np.ones(len(keys)), (column_index[keys], runs)),
+    longest = int(np.diff(offsets).max()) if len(offsets) > 1 else 0
+    ones = np.ones(len(keys), dtype=np.float32 if longest < EXACT_FLOAT32 else np.float64)
+    matrix = sp.csr_matrix((ones, (column_index[keys], runs)),
                            shape=(n_columns, len(offsets) - 1))
     matrix.sum_duplicates()
     return matrix

@@ -58,16 +58,16 @@ import numpy as np
 
 from simcred.compare.kernels import Kernel, KernelOperator, pooled_bandwidth
 from simcred.compare.mmd import Estimator, kernel_statistics
-from simcred.compare.run_counts import RunCounts
+from simcred.compare.run_counts import RunCounts, matvec, row_sums
 from simcred.compare.side_counts import SideCounts
 
 #: Elements of one dense (columns × batch) or (runs × batch) array of a permutation batch.
 BATCH_BUDGET = 2**22
 #: Absolute/relative tolerance when counting permuted statistics ≥ the observed one.
 TIE_TOL = 1e-9
-#: Largest assignments array kept for the next call (:func:`random_assignments`).
+#: Largest packed assignments kept for the next call (:meth:`PackedAssignments.random`).
 REUSED_ASSIGNMENT_BYTES = 64 * 2**20
-_last_drawn: dict[tuple, tuple[np.ndarray, dict]] = {}
+_last_drawn: dict[tuple, tuple[PackedAssignments, dict]] = {}
 #: ``dᵀKd`` below this is rounding noise of an exact 0 (|error| ≲ 4·eps) and is set to 0 before
 #: the square root, so that permutations with proportional counts tie with each other exactly.
 QUADRATIC_FLOOR = 1e-13
@@ -158,7 +158,8 @@ def run_level_test(counts: RunCounts, in_a: np.ndarray, grid_of, spec: RunTestSp
     in_a = np.asarray(in_a, dtype=bool)
     states = StateModels.build(counts, grid_of, spec, n_bins)
     if null is None:
-        assignments = random_assignments(in_a, spec.permutations, counts.matrix.shape[0], rng)
+        assignments = PackedAssignments.random(in_a, spec.permutations, counts.matrix.shape[0],
+                                               rng)
     else:
         assignments = np.vstack([in_a[None, :], np.asarray(null, dtype=bool)])
     stats = assignment_statistics(counts, states, assignments, spec.estimator,
@@ -174,7 +175,7 @@ def run_level_test(counts: RunCounts, in_a: np.ndarray, grid_of, spec: RunTestSp
     adjusted[~in_family] = 1.0
     if spec.multiplicity is Multiplicity.FDR:
         adjusted = benjamini_hochberg(adjusted, in_family)
-    observed_a = counts.matrix @ in_a.astype(np.float64)
+    observed_a = matvec(counts.matrix, in_a)
     m = np.add.reduceat(observed_a, counts.bounds[:-1])
     n = states.totals - m
     return RunLevelOutcome(
@@ -227,7 +228,7 @@ class StateModels:
 
     @classmethod
     def build(cls, counts: RunCounts, grid_of, spec: RunTestSpec, n_bins) -> StateModels:
-        column_totals = np.asarray(counts.matrix.sum(axis=1)).ravel()
+        column_totals = row_sums(counts.matrix)
         operators, bandwidths = [], []
         for lo, hi in zip(counts.bounds[:-1], counts.bounds[1:], strict=True):
             grid = grid_of(counts.successors[lo:hi])
@@ -249,38 +250,88 @@ def random_assignments(in_a: np.ndarray, permutations: int, n_cols: int,
     """(P + 1, runs) bool assignments; row 0 is ``in_a``, the others uniform permutations of it.
 
     Drawn in batches whose size depends only on the data's dimensions, each batch one
-    ``Generator.permuted`` call. The last draw (up to :data:`REUSED_ASSIGNMENT_BYTES`) is kept,
-    read-only, and returned again for the same assignment, permutations, batch size and
-    generator state, the generator then left where the draw left it: a distance matrix draws the
-    same assignments for every pair of equal sizes (same seed), a quarter of a pair's time.
+    ``Generator.permuted`` call.
     """
-    total, n_runs = permutations + 1, len(in_a)
-    batch = batch_size(n_cols, n_runs)
-    key = (in_a.tobytes(), permutations, batch, repr(rng.bit_generator.state))
-    if key in _last_drawn:
-        assignments, after = _last_drawn[key]
-        rng.bit_generator.state = after
-        return assignments
-    pattern = np.sort(in_a)[::-1].copy()  # n_A ones, then zeros
-    assignments = np.empty((total, n_runs), dtype=bool)
-    for start in range(0, total, batch):
-        size = min(batch, total - start)
-        assignments[start:start + size] = rng.permuted(np.broadcast_to(pattern, (size, n_runs)),
-                                                       axis=1)
-    assignments[0] = in_a
-    if assignments.nbytes <= REUSED_ASSIGNMENT_BYTES:
-        assignments.flags.writeable = False
-        _last_drawn.clear()
-        _last_drawn[key] = (assignments, rng.bit_generator.state)
+    assignments = np.empty((permutations + 1, len(in_a)), dtype=bool)
+    for start, rows in _assignment_batches(in_a, permutations, n_cols, rng):
+        assignments[start:start + len(rows)] = rows
     return assignments
 
 
-def assignment_statistics(counts: RunCounts, states: StateModels, assignment: np.ndarray,
-                          estimator: Estimator, batch: int = 256) -> np.ndarray:
-    """(k, blocks) size-scaled statistics of k assignments of runs to A (bool, (k, runs))."""
+def _assignment_batches(in_a: np.ndarray, permutations: int, n_cols: int,
+                        rng: np.random.Generator):
+    """(first row, bool rows) of :func:`random_assignments`, batch by batch."""
+    total, n_runs = permutations + 1, len(in_a)
+    batch = batch_size(n_cols, n_runs)
+    pattern = np.sort(in_a)[::-1].copy()  # n_A ones, then zeros
+    for start in range(0, total, batch):
+        size = min(batch, total - start)
+        rows = rng.permuted(np.broadcast_to(pattern, (size, n_runs)), axis=1)
+        if start == 0:
+            rows[0] = in_a
+        yield start, rows
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class PackedAssignments:
+    """(k, runs) bool assignments held as bits (``numpy.packbits`` along the runs: one eighth
+    of the bytes); a slice of rows unpacks to the bool rows (``assignments[start:stop]``)."""
+
+    bits: np.ndarray
+    n_runs: int
+
+    @classmethod
+    def pack(cls, assignments: np.ndarray) -> PackedAssignments:
+        assignments = np.asarray(assignments, dtype=bool)
+        return cls(np.packbits(assignments, axis=1), assignments.shape[1])
+
+    @classmethod
+    def random(cls, in_a: np.ndarray, permutations: int, n_cols: int,
+               rng: np.random.Generator) -> PackedAssignments:
+        """:func:`random_assignments`, the same rows, packed batch by batch (the bool rows of
+        all permutations are never held at once).
+
+        The last draw (up to :data:`REUSED_ASSIGNMENT_BYTES` of bits) is kept, read-only, and
+        returned again for the same assignment, permutations, batch size and generator state,
+        the generator then left where the draw left it: a distance matrix draws the same
+        assignments for every pair of equal sizes (same seed), a quarter of a pair's time.
+        """
+        key = (in_a.tobytes(), permutations, batch_size(n_cols, len(in_a)),
+               repr(rng.bit_generator.state))
+        if key in _last_drawn:
+            drawn, after = _last_drawn[key]
+            rng.bit_generator.state = after
+            return drawn
+        bits = np.empty((permutations + 1, (len(in_a) + 7) // 8), dtype=np.uint8)
+        for start, rows in _assignment_batches(in_a, permutations, n_cols, rng):
+            bits[start:start + len(rows)] = np.packbits(rows, axis=1)
+        drawn = cls(bits, len(in_a))
+        if bits.nbytes <= REUSED_ASSIGNMENT_BYTES:
+            bits.flags.writeable = False
+            _last_drawn.clear()
+            _last_drawn[key] = (drawn, rng.bit_generator.state)
+        return drawn
+
+    def __len__(self) -> int:
+        return len(self.bits)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return len(self.bits), self.n_runs
+
+    def __getitem__(self, rows: slice) -> np.ndarray:
+        return np.unpackbits(self.bits[rows], axis=1, count=self.n_runs).view(bool)
+
+
+def assignment_statistics(counts: RunCounts, states: StateModels,
+                          assignment: np.ndarray | PackedAssignments, estimator: Estimator,
+                          batch: int = 256) -> np.ndarray:
+    """(k, blocks) size-scaled statistics of k assignments of runs to A (bool, (k, runs), or
+    packed)."""
     product = SideCounts(counts)
     out = np.empty((len(assignment), len(counts.blocks)))
     for first, last, lo, hi in product.chunks:
+        rows = None  # the last chunk's dense rows go before this one's are made
         rows = product.rows(lo, hi)
         for start in range(0, len(assignment), batch):
             side_a = product.product(rows, assignment[start:start + batch])

@@ -55,8 +55,8 @@ class SideCounts:
             dense_rows, slices = _exact_slices(dense_rows)
         if len(sparse):
             sparse_rows = self.matrix[lo + sparse]
-            exact32 = abs(sparse_rows).sum(axis=1).max() < 2**24
-            sparse_rows = sparse_rows.astype(np.float32 if exact32 else np.float64)
+            exact32 = abs(sparse_rows).sum(axis=1, dtype=np.float64).max() < 2**24
+            sparse_rows = sparse_rows.astype(np.float32 if exact32 else np.float64, copy=False)
         return dense, dense_rows, slices, base, sparse, sparse_rows
 
     def product(self, rows: tuple, assignment: np.ndarray) -> np.ndarray:
@@ -93,7 +93,7 @@ def _dense_rows(matrix: sp.csr_matrix, lo: int, hi: int, rows: np.ndarray,
         view = view[rows]
     if not paired and view.has_canonical_format and (view.nnz == 0 or (
             np.abs(view.data).max() < 2**24 and (view.data == np.rint(view.data)).all())):
-        return view.astype(np.float32).toarray()
+        return view.astype(np.float32, copy=False).toarray()
     return view.toarray().astype(np.float64, copy=False)
 
 
@@ -110,8 +110,8 @@ def _exact_slices(dense: np.ndarray) -> tuple[np.ndarray, list[tuple[int, int]]]
     row's absolute sum is below 2**24: as float32, exact in products, if each slice's sum of
     per-run maxima stays below that; else float64 and one slice."""
     n_runs = dense.shape[1]
-    peak = np.abs(dense).max(axis=0).astype(np.float64) if n_runs and len(dense) \
-        else np.zeros(n_runs)
+    peak = np.maximum(dense.max(axis=0), -dense.min(axis=0)).astype(np.float64) \
+        if n_runs and len(dense) else np.zeros(n_runs)  # |dense|.max without a copy of it
     if n_runs == 0 or peak.max() >= 2**24 or (
             dense.dtype != np.float32 and not (dense == np.rint(dense)).all()):
         return dense, [(0, n_runs)]

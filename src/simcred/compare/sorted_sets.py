@@ -40,7 +40,13 @@ from simcred.compare.encoding import encode
 from simcred.compare.process import Prepared
 from simcred.compare.quantiles import EdgePlan, Sketch, Tally, sorted_bin_counts
 from simcred.compare.result import Comparison, ComparisonOptions, InputInfo
-from simcred.compare.run_counts import RunCounts, joined_counts, keyed_counts, relabelled_keys
+from simcred.compare.run_counts import (
+    RunCounts,
+    count_dtype,
+    joined_counts,
+    keyed_counts,
+    relabelled_keys,
+)
 from simcred.compare.run_level import counts_comparison
 
 Tallies = tuple[Tally | None, ...]
@@ -129,8 +135,10 @@ class PairSide:
 
     @property
     def matrix(self) -> sp.csr_matrix:
-        """The (columns × runs) counts as counted: float64 counts, int32 run indices."""
-        return sp.csr_matrix((self.counts.astype(np.float64), self.runs.astype(np.int32),
+        """The (columns × runs) counts as counted (in :func:`~simcred.compare.run_counts.
+        count_dtype`), int32 run indices."""
+        return sp.csr_matrix((self.counts.astype(count_dtype(self.counts)),
+                              self.runs.astype(np.int32),
                               self.indptr), shape=(len(self.indptr) - 1, self.n_runs))
 
 

@@ -16,7 +16,7 @@ import pyarrow.parquet as pq
 
 from simcred._json import loads
 from simcred.errors import TraceSetError
-from simcred.io._columns import float_column, parquet_table
+from simcred.io._columns import MAX_COLUMNS, float_column, parquet_table
 from simcred.io._paths import local
 from simcred.traces import TIME, TraceSet, handed_over
 
@@ -25,6 +25,9 @@ METADATA_KEY = b"simcred"
 
 
 def read(path: Path) -> TraceSet:
+    traces = _read_row_groups(path)
+    if traces is not None:
+        return traces
     try:
         table = parquet_table(path)  # the width checked before any value is read
     except (pa.ArrowException, OSError) as exc:
@@ -74,6 +77,51 @@ def from_table(table: pa.Table, path: Path | str) -> TraceSet:
         metadata=_metadata(table, path),
         source=str(path),
     )
+
+
+def _read_row_groups(path: Path) -> TraceSet | None:
+    """The trace set of a file whose rows are grouped by run (as :func:`write` stores them),
+    read row group by row group into its arrays: the whole table is never held in Arrow (it was
+    twice the arrays' bytes at its peak). None for any other file, and wherever something is
+    wrong with it: the whole-table reading then gives the same result or the same error."""
+    try:
+        file = pq.ParquetFile(local(path))
+        names = file.schema_arrow.names
+        if len(names) > MAX_COLUMNS or len(set(names)) != len(names) \
+                or RUN not in names or TIME not in names or file.metadata.num_rows == 0:
+            return None
+        runs = file.read(columns=[RUN]).column(RUN)
+        if runs.null_count or not pa.types.is_dictionary(runs.type) or not (
+                pa.types.is_string(runs.type.value_type)
+                or pa.types.is_large_string(runs.type.value_type)
+                or pa.types.is_integer(runs.type.value_type)):
+            return None
+        grouped = _grouped_runs(runs)
+        del runs
+        if grouped is None:
+            return None
+        (ids, offsets), n_rows = grouped, file.metadata.num_rows
+        signals = [n for n in names if n not in (RUN, TIME)]
+        time, values = np.empty(n_rows), np.empty((n_rows, len(signals)))
+        position, pool = 0, pa.default_memory_pool()
+        for group in range(file.num_row_groups):
+            table = file.read_row_group(group)
+            end = position + table.num_rows
+            if end > n_rows:
+                return None
+            time[position:end] = float_column(table, TIME, str(path))
+            for j, name in enumerate(signals):
+                values[position:end, j] = float_column(table, name, str(path))
+            position = end
+            del table
+            pool.release_unused()
+        if position != n_rows or offsets[-1] != n_rows:
+            return None
+        metadata = _metadata(file.schema_arrow, path)
+    except (pa.ArrowException, OSError, TraceSetError):
+        return None
+    return TraceSet(signals=tuple(signals), time=handed_over(time), values=handed_over(values),
+                    offsets=offsets, run_ids=ids, metadata=metadata, source=str(path))
 
 
 def _grouped_runs(runs: pa.ChunkedArray) -> tuple[tuple[str, ...], np.ndarray] | None:
@@ -143,8 +191,9 @@ def _signal_values(table: pa.Table, signals: list[str], rows, path: Path | str
     return values, table
 
 
-def _metadata(table: pa.Table, path: Path) -> dict:
-    raw = (table.schema.metadata or {}).get(METADATA_KEY)
+def _metadata(table: pa.Table | pa.Schema, path: Path) -> dict:
+    schema = table if isinstance(table, pa.Schema) else table.schema
+    raw = (schema.metadata or {}).get(METADATA_KEY)
     if raw is None:
         return {}
     return loads(raw, f"{path}: schema metadata '{METADATA_KEY.decode()}'", TraceSetError)
