@@ -361,27 +361,3 @@ def test_run_counts_by_table_equal_the_sorted_counts(n_states, lengths, seed):
     for name in ("blocks", "bounds", "successors"):
         assert np.array_equal(getattr(table, name), getattr(sorted_, name))
 
-
-def test_reused_assignments_equal_a_fresh_draw_and_leave_the_generator_where_it_would_be(
-        monkeypatch):
-    """A matrix's pairs of equal sizes reuse the last draw: the same bits a fresh draw gives,
-    the generator left in the state the draw leaves it in; another seed draws anew."""
-    in_a = np.arange(30) < 12
-    draw = runs.PackedAssignments.random
-
-    monkeypatch.setattr(runs, "_last_drawn", {})
-    expected = draw(in_a, 49, 5, after := np.random.default_rng(7))
-    monkeypatch.setattr(runs, "_last_drawn", {})
-    first = draw(in_a, 49, 5, rng := np.random.default_rng(7))
-    again = draw(in_a, 49, 5, again_rng := np.random.default_rng(7))
-    assert again is first and np.array_equal(first.bits, expected.bits)
-    assert np.array_equal(first[0:50], runs.random_assignments(in_a, 49, 5,
-                                                               np.random.default_rng(7)))
-    for generator in (rng, again_rng):
-        assert generator.bit_generator.state == after.bit_generator.state
-    assert not np.array_equal(draw(in_a, 49, 5, np.random.default_rng(8)).bits, expected.bits)
-    with pytest.raises(ValueError, match="read-only"):
-        first.bits[1, 0] = 1
-    monkeypatch.setattr(runs, "REUSED_ASSIGNMENT_BYTES", 0)
-    a = draw(in_a, 49, 5, np.random.default_rng(9))
-    assert draw(in_a, 49, 5, np.random.default_rng(9)) is not a

@@ -65,9 +65,6 @@ from simcred.compare.side_counts import SideCounts
 BATCH_BUDGET = 2**22
 #: Absolute/relative tolerance when counting permuted statistics ≥ the observed one.
 TIE_TOL = 1e-9
-#: Largest packed assignments kept for the next call (:meth:`PackedAssignments.random`).
-REUSED_ASSIGNMENT_BYTES = 64 * 2**20
-_last_drawn: dict[tuple, tuple[PackedAssignments, dict]] = {}
 #: ``dᵀKd`` below this is rounding noise of an exact 0 (|error| ≲ 4·eps) and is set to 0 before
 #: the square root, so that permutations with proportional counts tie with each other exactly.
 QUADRATIC_FLOOR = 1e-13
@@ -290,27 +287,11 @@ class PackedAssignments:
                rng: np.random.Generator) -> PackedAssignments:
         """:func:`random_assignments`, the same rows, packed batch by batch (the bool rows of
         all permutations are never held at once).
-
-        The last draw (up to :data:`REUSED_ASSIGNMENT_BYTES` of bits) is kept, read-only, and
-        returned again for the same assignment, permutations, batch size and generator state,
-        the generator then left where the draw left it: a distance matrix draws the same
-        assignments for every pair of equal sizes (same seed), a quarter of a pair's time.
         """
-        key = (in_a.tobytes(), permutations, batch_size(n_cols, len(in_a)),
-               repr(rng.bit_generator.state))
-        if key in _last_drawn:
-            drawn, after = _last_drawn[key]
-            rng.bit_generator.state = after
-            return drawn
         bits = np.empty((permutations + 1, (len(in_a) + 7) // 8), dtype=np.uint8)
         for start, rows in _assignment_batches(in_a, permutations, n_cols, rng):
             bits[start:start + len(rows)] = np.packbits(rows, axis=1)
-        drawn = cls(bits, len(in_a))
-        if bits.nbytes <= REUSED_ASSIGNMENT_BYTES:
-            bits.flags.writeable = False
-            _last_drawn.clear()
-            _last_drawn[key] = (drawn, rng.bit_generator.state)
-        return drawn
+        return cls(bits, len(in_a))
 
     def __len__(self) -> int:
         return len(self.bits)
