@@ -180,8 +180,8 @@ def _compare_sorted(item: tuple[SortedSet, SortedSet, ComparisonOptions]) -> Com
 def _split_pairs(runner: Engine, held: list[Any], pairs: list[tuple[int, int]],
                  settings: ComparisonOptions, progress: Progress | None) -> list[Comparison]:
     """Every pair from small messages (:mod:`simcred.compare.sorted_sets`): a set's tallies
-    and counts are computed by tasks that hold the set (Dask places a task with its largest
-    input), and only sketches, tallies and count matrices move."""
+    and counts are computed by tasks placed where the set is held (``near``), a pair's test
+    where one of its sets is, and only sketches, tallies and count matrices move."""
     sketches = runner.keep(_sketches, held)
     plans = [(sketches[i], sketches[j], settings) for i, j in pairs]
     near = [[held[ij[s]] for ij in pairs] for s in (0, 1)]
