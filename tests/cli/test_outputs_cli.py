@@ -203,21 +203,21 @@ def test_matrix_resumes_after_ctrl_c_with_the_same_bytes(sets, tmp_path, monkeyp
     a, b = sets
     args = ["-q", "matrix", str(a), str(b), str(a), "--names", "a,b,a2", "-f", "y", "--bins",
             "3", "--permutations", "19", "--out", str(tmp_path / "m")]
-    real, calls = pairwise._compare_pair, []
+    real, calls = pairwise._compare_sorted, []  # the runs test's pairs (from sorted sets)
 
     def interrupted_at_the_third_pair(pair):
-        calls.append((pair[0].info.source, pair[1].info.source))
+        calls.append((pair[0].prepared.info.source, pair[1].prepared.info.source))
         if len(calls) == 3:
             raise KeyboardInterrupt
         return real(pair)
 
-    monkeypatch.setattr(pairwise, "_compare_pair", interrupted_at_the_third_pair)
+    monkeypatch.setattr(pairwise, "_compare_sorted", interrupted_at_the_third_pair)
     assert run(args) == 130
     assert "2 finished chunks kept" in capsys.readouterr().err
     calls.clear()
     assert run([*args, "--resume"]) == 0
     assert calls == [(str(b), str(a))]  # the one pair left: (b, a2)
-    monkeypatch.setattr(pairwise, "_compare_pair", real)
+    monkeypatch.setattr(pairwise, "_compare_sorted", real)
     seed = json.loads((tmp_path / "m" / "matrix.json").read_text())["options"]["seed"]
     assert run([*args[:-2], "--seed", str(seed), "--out", str(tmp_path / "whole")]) == 0
     assert tree(tmp_path / "m") == tree(tmp_path / "whole")
