@@ -91,6 +91,11 @@ class Engine:
         """The results that :meth:`keep` handles stand for, here."""
         return list(handles)
 
+    def holders(self, handles: Sequence[Any]) -> list[str | None]:
+        """Per handle the worker that holds its result (the first by name where several do),
+        waiting for it; None in-process."""
+        return [None] * len(handles)
+
     def close(self) -> None:
         pass
 
@@ -161,7 +166,7 @@ class DaskEngine(Engine):
         wait(handles)
         holders = self.client.who_has(handles)
         options = [sorted({w for h in g for w in holders.get(h.key, ())}) for g in groups]
-        chosen = _balanced(options)
+        chosen = balanced(options)
         return [None if w is None else [w] for w in chosen]
 
     def put(self, values):
@@ -170,6 +175,13 @@ class DaskEngine(Engine):
     def fetch(self, handles):
         with _worker_deaths():
             return self.client.gather(list(handles))
+
+    def holders(self, handles):
+        from dask.distributed import wait
+
+        wait(list(handles))
+        held = self.client.who_has(list(handles))
+        return [min(held.get(h.key, ()), default=None) for h in handles]
 
     def close(self) -> None:
         self.client.close()
@@ -229,6 +241,9 @@ class Checkpointed(Engine):
     def fetch(self, handles):
         return self.runner.fetch(handles)
 
+    def holders(self, handles):
+        return self.runner.holders(handles)
+
     def close(self) -> None:
         self.runner.close()
 
@@ -242,7 +257,7 @@ def _keys(task: Callable, n: int) -> list[str]:
     return [f"{getattr(task, '__qualname__', 'task')}-{token}-{i}" for i in range(n)]
 
 
-def _balanced(options: Sequence[Sequence[str]]) -> list[str | None]:
+def balanced(options: Sequence[Sequence[str]]) -> list[str | None]:
     """One of its options per item (None where it has none), the counts per option as even as
     moves of one item at a time make them: greedy, then any item moved to a less loaded option
     while that lowers the spread (each move lowers the sum of squared counts, so it ends)."""

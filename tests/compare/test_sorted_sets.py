@@ -15,6 +15,7 @@ from simcred.compare.method import Method
 from simcred.compare.process import Prepared, compare_prepared, comparison_options
 from simcred.compare.run_counts import joined_counts, keyed_counts
 from simcred.compare.sorted_sets import SortedSet, compare_sorted, supports
+from simcred.engine import Engine
 from simcred.traces import TraceSet
 
 
@@ -98,6 +99,53 @@ def test_matrix_of_the_runs_test_equals_pairwise_compare():
     result = matrix(sets, **options)
     for (i, j), comparison in zip(result.pairs, result.comparisons, strict=True):
         assert comparison.to_json() == compare(sets[i], sets[j], **options).to_json()
+
+
+class HeldBy(Engine):
+    """In-process, but "distributed" with set k held by worker ``owners[k]``: the distributed
+    split of the pairs runs here; the sets, the tasks kept and the pairs' placements recorded."""
+
+    distributed = True
+
+    def __init__(self, owners: list[str | None]) -> None:
+        self.owners, self.kept, self.sets, self.near = owners, [], [], None
+
+    def holders(self, handles):
+        return list(self.owners)
+
+    def keep(self, task, items, near=None):
+        results = super().keep(task, items, near)
+        self.kept.extend([task.__name__] * len(items))
+        if task.__name__ == "_prepare_sorted":
+            self.sets = results
+        return results
+
+    def map(self, task, items, **options):
+        self.near = options.get("near")
+        return super().map(task, items, **options)
+
+
+@pytest.mark.parametrize("owners", [["w1", "w1", "w2", "w2", "w1"], ["w1"] * 5,
+                                    ["w1", "w2", "w3", "w4", "w5"],
+                                    [None, "w1", None, "w2", "w2"]])
+def test_split_pairs_equal_pairwise_compare_wherever_the_sets_are_held(owners):
+    """Pairs whose sets one worker holds (one task there), and pairs tested on either set's
+    worker with the other set counted where it is held, give ``compare``'s JSON."""
+    rng = np.random.default_rng(8)
+    sets = [ar_set(rng, 30 + 5 * k, 0.6 - 0.2 * k, length=12 + k, source=f"s{k}")
+            for k in range(5)]
+    options = dict(features=["x", "y"], bins=4, permutations=29, seed=2)
+    runner = HeldBy(owners)
+    result = matrix(sets, runner=runner, **options)
+    for (i, j), comparison in zip(result.pairs, result.comparisons, strict=True):
+        assert comparison.to_json() == compare(sets[i], sets[j], **options).to_json()
+    tested_on = [[id(s) for s in runner.sets].index(id(h)) for h in runner.near]
+    together = [owners[i] is not None and owners[i] == owners[j] for i, j in result.pairs]
+    for (i, j), k, local in zip(result.pairs, tested_on, together, strict=True):
+        assert k == i if local else k in (i, j)
+    assert runner.kept.count("_pair_side") == together.count(False)
+    if together.count(False) > 2:  # the tests go to both sets' workers, not only the first's
+        assert {k == j for (_, j), k in zip(result.pairs, tested_on, strict=True)} == {0, 1}
 
 
 @pytest.mark.parametrize("option", [dict(history=2), dict(time_bins=3), dict(resample=0.2),

@@ -7,7 +7,7 @@ from itertools import combinations
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from simcred.engine import Engine, _balanced, shared
+from simcred.engine import Engine, balanced, shared
 
 
 def test_a_nested_map_does_not_overwrite_the_outer_shared_values():
@@ -35,9 +35,9 @@ def test_shared_outside_a_map_is_a_key_error():
 @settings(max_examples=200, deadline=None)
 @given(st.lists(st.lists(st.sampled_from("abcdef"), max_size=3, unique=True), max_size=40))
 def test_placements_take_an_option_and_no_single_move_evens_them_more(options):
-    """``_balanced``: every item on one of its options (None without one), and no item could
+    """``balanced``: every item on one of its options (None without one), and no item could
     move to another of its options and lower the spread (local optimum of the moves)."""
-    chosen = _balanced(options)
+    chosen = balanced(options)
     load = Counter(w for w in chosen if w is not None)
     for opts, w in zip(options, chosen, strict=True):
         assert (w is None) == (not opts)
@@ -49,6 +49,6 @@ def test_placements_take_an_option_and_no_single_move_evens_them_more(options):
 def test_pairs_of_a_complete_graph_spread_within_one():
     """The matrix's case: pair (i, j) runs where set i or set j is held."""
     names = [f"w{k:02d}" for k in range(16)]
-    chosen = _balanced([[names[i], names[j]] for i, j in combinations(range(16), 2)])
+    chosen = balanced([[names[i], names[j]] for i, j in combinations(range(16), 2)])
     counts = Counter(chosen).values()
     assert max(counts) - min(counts) <= 1

@@ -21,7 +21,7 @@ from simcred.compare.process import Prepared, compare_prepared, comparison_optio
 from simcred.compare.result import Comparison, ComparisonOptions
 from simcred.compare.sorted_sets import SortedSet
 from simcred.compare.tables import matrix_frame
-from simcred.engine import Engine, Progress, engine
+from simcred.engine import Engine, Progress, balanced, engine
 from simcred.errors import OptionError, TraceSetError
 from simcred.traces import TraceSet
 
@@ -179,22 +179,42 @@ def _compare_sorted(item: tuple[SortedSet, SortedSet, ComparisonOptions]) -> Com
 
 def _split_pairs(runner: Engine, held: list[Any], pairs: list[tuple[int, int]],
                  settings: ComparisonOptions, progress: Progress | None) -> list[Comparison]:
-    """Every pair from small messages (:mod:`simcred.compare.sorted_sets`): a set's tallies
-    and counts are computed by tasks placed where the set is held (``near``), a pair's test
-    where one of its sets is, and only sketches, tallies and count matrices move."""
+    """Every pair where its sets are held (:mod:`simcred.compare.sorted_sets`): a pair whose
+    two sets one worker holds is compared there in one task; of any other pair one set is
+    counted where it is held, and the pair tested where the other set is (the tests spread
+    evenly over the workers), so only sketches, tallies and one set's counts move."""
+    where = runner.holders(held)
+    tested = balanced([sorted({where[i], where[j]} - {None}) for i, j in pairs])
+    here = [0 if w is None or w == where[i] else 1 for w, (i, j) in zip(tested, pairs,
+                                                                          strict=True)]
+    split = [k for k, (i, j) in enumerate(pairs) if where[i] is None or where[i] != where[j]]
     sketches = runner.keep(_sketches, held)
-    plans = [(sketches[i], sketches[j], settings) for i, j in pairs]
-    near = [[held[ij[s]] for ij in pairs] for s in (0, 1)]
-    first, second = (runner.keep(_tallies, [(h, *plan) for h, plan in zip(near[s], plans,
-                                                                            strict=True)],
-                                 near[s])
-                     for s in (0, 1))
-    counted = [(t, u, *plan) for t, u, plan in zip(first, second, plans, strict=True)]
-    sides = [runner.keep(_pair_side, [(h, *c) for h, c in zip(near[s], counted, strict=True)],
-                         near[s])
-             for s in (0, 1)]
-    return runner.map(_combine, [(a, b, settings) for a, b in zip(*sides, strict=True)],
-                      progress=progress, near=list(zip(*near, strict=True)))
+    plans = {k: (sketches[pairs[k][0]], sketches[pairs[k][1]], settings) for k in split}
+    tallies = [runner.keep(_tallies, [(held[pairs[k][s]], *plans[k]) for k in split],
+                           [held[pairs[k][s]] for k in split])
+               for s in (0, 1)]
+    counted = dict(zip(split, zip(*tallies, strict=True), strict=True))
+    there = [held[pairs[k][1 - here[k]]] for k in split]
+    sides = dict(zip(split, runner.keep(
+        _pair_side, [(h, *counted[k], *plans[k]) for h, k in zip(there, split, strict=True)],
+        there), strict=True))
+    items = [(held[ij[0]], held[ij[1]], settings) if k not in sides
+             else (held[ij[here[k]]], (here[k], sides[k], *counted[k], *plans[k]), settings)
+             for k, ij in enumerate(pairs)]
+    return runner.map(_finish, items, progress=progress,
+                      near=[held[ij[here[k]]] for k, ij in enumerate(pairs)])
+
+
+def _finish(item) -> Comparison:
+    """A pair's comparison on a worker holding ``side`` (its first set, or the one at
+    ``position``): with its second set held there too, or from the other set's counts."""
+    side, other, settings = item
+    if isinstance(other, SortedSet):
+        return sorted_sets.compare_sorted(side, other, settings)
+    position, counts, first, second, *plan = other
+    mine = sorted_sets.pair_side(side, _plan(*plan), first, second, settings.features)
+    return sorted_sets.pair_comparison(*((mine, counts) if position == 0 else (counts, mine)),
+                                       settings)
 
 
 def _sketches(side: SortedSet):
@@ -213,10 +233,6 @@ def _tallies(item) -> sorted_sets.Tallies:
 def _pair_side(item) -> sorted_sets.PairSide:
     side, first, second, *plan = item
     return sorted_sets.pair_side(side, _plan(*plan), first, second, plan[-1].features)
-
-
-def _combine(item) -> Comparison:
-    return sorted_sets.pair_comparison(*item)
 
 
 def _default_names(sets: Sequence[SetFacts]) -> list[str]:
