@@ -28,17 +28,22 @@ QUANTILES = (0.1, 0.5, 0.9)
 
 def run_summaries(values: np.ndarray, offsets: np.ndarray) -> np.ndarray:
     """(runs, 6 · features) summaries of every run's rows of ``values`` (rows, features); runs of
-    one length at a time, as one (runs, steps, features) array."""
+    one length at a time, one feature at a time as a (runs, steps) array (each run's values
+    contiguous: the reductions and the sort run along rows)."""
     lengths = np.diff(offsets)
-    out = np.empty((len(lengths), 6 * values.shape[1]))
+    n_features = values.shape[1]
+    out = np.empty((len(lengths), 6 * n_features))
     for n in np.unique(lengths):
         runs = np.flatnonzero(lengths == n)
-        block = values[offsets[runs][:, None] + np.arange(n)[None, :]]
-        step = np.abs(np.diff(block, axis=1)).mean(axis=1) if n > 1 \
-            else np.zeros((len(runs), values.shape[1]))
-        ordered = np.sort(block, axis=1)  # quantiles of sorted rows: one sort, no selections
-        out[runs] = np.concatenate([block.mean(axis=1), block.std(axis=1),
-                                    *np.quantile(ordered, QUANTILES, axis=1), step], axis=1)
+        rows = offsets[runs][:, None] + np.arange(n)[None, :]
+        for j in range(n_features):
+            block = values[:, j][rows]
+            step = np.abs(np.diff(block, axis=1)).mean(axis=1) if n > 1 else np.zeros(len(runs))
+            mean, spread = block.mean(axis=1), block.std(axis=1)
+            block.sort(axis=1)  # quantiles of sorted rows: one sort, no selections
+            for k, column in enumerate((mean, spread, *np.quantile(block, QUANTILES, axis=1),
+                                        step)):
+                out[runs, k * n_features + j] = column
     return out
 
 
