@@ -148,7 +148,7 @@ def test_mona_scenes_with_trucks_and_a_merge_reprocess_every_obstacle_with_the_a
     where 3 vehicles turn by 0.3-0.9 rad (28 cars, 3 trucks, a 13 m bus, 2 motorcycles) and a
     1 s excerpt of another with 10 trucks of 5.8-14.3 m. Measured: 130/130 obstacles reprocess
     in the lanelet frame; every truck and the bus is the TO, and some the EGO, with their
-    recorded footprints; MONA has no pedestrians or bicycles (a motorcycle can be the ACC's
+    recorded footprints; these files have no pedestrians or bicycles (a motorcycle can be the ACC's
     EGO: NOT_DRIVEN names pedestrians and bicycles only). 66 recorded EGOs do not react; the
     resimulated EGO stays within 0.78 m of them on the 1 s excerpt, 2.91 m on the 16 s window
     and 3.9 m on the merge, except two merge EGOs that the resimulation leaves 8.8 m and 9.1 m
