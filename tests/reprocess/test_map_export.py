@@ -118,11 +118,15 @@ def test_a_frame_the_metadata_does_not_name_stays_unplaced():
 
 # -- the ASAM Quality Checker (tests/asam_qc.py) ----------------------------------------------
 
-#: Per shipped real CommonRoad scene, its first obstacle that has a follower (the EGO).
+#: Per shipped real CommonRoad scene, an obstacle that has a follower (the EGO): NGSIM's first.
 SHIPPED = {"commonroad-ngsim/USA_Lanker-1_1_T-1": 1213, "commonroad-ngsim/USA_Peach-4_8_T-1": 507,
            "commonroad-ngsim/USA_US101-3_3_T-1": 363, "commonroad-ngsim/USA_US101-4_1_T-1": 373,
            "commonroad-crime-ngsim/USA_Lanker-1_3_T-1": 1456,
-           "commonroad-crime-ngsim/USA_US101-5_1_T-1": 431}
+           "commonroad-crime-ngsim/USA_US101-5_1_T-1": 431,
+           # MONA: a truck, the bus and a truck as the TO (tests/data/commonroad-mona)
+           "commonroad-mona/C-DEU_MONAMerge-2_1_T-299": 10015,
+           "commonroad-mona/C-DEU_MONAWest-2_480_T-559": 10257,
+           "commonroad-mona/DEU_MONAEast-2_4316_T-4341": 11271}
 
 
 def test_the_asam_quality_checker_finds_no_error(exported, tmp_path):
