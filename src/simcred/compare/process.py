@@ -205,9 +205,12 @@ def compare_prepared(
         return response_comparison(parts, design, space, options, (a.info, b.info),
                                    units or {})
     if Test(options.test) is Test.RUNS:
-        from simcred.compare.run_level import run_level_comparison
+        from simcred.compare.run_level import counts_comparison, pooled_counts
 
-        return run_level_comparison(runs_a, runs_b, space, options, (a.info, b.info))
+        counts = pooled_counts(runs_a, runs_b, space)
+        n_a = len(runs_a.offsets) - 1
+        runs_a = runs_b = None  # the per-row codes (4 to 8 bytes a row) are not held in the test
+        return counts_comparison(counts, n_a, space, options, (a.info, b.info))
     spec = options.spec
     counts_a = ChainCounts.from_codes(runs_a.codes, runs_a.offsets, space.n_states)
     counts_b = ChainCounts.from_codes(runs_b.codes, runs_b.offsets, space.n_states)

@@ -125,10 +125,27 @@ def joined_counts(parts: Sequence[tuple[sp.csr_matrix, np.ndarray]]
     return _stacked(placed), columns
 
 
-def _stacked(matrices: Sequence[sp.csr_matrix]) -> sp.csr_matrix:
-    """The matrices side by side, their counts in the type that holds all of them exactly."""
+def _stacked(matrices: list[sp.csr_matrix]) -> sp.csr_matrix:
+    """The matrices side by side (``scipy.sparse.hstack``), their counts in the type that holds
+    all of them exactly. Each matrix's entries are placed into the output and the matrix is
+    released from the list (which ends empty of them): the counts are never held twice."""
     dtype = np.result_type(*(count_dtype(m.data) for m in matrices))
-    return sp.hstack([m.astype(dtype, copy=False) for m in matrices], format="csr", dtype=dtype)
+    n_rows, n_cols = matrices[0].shape[0], sum(m.shape[1] for m in matrices)
+    per_row = [np.diff(m.indptr) for m in matrices]
+    indptr = np.r_[0, np.cumsum(np.sum(per_row, axis=0, dtype=np.int64))]
+    index = np.int32 if max(int(indptr[-1]), n_cols) < 2**31 else np.int64
+    indices = np.empty(int(indptr[-1]), dtype=index)
+    data = np.empty(int(indptr[-1]), dtype=dtype)
+    cursor, first = indptr[:-1].copy(), 0
+    for i, counts in enumerate(per_row):
+        matrix, matrices[i] = matrices[i], None
+        rows = np.repeat(np.arange(n_rows), counts)
+        at = cursor[rows] + np.arange(matrix.nnz) - matrix.indptr[rows]
+        indices[at] = matrix.indices + first
+        data[at] = matrix.data
+        cursor += counts
+        first += matrix.shape[1]
+    return sp.csr_matrix((data, indices, indptr.astype(index)), shape=(n_rows, n_cols))
 
 
 def relabelled_keys(keys: np.ndarray, shape: tuple[int, ...], kept: Sequence[np.ndarray],

@@ -90,7 +90,7 @@ def _read_row_groups(path: Path) -> TraceSet | None:
         if len(names) > MAX_COLUMNS or len(set(names)) != len(names) \
                 or RUN not in names or TIME not in names or file.metadata.num_rows == 0:
             return None
-        runs = file.read(columns=[RUN]).column(RUN)
+        runs = file.read(columns=[RUN], use_threads=False).column(RUN)
         if runs.null_count or not pa.types.is_dictionary(runs.type) or not (
                 pa.types.is_string(runs.type.value_type)
                 or pa.types.is_large_string(runs.type.value_type)
@@ -105,7 +105,7 @@ def _read_row_groups(path: Path) -> TraceSet | None:
         time, values = np.empty(n_rows), np.empty((n_rows, len(signals)))
         position, pool = 0, pa.default_memory_pool()
         for group in range(file.num_row_groups):
-            table = file.read_row_group(group)
+            table = file.read_row_group(group, use_threads=False)
             end = position + table.num_rows
             if end > n_rows:
                 return None
