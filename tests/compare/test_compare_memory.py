@@ -71,8 +71,9 @@ def test_code_dtype_is_int32_while_every_code_fits():
     assert np.iinfo(np.int32).max == 2**31 - 1
 
 
+@pytest.mark.parametrize("compact", [False, True])
 @pytest.mark.parametrize("seed", range(8))
-def test_stacked_blocks_are_scipy_hstack(seed):
+def test_stacked_blocks_are_scipy_hstack(seed, compact):
     rng = np.random.default_rng(seed)
     rows = int(rng.integers(0, 6))
     blocks = []
@@ -84,7 +85,11 @@ def test_stacked_blocks_are_scipy_hstack(seed):
         blocks.append(sp.csr_matrix((data, block.indices, block.indptr), shape=block.shape))
     dtype = np.result_type(*(count_dtype(b.data) for b in blocks))
     expected = sp.hstack([b.astype(dtype) for b in blocks], format="csr", dtype=dtype)
-    stacked = run_counts._stacked(list(blocks))
+    given = [run_counts._compact(b) for b in blocks] if compact else list(blocks)
+    if compact:
+        assert all(g.data.dtype.kind == g.indices.dtype.kind == "u" for g in given)
+        assert all(g.data.itemsize <= (4 if seed % 2 else 1) for g in given)
+    stacked = run_counts._stacked(given)
     assert stacked.shape == expected.shape and stacked.dtype == expected.dtype
     for name in ("indptr", "indices", "data"):
         assert np.array_equal(getattr(stacked, name), getattr(expected, name))
