@@ -90,6 +90,7 @@ def _read_row_groups(path: Path) -> TraceSet | None:
     if grouped is None:
         return None
     time, values = np.empty(grouped.n_rows), np.empty((grouped.n_rows, len(grouped.signals)))
+
     def place(lo: int, table: pa.Table) -> None:
         time[lo:lo + table.num_rows] = float_column(table, TIME, str(path))
         grouped.place(table, values, lo)
