@@ -100,3 +100,26 @@ def test_rows_not_grouped_by_run_are_read_whole(tmp_path):
     pq.write_table(table, tmp_path / "a.parquet")
     assert read_timeless(tmp_path / "a.parquet") is None
     assert read_timeless(tmp_path / "a.csv") is None  # another format (or no file)
+
+
+def test_a_run_goes_on_across_an_empty_row_group(tmp_path):
+    """The last time stamp before an empty row group is carried to the next one: the step
+    1.0 → 1.1 counts (without it the median would be 0.15), and a decrease across it is seen."""
+    for times, expected in (([0.0, 1.0, 1.1, 1.2], 0.1), ([0.0, 1.0, 0.5, 1.2], None)):
+        traces = TraceSet.from_runs([{"t": [0.0, 1.0, 1.1, 1.2], "x": [1.0, 2, 3, 4]},
+                                     {"t": [5.0, 5.2, 5.3], "x": [1.0, 2, 3]}],
+                                    run_ids=["p", "q"])
+        table = to_table(traces, where="x")
+        table = table.set_column(1, "t", [times + [5.0, 5.2, 5.3]])
+        path = tmp_path / "a.parquet"
+        with pq.ParquetWriter(path, table.schema) as writer:
+            for lo, n in ((0, 2), (2, 0), (2, 5)):  # rows, none, the rest
+                writer.write_table(table.slice(lo, n))
+        assert [pq.ParquetFile(path).metadata.row_group(i).num_rows for i in range(3)] == [2, 0, 5]
+        timeless = read_timeless(path)
+        if expected is None:
+            assert timeless is None
+            continue
+        whole = TraceSet.read(path)
+        assert timeless.period == sample_period(whole) == pytest.approx(expected)
+        assert timeless.info.digest == whole.digest()

@@ -79,12 +79,13 @@ def read_timeless(path: str | Path) -> TimelessSet | None:
     steps, sketch = _StepReader(grouped.offsets), [Sketch.empty(1)]
 
     def first_pass(lo: int, table: pa.Table) -> None:
-        time = _float_column(table, TIME, grouped.path)
+        time = grouped.column(table, TIME)
         digest.update(np.ascontiguousarray(time))
         within = steps.within(time, lo)
         if within is None or not np.isfinite(time).all():
             raise TraceSetError("not a trace set's time column")  # read whole: its own error
-        sketch[0] = sketch[0].merge(Sketch.of(within, cap=1))
+        if len(within):
+            sketch[0] = sketch[0].merge(Sketch.of(within, cap=1))
         grouped.place(table, values, lo)
 
     try:
@@ -102,12 +103,6 @@ def read_timeless(path: str | Path) -> TimelessSet | None:
                        info, period)
 
 
-def _float_column(table: Any, name: str, path: Path) -> np.ndarray:
-    from simcred.io._columns import float_column
-
-    return float_column(table, name, str(path))
-
-
 def _period(grouped: Any, sketch: Sketch) -> float:
     """The median step within runs: the sketch's middle ranks placed by a second pass."""
     if sketch.count == 0:
@@ -117,7 +112,7 @@ def _period(grouped: Any, sketch: Sketch) -> float:
         steps, tally = _StepReader(grouped.offsets), [brackets.empty_tally()]
 
         def second_pass(lo: int, table: pa.Table) -> None:
-            time = _float_column(table, TIME, grouped.path)
+            time = grouped.column(table, TIME)
             tally[0] = tally[0].merge(brackets.tally(steps.within(time, lo)))
 
         grouped.each_row_group(second_pass, [TIME])
@@ -139,7 +134,8 @@ class _StepReader:
         before) that lie within a run; None where time does not increase within a run."""
         joined = np.concatenate([self.last, time])
         first = lo - len(self.last)  # the row of joined[0]
-        self.last = time[-1:].copy()  # not a view: it would keep the chunk's buffer
+        if len(time):  # not a view: it would keep the chunk's buffer
+            self.last = time[-1:].copy()
         keep = np.ones(max(len(joined) - 1, 0), dtype=bool)
         begins = self.starts[(self.starts > first) & (self.starts < first + len(joined))]
         keep[begins - first - 1] = False  # the step into a run's first row is none

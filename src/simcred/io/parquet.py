@@ -92,7 +92,7 @@ def _read_row_groups(path: Path) -> TraceSet | None:
     time, values = np.empty(grouped.n_rows), np.empty((grouped.n_rows, len(grouped.signals)))
 
     def place(lo: int, table: pa.Table) -> None:
-        time[lo:lo + table.num_rows] = float_column(table, TIME, str(path))
+        time[lo:lo + table.num_rows] = grouped.column(table, TIME)
         grouped.place(table, values, lo)
 
     try:
@@ -165,7 +165,11 @@ class GroupedRuns:
     def place(self, table: pa.Table, values: np.ndarray, lo: int) -> None:
         """The signals of a row group into ``values`` from row ``lo``."""
         for j, name in enumerate(self.signals):
-            values[lo:lo + table.num_rows, j] = float_column(table, name, str(self.path))
+            values[lo:lo + table.num_rows, j] = self.column(table, name)
+
+    def column(self, table: pa.Table, name: str) -> np.ndarray:
+        """Column ``name`` of a row group as float64 (the checks of the whole-table reading)."""
+        return float_column(table, name, str(self.path))
 
 
 def _grouped_runs(runs: pa.ChunkedArray) -> tuple[tuple[str, ...], np.ndarray] | None:
