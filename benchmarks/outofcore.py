@@ -17,7 +17,10 @@ the children). Also measured:
 
 Prints a table and writes benchmarks/results/outofcore.json. Usage:
 ``python benchmarks/outofcore.py [--runs 250000] [--steps 200] [--runs-per-partition 5000]
-[--data DIR] [--keep]``; ``--quick`` runs a small version (not written to the results file).
+[--data DIR] [--keep]``; ``--quick`` runs a small version (not written to the results file);
+``--file-memory-only`` measures only the last case (written to ``--results``, e.g.
+``outofcore-file-memory.json``), and ``--baseline-src DIR`` measures it with the sources in
+``DIR/src`` too (an older commit's tree, e.g. from ``git archive``), on the same files.
 """
 
 from __future__ import annotations
@@ -193,8 +196,9 @@ def child_file_memory(a: str, b: str) -> None:
                       "distance": result.distance}))
 
 
-def file_memory(folder: Path, runs: int, steps: int) -> dict:
-    """Random walks written as two Parquet files, compared from their paths in a child."""
+def file_memory(folder: Path, runs: int, steps: int, baseline: Path | None = None) -> dict:
+    """Random walks written as two Parquet files, compared from their paths in a child (and in
+    one running the ``baseline`` tree's sources, if given)."""
     folder.mkdir(parents=True, exist_ok=True)
     paths = []
     for which in ("a", "b"):
@@ -202,13 +206,15 @@ def file_memory(folder: Path, runs: int, steps: int) -> dict:
         pq.write_table(walk_table(which, runs, steps, seed=13), paths[-1])
     measured = run_child("file-memory", *paths)
     measured["target_met"] = measured["peak_bytes_per_row"] <= TARGET_BYTES_PER_ROW
+    if baseline is not None:
+        measured["baseline"] = run_child("file-memory", *paths, src=baseline / "src")
     return measured
 
 
-def run_child(*args: str) -> dict:
+def run_child(*args: str, src: Path = ROOT / "src") -> dict:
     done = subprocess.run([sys.executable, __file__, "--process", PROCESS["name"], "--child",
                            *args], capture_output=True,
-                          text=True, env={**os.environ, "PYTHONPATH": str(ROOT / "src")})
+                          text=True, env={**os.environ, "PYTHONPATH": str(src)})
     if done.returncode:
         raise SystemExit(f"child {args[0]} failed ({done.returncode}): {done.stderr.strip()}")
     measured = json.loads(done.stdout.strip().splitlines()[-1])
@@ -251,6 +257,8 @@ def main() -> None:
     parser.add_argument("--process", choices=["smooth", "rough"], default="smooth")
     parser.add_argument("--results", default="outofcore.json")
     parser.add_argument("--child", nargs="+")
+    parser.add_argument("--file-memory-only", action="store_true")
+    parser.add_argument("--baseline-src", type=Path, default=None)
     args = parser.parse_args()
     PROCESS["name"] = args.process
     if args.child:
@@ -270,6 +278,8 @@ def main() -> None:
     from rich.table import Table
 
     data = args.data or Path(tempfile.mkdtemp(prefix="simcred-outofcore-"))
+    if args.file_memory_only:
+        return file_memory_only(args, data)
     results: dict = {"machine": machine(), "process": args.process, "runs_per_set": args.runs,
                      "steps": args.steps, "runs_per_partition": args.runs_per_partition,
                      "options": "compare(A, B, seed=1): runs test, 10 bins, 999 permutations"}
@@ -302,6 +312,24 @@ def main() -> None:
         if not args.keep:
             shutil.rmtree(data, ignore_errors=True)
     show(results, Console(), Table)
+    if not args.quick:
+        save_results(ROOT / "benchmarks" / "results" / args.results, results)
+
+
+def file_memory_only(args: argparse.Namespace, data: Path) -> None:
+    """Only the whole-process case of ``compare(path_a, path_b)`` (and its baseline)."""
+    try:
+        measured = file_memory(data / "walks", args.memory_runs, args.steps, args.baseline_src)
+    finally:
+        if not args.keep:
+            shutil.rmtree(data, ignore_errors=True)
+    results = {"machine": machine(), "runs_per_set": args.memory_runs, "steps": args.steps,
+               "options": "compare(path_a, path_b, seed=1): runs test, 10 bins, 999 "
+               "permutations", "file_memory": measured}
+    for name, case in (("this tree", measured), ("baseline", measured.get("baseline"))):
+        if case:
+            print(f"{name}: peak {case['peak_rss'] / 1024**3:.3f} GiB, "
+                  f"{case['peak_bytes_per_row']:.1f} B per row, {case['wall_s']:.1f} s")
     if not args.quick:
         save_results(ROOT / "benchmarks" / "results" / args.results, results)
 

@@ -54,6 +54,7 @@ class StateSpace:
         column is the quantile's scratch copy, so no stacked copy of all features is made)."""
         edges, bounds = [], []
         for j, n_bins in enumerate(bins):
+            column = None  # the last feature's column goes before this one's is made
             column = np.concatenate([part[:, j] for part in parts])
             bounds.append((float(column.min()), float(column.max())))
             edges.append(feature_edges(column, n_bins, scratch=True))

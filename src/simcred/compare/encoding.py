@@ -28,6 +28,8 @@ from simcred.errors import OptionError
 from simcred.limits import check_count
 
 WINDOW = "window"
+#: Rows whose bin indices are held at a time while a first-order chain's codes are computed.
+CODE_CHUNK = 2**20
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -65,14 +67,16 @@ def encode(space: StateSpace, values: np.ndarray, time: np.ndarray, offsets: np.
     The layout: ``history`` lagged copies of the base features, then the time window if
     ``windowed``.
     """
-    n_base = values.shape[1]
-    base = [np.searchsorted(space.edges[j], values[:, j], side="right").astype(np.int32)
-            for j in range(n_base)]
     lengths = np.diff(offsets)
     short = np.flatnonzero(lengths < history)
     if short.size:
         raise OptionError(f"{source}: run {int(short[0]) + 1} has {lengths[short[0]]} steps; "
                           f"history {history} needs at least {history}")
+    if history == 1 and not windowed:
+        return EncodedRuns(_chunked_codes(space, values), offsets.astype(np.int64))
+    n_base = values.shape[1]
+    base = [np.searchsorted(space.edges[j], values[:, j], side="right").astype(np.int32)
+            for j in range(n_base)]
     keep = slice(None)
     if history > 1:
         position = np.arange(len(values)) - np.repeat(offsets[:-1], lengths)
@@ -82,9 +86,28 @@ def encode(space: StateSpace, values: np.ndarray, time: np.ndarray, offsets: np.
     if windowed:
         columns.append(np.searchsorted(space.edges[-1], elapsed(time, offsets)[keep],
                                        side="right").astype(np.int32))
-    codes = np.ravel_multi_index(tuple(columns), space.shape).astype(np.int64, copy=False)
+    codes = np.ravel_multi_index(tuple(columns), space.shape).astype(
+        code_dtype(space.n_states), copy=False)
     new_offsets = offsets - np.arange(len(offsets)) * (history - 1)
     return EncodedRuns(codes, new_offsets.astype(np.int64))
+
+
+def code_dtype(n_states: int) -> type:
+    """int32 where every code ``0 .. n_states - 1`` fits (4 bytes a row instead of 8), else
+    int64."""
+    return np.int32 if n_states <= 2**31 else np.int64
+
+
+def _chunked_codes(space: StateSpace, values: np.ndarray) -> np.ndarray:
+    """The codes of the first-order chain on ``space`` (:func:`encode` with history 1 and no
+    time window), :data:`CODE_CHUNK` rows at a time: no full-length bin index column is made."""
+    codes = np.empty(len(values), dtype=code_dtype(space.n_states))
+    for lo in range(0, len(values), CODE_CHUNK):
+        chunk = values[lo:lo + CODE_CHUNK]
+        codes[lo:lo + len(chunk)] = np.ravel_multi_index(
+            tuple(np.searchsorted(e, chunk[:, j], side="right")
+                  for j, e in enumerate(space.edges)), space.shape)
+    return codes
 
 
 def check_history(history: int) -> int:

@@ -34,6 +34,7 @@ from simcred.compare.result import (
     StateTest,
     UntestableState,
 )
+from simcred.compare.streamed import TimelessSet, read_timeless
 from simcred.compare.transitions import response_features
 from simcred.engine import Progress
 from simcred.errors import OptionError
@@ -102,8 +103,9 @@ def compare(
         from simcred.compare.outofcore import compare_datasets
 
         return compare_datasets(a, b, method, progress=progress)
-    a, b = load(a), load(b)
-    settings = comparison_options([a, b], method)
+    a, b = load_for(a, method), load_for(b, method)
+    settings = comparison_options([s.facts() if isinstance(s, TimelessSet) else s
+                                   for s in (a, b)], method)
     prepared = [Prepared.for_options(traces, settings) for traces in (a, b)]
     design = build_design(a, b, pair_by=settings.pair_by, group_by=settings.group_by) \
         if Test(settings.test) is Test.RESPONSE else None
@@ -143,6 +145,18 @@ def load(traces: TraceSet | str | Path) -> TraceSet:
     return traces if isinstance(traces, TraceSet) else TraceSet.read(traces)
 
 
+def load_for(traces: TraceSet | str | Path, method: Method) -> TraceSet | TimelessSet:
+    """:func:`load`, or a path read without its time column where ``method`` needs no time
+    stamps (:mod:`simcred.compare.streamed`: Parquet files grouped by run)."""
+    needs_time = method.time_bins is not None or method.resample is not None \
+        or Test(method.test) is Test.RESPONSE
+    if not (needs_time or isinstance(traces, TraceSet)):
+        timeless = read_timeless(traces)
+        if timeless is not None:
+            return timeless
+    return load(traces)
+
+
 @dataclass(frozen=True, slots=True, eq=False)
 class Prepared:
     """A trace set reduced to what a comparison needs: feature values, time, run offsets,
@@ -166,8 +180,13 @@ class Prepared:
         return cls(values, traces.time if time else np.empty(0), traces.offsets, info)
 
     @classmethod
-    def for_options(cls, traces: TraceSet, options: ComparisonOptions) -> Prepared:
-        """The set as a comparison with ``options`` needs it."""
+    def for_options(cls, traces: TraceSet | TimelessSet, options: ComparisonOptions
+                    ) -> Prepared:
+        """The set as a comparison with ``options`` needs it (a set read without time stamps:
+        one whose options need none)."""
+        if isinstance(traces, TimelessSet):
+            return cls(traces.features(options.features), np.empty(0), traces.offsets,
+                       traces.info)
         needs_time = options.time_bins is not None or Test(options.test) is Test.RESPONSE
         return cls.of(traces, options.features, options.resample, time=needs_time)
 
@@ -205,9 +224,12 @@ def compare_prepared(
         return response_comparison(parts, design, space, options, (a.info, b.info),
                                    units or {})
     if Test(options.test) is Test.RUNS:
-        from simcred.compare.run_level import run_level_comparison
+        from simcred.compare.run_level import counts_comparison, pooled_counts
 
-        return run_level_comparison(runs_a, runs_b, space, options, (a.info, b.info))
+        counts = pooled_counts(runs_a, runs_b, space)
+        n_a = len(runs_a.offsets) - 1
+        runs_a = runs_b = None  # the per-row codes (4 to 8 bytes a row) are not held in the test
+        return counts_comparison(counts, n_a, space, options, (a.info, b.info))
     spec = options.spec
     counts_a = ChainCounts.from_codes(runs_a.codes, runs_a.offsets, space.n_states)
     counts_b = ChainCounts.from_codes(runs_b.codes, runs_b.offsets, space.n_states)

@@ -42,7 +42,7 @@ References
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -319,11 +319,16 @@ def partitioned_edges(partitions: Sequence[np.ndarray], bins: int,
 
 def exact_median(sketch: Sketch, partitions: Iterable[np.ndarray]) -> float:
     """``numpy.median`` of all values (the mean of the two middle ones for an even count)."""
+    return median_from(sketch, lambda brackets: _merged(
+        (brackets.tally(p) for p in partitions), brackets.empty_tally()))
+
+
+def median_from(sketch: Sketch, tallied: Callable[[Brackets], Tally]) -> float:
+    """:func:`exact_median`, the second pass given as ``tallied``: the tally of all values in
+    the brackets it is given."""
     n = sketch.count
-    ranks = np.unique([(n - 1) // 2, n // 2])
-    brackets = sketch.brackets(ranks)
-    tally = _merged((brackets.tally(p) for p in partitions), brackets.empty_tally())
-    middle = tally.order_statistics(brackets)
+    brackets = sketch.brackets(np.unique([(n - 1) // 2, n // 2]))
+    middle = tallied(brackets).order_statistics(brackets)
     return float(np.mean(middle)) if len(middle) == 2 else float(middle[0])
 
 

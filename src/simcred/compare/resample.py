@@ -31,9 +31,17 @@ def within_run_steps(traces: TraceSet) -> np.ndarray:
 
 
 def sample_period(traces: TraceSet) -> float:
-    """Median time step within runs."""
-    steps = within_run_steps(traces)
-    return float(np.median(steps)) if steps.size else math.nan  # nan: runs of one sample
+    """Median time step within runs: ``numpy.median`` of :func:`within_run_steps`, taken on one
+    array of all steps (the steps across run boundaries set to +inf sort past every rank the
+    median reads), partitioned in place."""
+    steps = np.diff(traces.time)
+    steps[traces.offsets[1:-1] - 1] = np.inf
+    count = len(steps) - (traces.n_runs - 1)
+    if count <= 0:
+        return math.nan  # runs of one sample
+    middle = np.unique([(count - 1) // 2, count // 2])  # one rank for an odd count, two else
+    steps.partition(middle)
+    return float(np.mean(steps[middle]))
 
 
 def check_periods(sources: Sequence[str], periods: Sequence[float]) -> None:

@@ -106,7 +106,7 @@ def keyed_counts(parts: Sequence[tuple[np.ndarray, np.ndarray]], n_states: int
     columns = np.flatnonzero(present)
     column_index = np.cumsum(present) - 1
     del present
-    counted = [_block_counts(*_block(*block), size, column_index, len(columns))
+    counted = [_compact(_block_counts(*_block(*block), size, column_index, len(columns)))
                for block in blocks]
     return _stacked(counted), columns
 
@@ -125,10 +125,50 @@ def joined_counts(parts: Sequence[tuple[sp.csr_matrix, np.ndarray]]
     return _stacked(placed), columns
 
 
-def _stacked(matrices: Sequence[sp.csr_matrix]) -> sp.csr_matrix:
-    """The matrices side by side, their counts in the type that holds all of them exactly."""
+@dataclass(frozen=True, slots=True, eq=False)
+class CompactBlock:
+    """A block's (column × run) counts as CSR arrays in the smallest unsigned types that hold
+    its counts and run indices (a block of runs of a few thousand runs, counts up to the
+    longest run: 3 bytes an entry rather than 8 while every block waits to be stacked)."""
+
+    indptr: np.ndarray
+    indices: np.ndarray
+    data: np.ndarray
+    shape: tuple[int, int]
+
+    @property
+    def nnz(self) -> int:
+        return len(self.data)
+
+
+def _compact(matrix: sp.csr_matrix) -> CompactBlock:
+    counts = matrix.data.astype(np.min_scalar_type(int(matrix.data.max()) if matrix.nnz else 0))
+    runs = matrix.indices.astype(np.min_scalar_type(max(matrix.shape[1] - 1, 0)))
+    return CompactBlock(matrix.indptr, runs, counts, matrix.shape)
+
+
+def _stacked(matrices: list[sp.csr_matrix | CompactBlock]) -> sp.csr_matrix:
+    """The matrices (or compact blocks) side by side (``scipy.sparse.hstack``), their counts in
+    the type that holds all of them exactly (:func:`count_dtype`). Each matrix's entries are
+    placed into the output and the matrix is released from the list (which ends empty of
+    them): the counts are never held twice."""
     dtype = np.result_type(*(count_dtype(m.data) for m in matrices))
-    return sp.hstack([m.astype(dtype, copy=False) for m in matrices], format="csr", dtype=dtype)
+    n_rows, n_cols = matrices[0].shape[0], sum(m.shape[1] for m in matrices)
+    per_row = [np.diff(m.indptr) for m in matrices]
+    indptr = np.r_[0, np.cumsum(np.sum(per_row, axis=0, dtype=np.int64))]
+    index = np.int32 if max(int(indptr[-1]), n_cols) < 2**31 else np.int64
+    indices = np.empty(int(indptr[-1]), dtype=index)
+    data = np.empty(int(indptr[-1]), dtype=dtype)
+    cursor, first = indptr[:-1].copy(), 0
+    for i, counts in enumerate(per_row):
+        matrix, matrices[i] = matrices[i], None
+        rows = np.repeat(np.arange(n_rows), counts)
+        at = cursor[rows] + np.arange(matrix.nnz) - matrix.indptr[rows]
+        indices[at] = np.add(matrix.indices, first, dtype=index)
+        data[at] = matrix.data
+        cursor += counts
+        first += matrix.shape[1]
+    return sp.csr_matrix((data, indices, indptr.astype(index)), shape=(n_rows, n_cols))
 
 
 def relabelled_keys(keys: np.ndarray, shape: tuple[int, ...], kept: Sequence[np.ndarray],

@@ -186,6 +186,22 @@ def read(path: str | Path, *, format: str | None = None, **options: Any) -> Trac
     return fmt.implementation().read(path, **options)
 
 
+def grouped_parquet(path: str | Path) -> Any:
+    """The :class:`~simcred.io.parquet.GroupedRuns` of the file :func:`read` would read from
+    ``path`` row group by row group (a Parquet file whose rows are grouped by run), or None:
+    any other format or file, or anything wrong with it (:func:`read` then says what)."""
+    path = Path(path)
+    try:
+        check_regular(path)
+        if detect(path) is not FORMATS["parquet"]:
+            return None
+    except (TraceSetError, OptionError, OSError, ValueError):
+        return None
+    from simcred.io.parquet import GroupedRuns
+
+    return GroupedRuns.open(path)
+
+
 def write(traces: TraceSet, path: str | Path, *, format: str | None = None,
           **options: Any) -> Path:
     """Write ``traces`` in the format named or implied by ``path``; returns the path written."""

@@ -7,6 +7,8 @@ order within a run. Metadata lives in the schema metadata under the key ``simcre
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -84,44 +86,90 @@ def _read_row_groups(path: Path) -> TraceSet | None:
     read row group by row group into its arrays: the whole table is never held in Arrow (it was
     twice the arrays' bytes at its peak). None for any other file, and wherever something is
     wrong with it: the whole-table reading then gives the same result or the same error."""
+    grouped = GroupedRuns.open(path)
+    if grouped is None:
+        return None
+    time, values = np.empty(grouped.n_rows), np.empty((grouped.n_rows, len(grouped.signals)))
+
+    def place(lo: int, table: pa.Table) -> None:
+        time[lo:lo + table.num_rows] = grouped.column(table, TIME)
+        grouped.place(table, values, lo)
+
     try:
-        file = pq.ParquetFile(local(path))
-        names = file.schema_arrow.names
-        if len(names) > MAX_COLUMNS or len(set(names)) != len(names) \
-                or RUN not in names or TIME not in names or file.metadata.num_rows == 0:
-            return None
-        runs = file.read(columns=[RUN]).column(RUN)
-        if runs.null_count or not pa.types.is_dictionary(runs.type) or not (
-                pa.types.is_string(runs.type.value_type)
-                or pa.types.is_large_string(runs.type.value_type)
-                or pa.types.is_integer(runs.type.value_type)):
-            return None
-        grouped = _grouped_runs(runs)
-        del runs
-        if grouped is None:
-            return None
-        (ids, offsets), n_rows = grouped, file.metadata.num_rows
-        signals = [n for n in names if n not in (RUN, TIME)]
-        time, values = np.empty(n_rows), np.empty((n_rows, len(signals)))
-        position, pool = 0, pa.default_memory_pool()
-        for group in range(file.num_row_groups):
-            table = file.read_row_group(group)
-            end = position + table.num_rows
-            if end > n_rows:
-                return None
-            time[position:end] = float_column(table, TIME, str(path))
-            for j, name in enumerate(signals):
-                values[position:end, j] = float_column(table, name, str(path))
-            position = end
-            del table
-            pool.release_unused()
-        if position != n_rows or offsets[-1] != n_rows:
-            return None
-        metadata = _metadata(file.schema_arrow, path)
+        grouped.each_row_group(place)
     except (pa.ArrowException, OSError, TraceSetError):
         return None
-    return TraceSet(signals=tuple(signals), time=handed_over(time), values=handed_over(values),
-                    offsets=offsets, run_ids=ids, metadata=metadata, source=str(path))
+    return TraceSet(signals=grouped.signals, time=handed_over(time), values=handed_over(values),
+                    offsets=grouped.offsets, run_ids=grouped.run_ids, metadata=grouped.metadata,
+                    source=str(path))
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class GroupedRuns:
+    """A Parquet file whose rows are grouped by run (as :func:`write` stores them): its runs and
+    signals, and its rows row group by row group (one row group held at a time, read on the
+    calling thread: Arrow's reading threads kept their freed pages, 30 MB a file)."""
+
+    path: Path
+    file: pq.ParquetFile
+    signals: tuple[str, ...]
+    run_ids: tuple[str, ...]
+    offsets: np.ndarray
+    metadata: dict
+
+    @classmethod
+    def open(cls, path: Path) -> GroupedRuns | None:
+        """None for any other file, or wherever something is wrong with it (the whole-table
+        reading then gives the same result or the same error)."""
+        try:
+            file = pq.ParquetFile(local(path))
+            names = file.schema_arrow.names
+            if len(names) > MAX_COLUMNS or len(set(names)) != len(names) \
+                    or RUN not in names or TIME not in names or file.metadata.num_rows == 0:
+                return None
+            runs = file.read(columns=[RUN], use_threads=False).column(RUN)
+            if runs.null_count or not pa.types.is_dictionary(runs.type) or not (
+                    pa.types.is_string(runs.type.value_type)
+                    or pa.types.is_large_string(runs.type.value_type)
+                    or pa.types.is_integer(runs.type.value_type)):
+                return None
+            grouped = _grouped_runs(runs)
+            del runs
+            if grouped is None or grouped[1][-1] != file.metadata.num_rows:
+                return None
+            signals = tuple(n for n in names if n not in (RUN, TIME))
+            return cls(path, file, signals, *grouped, _metadata(file.schema_arrow, path))
+        except (pa.ArrowException, OSError, TraceSetError):
+            return None
+
+    @property
+    def n_rows(self) -> int:
+        return int(self.offsets[-1])
+
+    def each_row_group(self, use: Callable[[int, pa.Table], None],
+                       columns: list[str] | None = None) -> None:
+        """``use(first row, table)`` of every row group (``columns`` of it), each released before
+        the next is read; TraceSetError where the row groups do not hold the file's rows."""
+        position, pool = 0, pa.default_memory_pool()
+        for group in range(self.file.num_row_groups):
+            table = self.file.read_row_group(group, columns=columns, use_threads=False)
+            if position + table.num_rows > self.n_rows:
+                raise TraceSetError(f"{self.path}: row groups hold more rows than the file")
+            use(position, table)
+            position += table.num_rows
+            del table
+            pool.release_unused()
+        if position != self.n_rows:
+            raise TraceSetError(f"{self.path}: row groups hold fewer rows than the file")
+
+    def place(self, table: pa.Table, values: np.ndarray, lo: int) -> None:
+        """The signals of a row group into ``values`` from row ``lo``."""
+        for j, name in enumerate(self.signals):
+            values[lo:lo + table.num_rows, j] = self.column(table, name)
+
+    def column(self, table: pa.Table, name: str) -> np.ndarray:
+        """Column ``name`` of a row group as float64 (the checks of the whole-table reading)."""
+        return float_column(table, name, str(self.path))
 
 
 def _grouped_runs(runs: pa.ChunkedArray) -> tuple[tuple[str, ...], np.ndarray] | None:
