@@ -1,8 +1,13 @@
-"""The shift's standard error three ways against its sampling spread (issue 21, interval
-coverage): the cluster bootstrap's (shipped), a delete-one-cluster jackknife's (the same
+"""The shift's standard error against its sampling spread (issue 21, interval coverage): the
+cluster bootstrap's (shipped) and a delete-one-cluster jackknife's (the same
 :meth:`ClusterSums.deviation`, weights ``1 − e_c``), each divided by the standard deviation of
 the shift over independent replications of the design (tests/response_designs.py ``defect``,
 40 paired runs, seeds 0 to ``--reps`` − 1, 500 bootstrap replicates).
+
+``--synthetic-leaders``: every leader a fresh synthetic profile (speed 8-30 m/s, AR(1)
+accelerations), an infinite population of independent scenarios, instead of one of the 56,509
+overlapping windows of 50 recorded tracks. ``--full B``: instead, per replication the spread of
+the shift over ``B`` resamples of the pairs each compared anew (new pooled edges and states).
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/shift_se_probe.py --reps 200 \\
         --out benchmarks/results/shift_se_probe.json
@@ -22,9 +27,10 @@ sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(ROOT / "scripts"))
 import response_coverage  # noqa: E402
 
-from response_designs import defect  # noqa: E402
+import response_designs  # noqa: E402
 from simcred.compare import conditional, effect  # noqa: E402
 from simcred.compare.cluster_sums import ClusterSums, Entries  # noqa: E402
+from simcred.traces import TraceSet  # noqa: E402
 
 RESPONSES = ("dv", "a")  # gap and v are kinematic consequences here (shift ~1e-15)
 
@@ -48,28 +54,76 @@ def recording(into: list):
     return wrapped
 
 
+def synthetic_leaders(rng, runs, samples=response_designs.EPISODE, mask=None):
+    """``runs`` independent synthetic leader windows (the fields of ``draw_leaders``)."""
+    a = np.zeros((runs, samples))
+    start = rng.uniform(8.0, 30.0, runs)
+    for t in range(1, samples):
+        a[:, t] = 0.8 * a[:, t - 1] + rng.normal(0.0, 0.4, runs)
+    vl = np.maximum(start[:, None] + np.cumsum(a, axis=1) * 0.5, 0.0)
+    return {"track": np.arange(runs), "start": np.zeros(runs, dtype=int), "v_leader": vl,
+            "gap0": 2.0 + 1.5 * vl[:, 0], "v0": vl[:, 0], "mean_speed": vl.mean(axis=1),
+            "file": np.array(["synthetic"] * runs)}
+
+
+def full_resampling(d, seed: int, resamples: int) -> dict[str, tuple[float, float]]:
+    """Per response, the observed shift and its standard deviation over ``resamples`` resamples
+    of the pairs, each compared from scratch (edges, states, fits)."""
+    def shift(a, b):
+        return {f.feature: f.shift for f in response_coverage.effects(
+            type(d)(a, b, d.features, pair_by="run_id"), seed, 2).values()}
+
+    def take(traces, rows):
+        return TraceSet.from_runs([traces.run(i) for i in rows],
+                                  run_ids=[f"r{k}" for k in range(len(rows))])
+    row_a = {r: i for i, r in enumerate(d.a.run_ids)}
+    row_b = {r: i for i, r in enumerate(d.b.run_ids)}
+    ids = sorted(row_a)
+    rng = np.random.default_rng(10**7 + seed)
+    draws = []
+    for _ in range(resamples):
+        pick = [ids[k] for k in rng.integers(0, len(ids), len(ids))]
+        draws.append(shift(take(d.a, [row_a[r] for r in pick]),
+                           take(d.b, [row_b[r] for r in pick])))
+    observed = shift(d.a, d.b)
+    return {n: (observed[n], float(np.std([x[n] for x in draws], ddof=1))) for n in RESPONSES}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--kinds", default="delay,variance,clip")
     parser.add_argument("--reps", type=int, default=200)
+    parser.add_argument("--synthetic-leaders", action="store_true")
+    parser.add_argument("--full", type=int, default=0, metavar="B")
     parser.add_argument("--out", type=Path)
     args = parser.parse_args()
+    if args.synthetic_leaders:
+        response_designs.draw_leaders = synthetic_leaders
+    shipped = conditional.response_effects
     result = {}
     for kind in args.kinds.split(","):
         found: list = []
-        conditional.response_effects = recording(found)
+        conditional.response_effects = shipped if args.full else recording(found)
         for rep in range(args.reps):
-            response_coverage.effects(defect(np.random.default_rng(rep), kind, runs=40), rep, 500)
+            d = response_designs.defect(np.random.default_rng(rep), kind, runs=40)
+            if args.full:
+                found.append(full_resampling(d, rep, args.full))
+            else:
+                response_coverage.effects(d, rep, 500)
         for name in RESPONSES:
-            shift, boot, jack = (np.array([r[name][k] for r in found]) for k in range(3))
+            shift = np.array([r[name][0] for r in found])
             spread = float(shift.std(ddof=1))
-            result[f"{kind}/{name}"] = {"sampling_sd": spread,
-                                        "bootstrap_over_sampling": float(boot.mean() / spread),
-                                        "jackknife_over_sampling": float(jack.mean() / spread)}
+            cell = result[f"{kind}/{name}"] = {"sampling_sd": spread}
+            for k, label in enumerate(("full_resampling" if args.full else "bootstrap",
+                                       *(() if args.full else ("jackknife",))), start=1):
+                cell[f"{label}_over_sampling"] = float(
+                    np.mean([r[name][k] for r in found]) / spread)
             print(kind, name, {k: round(v, 4) for k, v in result[f"{kind}/{name}"].items()},
                   flush=True)
     if args.out:
         args.out.write_text(json.dumps({"reps": args.reps, "pairs": 40, "bootstrap": 500,
+                                        "full_resamples": args.full,
+                                        "synthetic_leaders": args.synthetic_leaders,
                                         "cells": result}, indent=1) + "\n")
 
 
