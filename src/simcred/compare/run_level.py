@@ -1,6 +1,6 @@
 """The run-level comparison and what makes its distance readable: baseline, interval, relevance.
 
-* :func:`run_level_comparison` — the run-permutation test of every state and of the chain
+* :func:`counts_comparison` — the run-permutation test of every state and of the chain
   (:mod:`simcred.compare.runs`), turned into a :class:`Comparison` with a chain verdict and
   multiplicity-controlled per-state verdicts; distance = rejected states / |S| ([1] eq. (6)).
 * Same-model **baseline**: set A's runs split into random halves, compared with the same options
@@ -56,14 +56,6 @@ def run_spec(options: ComparisonOptions, permutations: int | None = None) -> Run
 
 def pooled_counts(a: EncodedRuns, b: EncodedRuns, space: StateSpace) -> RunCounts:
     return RunCounts.from_parts([(a.codes, a.offsets), (b.codes, b.offsets)], space.n_states)
-
-
-def run_level_comparison(a: EncodedRuns, b: EncodedRuns, space: StateSpace,
-                         options: ComparisonOptions, inputs: tuple[InputInfo, InputInfo]
-                         ) -> Comparison:
-    """The run-level comparison of two encoded sets, with baseline and interval if asked."""
-    return counts_comparison(pooled_counts(a, b, space), len(a.offsets) - 1, space, options,
-                             inputs)
 
 
 def counts_comparison(counts: RunCounts, n_a: int, space: StateSpace,
