@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import io
+from collections import Counter
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from itertools import combinations
@@ -19,6 +20,7 @@ from simcred.compare.facts import SetFacts
 from simcred.compare.method import Method
 from simcred.compare.process import Prepared, compare_prepared, comparison_options, load
 from simcred.compare.result import Comparison, ComparisonOptions
+from simcred.compare.run_level import assignment_draw
 from simcred.compare.sorted_sets import SortedSet
 from simcred.compare.tables import matrix_frame
 from simcred.engine import Engine, Progress, balanced, engine
@@ -148,10 +150,16 @@ def matrix(
                            [(traces, settings) for traces in loaded])
     del loaded  # on Dask: the workers drop the raw sets
     pairs = list(combinations(range(len(facts)), 2))
-    if split and runner.distributed:
-        comparisons = _split_pairs(runner, prepared, pairs, settings, progress)
+    if split:
+        draws = _shared_draws(runner, [(facts[i].n_runs, facts[j].n_runs) for i, j in pairs],
+                              settings)
+        comparisons = _split_pairs(runner, prepared, pairs, settings, progress, draws) \
+            if runner.distributed else runner.map(
+                _compare_sorted, [(prepared[i], prepared[j], settings, draw)
+                                  for (i, j), draw in zip(pairs, draws, strict=True)],
+                progress=progress)
     else:
-        comparisons = runner.map(_compare_sorted if split else _compare_pair,
+        comparisons = runner.map(_compare_pair,
                                  [(prepared[i], prepared[j], settings) for i, j in pairs],
                                  progress=progress)
     distances = np.zeros((len(facts), len(facts)))
@@ -173,12 +181,29 @@ def _prepare_sorted(item: tuple[TraceSet, ComparisonOptions]) -> SortedSet:
     return SortedSet.of(_prepare(item), item[1].bins)
 
 
-def _compare_sorted(item: tuple[SortedSet, SortedSet, ComparisonOptions]) -> Comparison:
+def _compare_sorted(item: tuple[SortedSet, SortedSet, ComparisonOptions, Any]) -> Comparison:
     return sorted_sets.compare_sorted(*item)
 
 
+def _shared_draws(runner: Engine, sizes: list[tuple[int, int]], settings: ComparisonOptions
+                  ) -> list[Any]:
+    """Per pair of sets of ``sizes`` runs, a handle of its test's permutations where another
+    pair has the same sizes (every pair's test draws them from the same seed stream, so pairs
+    of one size draw the same rows: drawn once, :class:`~simcred.compare.runs.AssignmentDraw`),
+    else None (the pair draws its own)."""
+    shared = sorted(size for size, n in Counter(sizes).items() if n > 1)
+    handles = dict(zip(shared, runner.keep(_draw, [(n_a, n_a + n_b, settings)
+                                                   for n_a, n_b in shared]), strict=True))
+    return [handles.get(size) for size in sizes]
+
+
+def _draw(item: tuple[int, int, ComparisonOptions]):
+    return assignment_draw(*item)
+
+
 def _split_pairs(runner: Engine, held: list[Any], pairs: list[tuple[int, int]],
-                 settings: ComparisonOptions, progress: Progress | None) -> list[Comparison]:
+                 settings: ComparisonOptions, progress: Progress | None,
+                 draws: list[Any]) -> list[Comparison]:
     """Every pair where its sets are held (:mod:`simcred.compare.sorted_sets`): a pair whose
     two sets one worker holds is compared there in one task; of any other pair one set is
     counted where it is held, and the pair tested where the other set is (the tests spread
@@ -198,8 +223,9 @@ def _split_pairs(runner: Engine, held: list[Any], pairs: list[tuple[int, int]],
     sides = dict(zip(split, runner.keep(
         _pair_side, [(h, *counted[k], *plans[k]) for h, k in zip(there, split, strict=True)],
         there), strict=True))
-    items = [(held[ij[0]], held[ij[1]], settings) if k not in sides
-             else (held[ij[here[k]]], (here[k], sides[k], *counted[k], *plans[k]), settings)
+    items = [(held[ij[0]], held[ij[1]], settings, draws[k]) if k not in sides
+             else (held[ij[here[k]]], (here[k], sides[k], *counted[k], *plans[k]), settings,
+                   draws[k])
              for k, ij in enumerate(pairs)]
     return runner.map(_finish, items, progress=progress,
                       near=[held[ij[here[k]]] for k, ij in enumerate(pairs)])
@@ -208,13 +234,13 @@ def _split_pairs(runner: Engine, held: list[Any], pairs: list[tuple[int, int]],
 def _finish(item) -> Comparison:
     """A pair's comparison on a worker holding ``side`` (its first set, or the one at
     ``position``): with its second set held there too, or from the other set's counts."""
-    side, other, settings = item
+    side, other, settings, draw = item
     if isinstance(other, SortedSet):
-        return sorted_sets.compare_sorted(side, other, settings)
+        return sorted_sets.compare_sorted(side, other, settings, draw)
     position, counts, first, second, *plan = other
     mine = sorted_sets.pair_side(side, _plan(*plan), first, second, settings.features)
     return sorted_sets.pair_comparison(*((mine, counts) if position == 0 else (counts, mine)),
-                                       settings)
+                                       settings, draw)
 
 
 def _sketches(side: SortedSet):

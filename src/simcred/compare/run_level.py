@@ -40,7 +40,7 @@ from simcred.compare.result import (
     UntestableState,
 )
 from simcred.compare.run_counts import START, RunCounts
-from simcred.compare.runs import RunLevelOutcome, RunTestSpec, run_level_test
+from simcred.compare.runs import AssignmentDraw, RunLevelOutcome, RunTestSpec, run_level_test
 from simcred.seeds import stream
 
 #: Seed-stream keys of the run-level test and its companions (spawn keys of the seed).
@@ -59,13 +59,14 @@ def pooled_counts(a: EncodedRuns, b: EncodedRuns, space: StateSpace) -> RunCount
 
 
 def counts_comparison(counts: RunCounts, n_a: int, space: StateSpace,
-                      options: ComparisonOptions, inputs: tuple[InputInfo, InputInfo]
-                      ) -> Comparison:
+                      options: ComparisonOptions, inputs: tuple[InputInfo, InputInfo],
+                      draw: AssignmentDraw | None = None) -> Comparison:
     """The run-level comparison of pooled per-run counts whose first ``n_a`` runs are set A
-    (counts built in memory or partition by partition, :mod:`simcred.compare.outofcore`)."""
+    (counts built in memory or partition by partition, :mod:`simcred.compare.outofcore`);
+    ``draw``: its permutations drawn before (:func:`assignment_draw`), where they fit."""
     in_a = np.arange(counts.n_runs) < n_a
     outcome = run_level_test(counts, in_a, space.decode, run_spec(options), space.shape,
-                             stream(options.seed, RUNS_KEY))
+                             stream(options.seed, RUNS_KEY), draw=draw)
     result = _comparison(outcome, space, options, inputs)
     companions = min(options.permutations, COMPANION_PERMUTATIONS)
     if options.baseline:
@@ -75,6 +76,12 @@ def counts_comparison(counts: RunCounts, n_a: int, space: StateSpace,
         result = dataclasses.replace(result, interval=distance_interval(
             counts, n_a, space, options, companions))
     return result
+
+
+def assignment_draw(n_a: int, n_runs: int, options: ComparisonOptions) -> AssignmentDraw:
+    """The permutations of the run-level test of ``n_runs`` runs (the first ``n_a`` from A)
+    with ``options``, for every comparison of that size (:func:`counts_comparison`)."""
+    return AssignmentDraw.of(n_a, n_runs, options.permutations, stream(options.seed, RUNS_KEY))
 
 
 def _comparison(outcome: RunLevelOutcome, space: StateSpace, options: ComparisonOptions,

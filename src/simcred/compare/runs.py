@@ -132,7 +132,8 @@ class RunLevelOutcome:
 
 def run_level_test(counts: RunCounts, in_a: np.ndarray, grid_of, spec: RunTestSpec,
                    n_bins: tuple[int, ...], rng: np.random.Generator | None,
-                   null: np.ndarray | None = None) -> RunLevelOutcome:
+                   null: np.ndarray | None = None,
+                   draw: AssignmentDraw | None = None) -> RunLevelOutcome:
     """Run-permutation test of every state and of the chain ([1] sec. IV-A, R1 and R2).
 
     Parameters
@@ -151,10 +152,16 @@ def run_level_test(counts: RunCounts, in_a: np.ndarray, grid_of, spec: RunTestSp
     null : ndarray of bool, shape (P, runs), optional
         Given assignments to use as the null instead of random ones (e.g. every split: an exact
         enumeration); ``rng`` and ``spec.permutations`` are then ignored.
+    draw : AssignmentDraw, optional
+        The assignments ``rng`` would give, drawn before for tests of this size: used where they
+        fit (:meth:`AssignmentDraw.fits`), else drawn here.
     """
     in_a = np.asarray(in_a, dtype=bool)
     states = StateModels.build(counts, grid_of, spec, n_bins)
-    if null is None:
+    if null is None and draw is not None and draw.fits(in_a, spec.permutations,
+                                                       counts.matrix.shape[0]):
+        assignments = draw.assignments
+    elif null is None:
         assignments = PackedAssignments.random(in_a, spec.permutations, counts.matrix.shape[0],
                                                rng)
     else:
@@ -302,6 +309,36 @@ class PackedAssignments:
 
     def __getitem__(self, rows: slice) -> np.ndarray:
         return np.unpackbits(self.bits[rows], axis=1, count=self.n_runs).view(bool)
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class AssignmentDraw:
+    """The assignments a run-level test of ``n_runs`` runs, the first ``n_a`` in A, draws from
+    a generator in a given state, drawn once for every test of that size (a distance matrix's
+    pairs share a seed): :meth:`fits` says whether a test's own draw would be these rows."""
+
+    n_a: int
+    permutations: int
+    batch: int
+    assignments: PackedAssignments
+
+    @classmethod
+    def of(cls, n_a: int, n_runs: int, permutations: int,
+           rng: np.random.Generator) -> AssignmentDraw:
+        """The draw of a test whose count matrix has at most ``n_runs`` columns."""
+        in_a = np.arange(n_runs) < n_a
+        return cls(n_a, permutations, batch_size(n_runs),
+                   PackedAssignments.random(in_a, permutations, 0, rng))
+
+    def fits(self, in_a: np.ndarray, permutations: int, n_cols: int) -> bool:
+        """Whether :meth:`PackedAssignments.random` of this test (a generator in the draw's
+        state) gives these rows: the same observed split, permutations and batches (numpy's
+        ``permuted`` shuffles row after row, so other batches would give the same rows too,
+        but that is numpy's implementation, not its promise)."""
+        n_a = int(in_a.sum())
+        return (permutations == self.permutations and len(in_a) == self.assignments.n_runs
+                and n_a == self.n_a and bool(in_a[:n_a].all())
+                and batch_size(n_cols, len(in_a)) == self.batch)
 
 
 def assignment_statistics(counts: RunCounts, states: StateModels,

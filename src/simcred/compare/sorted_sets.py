@@ -48,6 +48,7 @@ from simcred.compare.run_counts import (
     relabelled_keys,
 )
 from simcred.compare.run_level import counts_comparison
+from simcred.compare.runs import AssignmentDraw
 
 Tallies = tuple[Tally | None, ...]
 
@@ -155,9 +156,11 @@ def pair_side(side: SortedSet, plan: PairPlan, a: Tallies, b: Tallies,
                               tuple(p.needs_counts for p in plan.plans))
 
 
-def pair_comparison(a: PairSide, b: PairSide, options: ComparisonOptions) -> Comparison:
+def pair_comparison(a: PairSide, b: PairSide, options: ComparisonOptions,
+                    draw: AssignmentDraw | None = None) -> Comparison:
     """The run-level comparison of the pair from its two sides: quantile edges whose left bin
-    holds no value of either set dropped (``feature_edges``), keys relabelled to the rest."""
+    holds no value of either set dropped (``feature_edges``), keys relabelled to the rest;
+    ``draw``: the test's permutations drawn before, where they fit (``counts_comparison``)."""
     kept = [(x + y)[:-1] > 0 if q else np.ones(len(c), dtype=bool)
             for c, x, y, q in zip(a.candidates, a.held, b.held, a.quantiles, strict=True)]
     space = StateSpace(options.features, tuple(c[k] for c, k in zip(a.candidates, kept,
@@ -167,12 +170,13 @@ def pair_comparison(a: PairSide, b: PairSide, options: ComparisonOptions) -> Com
     matrix, keys = joined_counts([(a.matrix, a.columns), (b.matrix, b.columns)])
     keys = relabelled_keys(keys, tuple(len(c) + 1 for c in a.candidates), kept, space.shape)
     counts = RunCounts.from_matrix(matrix, keys, space.n_states)
-    return counts_comparison(counts, a.n_runs, space, options, (a.info, b.info))
+    return counts_comparison(counts, a.n_runs, space, options, (a.info, b.info), draw)
 
 
-def compare_sorted(a: SortedSet, b: SortedSet, options: ComparisonOptions) -> Comparison:
+def compare_sorted(a: SortedSet, b: SortedSet, options: ComparisonOptions,
+                   draw: AssignmentDraw | None = None) -> Comparison:
     """All steps of one pair in one place (in-process)."""
     plan = PairPlan.of(a.sketches, b.sketches, options.bins)
     tallies = plan.tallies(a), plan.tallies(b)
     return pair_comparison(pair_side(a, plan, *tallies, options.features),
-                           pair_side(b, plan, *tallies, options.features), options)
+                           pair_side(b, plan, *tallies, options.features), options, draw)
