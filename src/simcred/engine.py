@@ -159,12 +159,8 @@ class DaskEngine(Engine):
         fewest items first. Dask's own placement weighs a large input's transfer against
         queues of tasks whose durations it does not know yet, and its work stealing moves
         them after: both copied sets to most workers (measured, docs/benchmarks.md)."""
-        from dask.distributed import wait
-
         groups = [h if isinstance(h, tuple) else (h,) for h in near]
-        handles = list({h.key: h for g in groups for h in g}.values())
-        wait(handles)
-        holders = self.client.who_has(handles)
+        holders = self._who_has(list({h.key: h for g in groups for h in g}.values()))
         options = [sorted({w for h in g for w in holders.get(h.key, ())}) for g in groups]
         chosen = balanced(options)
         return [None if w is None else [w] for w in chosen]
@@ -177,11 +173,15 @@ class DaskEngine(Engine):
             return self.client.gather(list(handles))
 
     def holders(self, handles):
+        held = self._who_has(list(handles))
+        return [min(held.get(h.key, ()), default=None) for h in handles]
+
+    def _who_has(self, handles: list) -> dict:
+        """``{key: workers holding it}`` of ``handles``, once their results exist."""
         from dask.distributed import wait
 
-        wait(list(handles))
-        held = self.client.who_has(list(handles))
-        return [min(held.get(h.key, ()), default=None) for h in handles]
+        wait(handles)
+        return self.client.who_has(handles)
 
     def close(self) -> None:
         self.client.close()
