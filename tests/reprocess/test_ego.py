@@ -33,7 +33,7 @@ def drive() -> Drive:
 def results(drive):
     config = ReprocessConfig(scenario_based=False)
     return {"recording": reprocess(drive, ReprocessConfig(
-                scenario_based=False, from_recording=("set_speed", "lanes"))),
+                scenario_based=False, from_recording=("set_speed", "lanes", "time_gap"))),
             "default": reprocess(drive, config)}
 
 
@@ -46,7 +46,9 @@ def test_the_ad_function_takes_set_speed_and_lanes_from_the_recorded_ego(results
     assert ad["set_speed"] == pytest.approx(float(description.speed(times).max()), rel=1e-12)
     assert ad["set_speed"] == pytest.approx(12.0, abs=0.05)
     assert ad["lane_centres"] == pytest.approx([y0, y0 + 3.5], rel=1e-12)
-    assert ad["from"] == {"set_speed": "recorded EGO", "lanes": "recorded EGO"}
+    assert ad["from"] == {"set_speed": "recorded EGO", "lanes": "recorded EGO",
+                          "time_gap": "configuration (the recorded EGO never follows the object)"}
+    assert ad["time_gap"] == 1.5  # the TO drives in the other lane
     assert result.to_dict()["ad_function"] == ad
 
 
@@ -59,6 +61,56 @@ def test_the_resimulated_ego_stays_with_the_recorded_one_that_did_not_react(resu
     default = results["default"].states["rSD"]["ego"]
     assert np.hypot(default.x - recorded.x, default.y - recorded.y).max() > 20.0
     assert results["default"].ad_function["from"]["set_speed"] == "configuration"
+
+
+HEADWAY = 25.0  # m between the centres: bumper gap 20.5 m behind a 4.5 m car
+
+
+@pytest.fixture(scope="module")
+def following() -> Drive:
+    """EGO at 15 m/s 25 m (centres) behind the TO in its lane, both steady."""
+    ego = Track(T, 15.0 * T, np.full_like(T, Y_EGO), np.full_like(T, 15.0), np.zeros_like(T))
+    to = Track(T, HEADWAY + 15.0 * T, np.full_like(T, Y_EGO), np.full_like(T, 15.0),
+               np.zeros_like(T))
+    return Drive(RecordedTracks("following", {"ego": ego, "to": to}, "sha256:test"))
+
+
+def test_the_acc_time_gap_is_the_recorded_egos_equilibrium_gap(following):
+    """Literal: the ACC's equilibrium gap s0 + T v equals the recorded bumper gap, so
+    T = (25 − 4.5 − 5) / 15 s; the resimulated EGO keeps the recorded gap, whereas the
+    configured 1.5 s drops it back towards 27.5 m."""
+    from simcred.reprocess.ad_function import recorded_time_gap
+
+    by_recording = reprocess(following, ReprocessConfig(
+        scenario_based=False, from_recording=("set_speed", "lanes", "time_gap")))
+    configured = reprocess(following, ReprocessConfig(
+        scenario_based=False, from_recording=("set_speed", "lanes")))
+    ad, c = by_recording.ad_function, by_recording.config
+    expected = (HEADWAY - c.driver.vehicle_length - c.driver.standstill_gap) / 15.0
+    assert ad["time_gap"] == pytest.approx(expected, abs=2e-3)  # the fit's error only
+    assert ad["time_gap"] == recorded_time_gap(by_recording.descriptions["fit(SD)"], "ego",
+                                               "to", c.driver, c.dt)
+    assert ad["from"]["time_gap"] == "recorded EGO" and configured.ad_function["time_gap"] == 1.5
+
+    def distance(result):
+        recorded, resimulated = result.states["SD"]["ego"], result.states["rSD"]["ego"]
+        return np.hypot(resimulated.x - recorded.x, resimulated.y - recorded.y).max()
+
+    assert distance(by_recording) < 0.3 < 2.0 < distance(configured)
+
+
+def test_no_following_sample_keeps_the_configured_time_gap():
+    """A lead that is never ahead within half a lane of the EGO at ≥ 5 m/s gives None."""
+    from simcred.reprocess.ad_function import recorded_time_gap
+    from simcred.sim.driver import DriverConfig
+
+    slow = Track(T, 2.0 * T, np.full_like(T, Y_EGO), np.full_like(T, 2.0), np.zeros_like(T))
+    to = Track(T, 10 + 2.0 * T, np.full_like(T, Y_EGO), np.full_like(T, 2.0), np.zeros_like(T))
+    result = reprocess(Drive(RecordedTracks("slow", {"ego": slow, "to": to}, "sha256:t")),
+                       ReprocessConfig(scenario_based=False, from_recording=("time_gap",)))
+    assert recorded_time_gap(result.descriptions["fit(SD)"], "ego", "to", DriverConfig(),
+                             0.01) is None
+    assert result.ad_function["time_gap"] == DriverConfig().time_gap
 
 
 def test_unknown_recorded_parameters_are_refused():

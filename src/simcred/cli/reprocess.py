@@ -97,10 +97,11 @@ def reprocess(
     long_gaps: Annotated[LongGaps, typer.Option(
         help="A longer gap: error, or reprocess the longest stretch without one.")] = "error",
     ad_parameters: Annotated[AdParameters | None, typer.Option(
-        help="The resimulated EGO's set speed and lanes: 'recording' (the recorded EGO's highest "
-             "speed, its lane centred on its first position; default for A9, CommonRoad and "
-             "long-format input) or 'default' (100 km/h, lanes at y = 0 and 3.5 m: the "
-             "manufactured universe's AD function; default for a measurement directory).")
+        help="The resimulated EGO's set speed, lanes and ACC time gap: 'recording' (the recorded "
+             "EGO's highest speed, its lane centred on its first position, the time gap of its "
+             "gap to the object; default for A9, CommonRoad and long-format input) or 'default' "
+             "(100 km/h, lanes at y = 0 and 3.5 m, 1.5 s: the manufactured universe's AD "
+             "function; default for a measurement directory).")
     ] = None,
     set_speed: Annotated[float | None, typer.Option(
         help="Set speed [m/s] of the resimulated EGO's ACC (instead of the recorded or "
@@ -175,11 +176,12 @@ def reprocess(
 def _ad_options(measurement: Path, parameters: AdParameters | None,
                 set_speed: float | None) -> dict:
     """``driver`` and ``from_recording`` of the ReprocessConfig for the AD-function options."""
+    from simcred.reprocess.ad_function import RECORDED_PARAMETERS
     from simcred.sim.driver import DriverConfig
 
     if parameters is None:
         parameters = AdParameters.default if measurement.is_dir() else AdParameters.recording
-    recorded = ("set_speed", "lanes") if parameters is AdParameters.recording else ()
+    recorded = RECORDED_PARAMETERS if parameters is AdParameters.recording else ()
     if set_speed is None:
         return {"from_recording": recorded}
     check_finite(set_speed, "--set-speed", minimum=0, open_minimum=True)
@@ -309,7 +311,8 @@ def _print_ad_function(ad: dict) -> None:
     """The resimulated EGO's AD function and where its parameters came from."""
     lanes = ", ".join(f"{y:.2f}" for y in ad["lane_centres"])
     say(f"AD function: set speed {ad['set_speed']:.2f} m/s ({ad['from']['set_speed']}), lanes "
-        f"at y = {lanes} m, {ad['lane_width']:.2f} m wide ({ad['from']['lanes']})")
+        f"at y = {lanes} m, {ad['lane_width']:.2f} m wide ({ad['from']['lanes']}), time gap "
+        f"{ad['time_gap']:.2f} s ({ad['from']['time_gap']})")
 
 
 def _print_reactions(result) -> None:

@@ -32,6 +32,7 @@ from simcred._json import JsonResult, fields_dict
 from simcred.errors import OptionError, SimcredError
 from simcred.io.measurement import Measurement
 from simcred.kinematics import MOTION_SIGNALS, Track
+from simcred.reprocess.ad_function import RECORDED_PARAMETERS, resimulation_driver
 from simcred.reprocess.decomposition import ErrorStats, decompose
 from simcred.reprocess.reaction import (
     Reaction,
@@ -54,7 +55,6 @@ from simcred.traces import TIME, TraceSet
 
 SENSORS = tuple(sensor.value for sensor in SensorKind)
 LOG_RISK_FLOOR = 1e-9  # risk below this counts as this on the log scale
-RECORDED_PARAMETERS = ("set_speed", "lanes")
 LANE_SOURCES = ("map", "configuration")
 
 Progress = Callable[[str], None]
@@ -79,8 +79,8 @@ class ReprocessConfig:
     # a scenario-based sensor model estimated on other drives ([1] §IV: "a set of drives");
     # None: estimated from this measurement's own GT/SD pair
     sensor_model: OffsetDelaySensor | None = None
-    # AD-function parameters taken from the recorded EGO instead of ``driver``: "set_speed"
-    # (its highest described speed) and/or "lanes" (its lane centred on its first position)
+    # AD-function parameters taken from the recorded EGO instead of ``driver``: "set_speed",
+    # "lanes", "time_gap" (:mod:`simcred.reprocess.ad_function`)
     from_recording: tuple[str, ...] = ()
     # "map": where the drive carries its map's lanes (a CommonRoad scenario, metadata ``lanes``,
     # :mod:`simcred.reprocess.lanes`) they are the AD function's lanes (before ``from_recording``)
@@ -206,8 +206,8 @@ def reprocess(measurement: Measurement | Drive, config: ReprocessConfig | None =
     sensor_model = c.sensor_model if c.sensor_model is not None else (
         _sensor_model(times, states, c) if c.scenario_based and GT in raw else None)
     road = drive.metadata.get("lanes") if c.lanes == "map" else None
-    driver, ad_report = _ad_function(fits[(GT if GT in raw else SD).fit()].description, c,
-                                     road, "lanes" in drive.metadata)
+    recorded_ego = fits[(GT if GT in raw else SD).fit()].description
+    driver, ad_report = resimulation_driver(recorded_ego, c, road, "lanes" in drive.metadata)
     for name in raw:
         for kind, sensor in _sensors(name, sensor_model):
             say(f"resimulate {name} ({sensor.name} sensor)")
@@ -240,39 +240,6 @@ def reprocess(measurement: Measurement | Drive, config: ReprocessConfig | None =
                        {name: r.digest for name, r in drive.recordings().items()},
                        ad_function=ad_report, aligned=replace(aligned, tracks={}),
                        drive_metadata=dict(drive.metadata))
-
-
-def _ad_function(description: ScenarioDescription, c: ReprocessConfig,
-                 road: dict[str, Any] | None, has_map: bool = False
-                 ) -> tuple[DriverConfig, dict[str, Any]]:
-    """The resimulations' AD function: ``c.driver`` with the parameters ``c.from_recording``
-    names taken from the recorded EGO's ``description`` (GT's if there is one, else SD's):
-    the set speed is its highest speed (sampled every ``c.dt``), the lanes keep their spacing
-    with the EGO's lane centred on its first position (the EGO starts in the first lane).
-    The map's lanes ``road`` (:mod:`simcred.reprocess.lanes`), where given, are the lanes and
-    the lane width instead (``has_map``: the drive has a map, none of whose lanelets lies
-    under the EGO; stated)."""
-    driver, ego = c.driver, description.objects[c.ego]
-    if "set_speed" in c.from_recording:
-        driver = replace(driver, set_speed=float(ego.speed(description.times(c.dt)).max()))
-    if road is not None:
-        driver = replace(driver, lane_centres=tuple(road["lane_centres"]),
-                         lane_width=road["lane_width"])
-    elif "lanes" in c.from_recording:
-        y0 = float(ego.states(np.array([description.t0])).y[0])
-        first = driver.lane_centres[0]
-        driver = replace(driver, lane_centres=tuple(y0 + y - first for y in driver.lane_centres))
-    source = {p: ("recorded EGO" if p in c.from_recording else "configuration")
-              for p in RECORDED_PARAMETERS}
-    report = {"set_speed": driver.set_speed, "lane_centres": list(driver.lane_centres),
-              "lane_width": driver.lane_width, "from": source}
-    if road is not None:
-        source["lanes"] = "map"
-        report["map"] = {k: v for k, v in road.items()
-                         if k not in ("lane_centres", "lane_width")}
-    elif has_map and c.lanes == "map":
-        report["map"] = "no lanelet under the EGO: lanes not from the map"
-    return driver, report
 
 
 def footprints(drive: Drive, objects: tuple[str, ...]) -> dict[str, tuple[float, float]]:
