@@ -6,7 +6,9 @@ the shift over independent replications of the design (tests/response_designs.py
 
 ``--synthetic-leaders``: every leader a fresh synthetic profile (speed 8-30 m/s, AR(1)
 accelerations), an infinite population of independent scenarios, instead of one of the 56,509
-overlapping windows of 50 recorded tracks. ``--full B``: instead, per replication the spread of
+overlapping windows of 50 recorded tracks. ``--no-fit``: the shift of the raw response (less
+its pooled mean) instead of the response after the pooled global cubic fit, which every sample
+estimates anew but the bootstrap holds fixed. ``--full B``: instead, per replication the spread of
 the shift over ``B`` resamples of the pairs each compared anew (new pooled edges and states).
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/shift_se_probe.py --reps 200 \\
@@ -28,7 +30,7 @@ sys.path.insert(0, str(ROOT / "scripts"))
 import response_coverage  # noqa: E402
 
 import response_designs  # noqa: E402
-from simcred.compare import conditional, effect  # noqa: E402
+from simcred.compare import conditional, effect, transitions  # noqa: E402
 from simcred.compare.cluster_sums import ClusterSums, Entries  # noqa: E402
 from simcred.traces import TraceSet  # noqa: E402
 
@@ -66,6 +68,12 @@ def synthetic_leaders(rng, runs, samples=response_designs.EPISODE, mask=None):
             "file": np.array(["synthetic"] * runs)}
 
 
+def centred(covariates: np.ndarray, rate: np.ndarray) -> np.ndarray:
+    """``--no-fit``: the response less its pooled mean instead of its global cubic fit (the
+    shift of a state is then the raw difference of the two sides' mean responses)."""
+    return np.asfortranarray(rate - rate.mean(axis=0))
+
+
 def full_resampling(d, seed: int, resamples: int) -> dict[str, tuple[float, float]]:
     """Per response, the observed shift and its standard deviation over ``resamples`` resamples
     of the pairs, each compared from scratch (edges, states, fits)."""
@@ -95,10 +103,13 @@ def main() -> None:
     parser.add_argument("--reps", type=int, default=200)
     parser.add_argument("--synthetic-leaders", action="store_true")
     parser.add_argument("--full", type=int, default=0, metavar="B")
+    parser.add_argument("--no-fit", action="store_true")
     parser.add_argument("--out", type=Path)
     args = parser.parse_args()
     if args.synthetic_leaders:
         response_designs.draw_leaders = synthetic_leaders
+    if args.no_fit:
+        transitions.global_residual = centred
     shipped = conditional.response_effects
     result = {}
     for kind in args.kinds.split(","):
@@ -124,6 +135,7 @@ def main() -> None:
         args.out.write_text(json.dumps({"reps": args.reps, "pairs": 40, "bootstrap": 500,
                                         "full_resamples": args.full,
                                         "synthetic_leaders": args.synthetic_leaders,
+                                        "no_fit": args.no_fit,
                                         "cells": result}, indent=1) + "\n")
 
 

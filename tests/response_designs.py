@@ -423,7 +423,17 @@ DELAY_STEPS = 1  # 0.5 s
 LATE_STEPS = 2  # 1.0 s
 #: Defect kinds (magnitudes fixed in advance, not tuned): a Driver change given A's data.
 DEFECTS = ("none", "bias", "delay", "variance", "late_brake_10", "late_brake_50", "clip", "gain",
-           "gap_gain")
+           "gap_gain", "clip_fixed")
+POPULATION_RUNS = 1500  # A's runs whose acceleration quantiles are clip_fixed's bounds
+
+
+@lru_cache(maxsize=1)
+def population_clip() -> tuple[float, float]:
+    """The 7.5 % / 92.5 % quantiles of A's applied accelerations over POPULATION_RUNS runs (a
+    fixed seed): ``clip``'s bounds without their dependence on the sample's own A."""
+    a = defect(np.random.default_rng(7_500_925), "none", runs=POPULATION_RUNS).a
+    lo, hi = np.quantile(a.column("a"), [0.075, 0.925])
+    return float(lo), float(hi)
 
 
 def _defective(rng: np.random.Generator, kind: str, base: Driver, runs: int,
@@ -444,6 +454,8 @@ def _defective(rng: np.random.Generator, kind: str, base: Driver, runs: int,
     if kind == "clip":
         lo, hi = np.quantile(a_accel, [0.075, 0.925])
         return replace(base, clip=(float(lo), float(hi)))
+    if kind == "clip_fixed":
+        return replace(base, clip=population_clip())
     if kind == "gain":
         return replace(base, gain=0.9)
     if kind == "gap_gain":
@@ -464,6 +476,9 @@ def defect(rng: np.random.Generator, kind: str, runs: int = 40, paired: bool = T
     * ``clip``: B's applied acceleration clipped to the 7.5 % / 92.5 % quantiles of A's
       accelerations (this call's A); in the closed loop ~18 % of B's samples sit at a bound and
       ~1.3 % of B's runs end in a collision (gap < 0: the clipped brake is too weak);
+    * ``clip_fixed``: the same clipping at :func:`population_clip`'s bounds, fixed in advance:
+      B's law does not depend on this call's A, so the pairs are independent draws (what an
+      interval's coverage over replications assumes; ``clip`` ties every B run to all of A);
     * ``gain``: the IDM command (not the noise) × 0.9;
     * ``gap_gain``: B's recorded gap × 0.9 (a gain on one feature, as a miscalibrated sensor
       would give; the driver acts on the true gap);
