@@ -129,7 +129,7 @@ def _sorted_columns(values: Sequence[np.ndarray], where: Sequence[tuple[np.ndarr
     rate = np.empty((len(out_j), n), np.result_type(dtype, *(dt for _, dt in where)))
     longest = max((len(rows) for rows, _ in where), default=0)
     index, then = np.empty(longest, dtype=np.int64), np.empty(longest, dtype)
-    at = 0
+    at = 0  # mode="clip" below: the indices are in range, and "raise" buffers ``out``
     for flat, (rows, dt) in zip((np.ravel(v) for v in values), where, strict=True):
         here, k = slice(at, at + len(rows)), len(rows)
         base = rows * width
