@@ -58,9 +58,9 @@ _PER_STATE = transitions_module.per_state_residual
 CAPTURED: dict = {}
 
 
-def _capture(state, covariates, rate):
+def _capture(state, covariates, rate, **options):
     CAPTURED.update(state=state, covariates=covariates)
-    return _PER_STATE(state, covariates, rate)
+    return _PER_STATE(state, covariates, rate, **options)
 #: Features whose adjusted residual is below this share of the raw spread get no spread term.
 NOISE_FLOOR = 0.05
 VARIANT = {"name": "shipped"}

@@ -25,6 +25,9 @@ MIN_SHARE = 0.005
 #: ... and at least this many units of each side visit it (its variances are estimated between
 #: units, which needs two).
 MIN_UNITS = 2
+#: Fill share from which the clusters' visits are a dense float32 array (4 bytes a position
+#: against 12 a stored value; a dense product is ~10x faster than the sparse one per value).
+VISITS_DENSE_SHARE = 1 / 3
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -82,7 +85,7 @@ class ClusterSums:
     clusters give every replicate's moments and variances with one product."""
 
     matrix: np.ndarray | sp.csc_matrix | ProductColumns  # (width · states) × clusters
-    visits: sp.csr_matrix  # (states · 2) × clusters: the cluster's side-k member visits
+    visits: np.ndarray | sp.csr_matrix  # (states · 2) × clusters: the side-k member visits
     totals: np.ndarray  # (clusters, 2)
     column: dict
     n_states: int
@@ -105,9 +108,7 @@ class ClusterSums:
                     for factors in zip(*(factors for _, *factors in spec), strict=True))
         parts = [(cluster[side == k], state[side == k], sums[side == k]) for k in (0, 1)]
         matrix = unit_matrix(parts, n_clusters, n_states, products=(one, two))
-        visits = sp.csr_matrix(
-            (np.ones(int(take.sum())), (2 * state + side, cluster)),
-            shape=(2 * n_states, n_clusters))
+        visits = _visits(2 * state + side, cluster, 2 * n_states, n_clusters)
         return cls(matrix, visits, entries.totals(), column, n_states, j, entries.pairs)
 
     def deviation(self, weights: np.ndarray) -> dict[str, np.ndarray]:
@@ -152,6 +153,17 @@ class ClusterSums:
                 out["shift"][j] = (w_shift * np.where(present, a["mean"] - b["mean"], 0.0)
                                    ).sum(axis=0)
         return out
+
+
+def _visits(row: np.ndarray, cluster: np.ndarray, n_rows: int, n_clusters: int
+            ) -> np.ndarray | sp.csr_matrix:
+    """The (rows × clusters) count of entries at each (row, cluster): dense float32 where at
+    least :data:`VISITS_DENSE_SHARE` of the positions hold one (its products with 0/1 weights
+    count clusters, below 2**24: exact), else CSR (float64, as before)."""
+    if len(row) >= VISITS_DENSE_SHARE * n_rows * n_clusters and n_clusters < 2**24:
+        counts = np.bincount(row * n_clusters + cluster, minlength=n_rows * n_clusters)
+        return counts.astype(np.float32).reshape(n_rows, n_clusters)
+    return sp.csr_matrix((np.ones(len(row)), (row, cluster)), shape=(n_rows, n_clusters))
 
 
 def normalised(share: np.ndarray) -> np.ndarray:

@@ -58,6 +58,8 @@ from simcred.seeds import stream
 ASSIGN_KEY, RESPONSE_KEY, EFFECT_KEY = 2**41, 2**41 + 1, 2**41 + 2
 OCCUPANCY = -2  # block code of the occupancy law
 INTERVAL_LEVEL = 0.95
+#: Assignments per batch of the lengths test's side means (two float64 buffers of this many rows).
+GAP_ROWS = 64
 
 
 @dataclass(frozen=True, slots=True)
@@ -197,13 +199,26 @@ def _lengths_test(parts, design: Design, assignments: np.ndarray, alpha: float) 
     """|difference of the mean log length per unit| between the sides, permuted like the rest."""
     lengths = np.concatenate([np.diff(p[2]) for p in parts]).astype(np.float64)
     per_unit = np.bincount(design.unit_of_run, weights=lengths, minlength=design.n_units)
-    value = np.log(per_unit)
-    side_a = assignments.astype(np.float64)
-    mean_a = side_a @ value / side_a.sum(axis=1)
-    mean_b = (1 - side_a) @ value / (1 - side_a).sum(axis=1)
-    stat = np.abs(mean_a - mean_b)
+    stat = side_mean_gap(assignments, np.log(per_unit))
     pvalue = float(exceedance_pvalues(stat[:, None], stat[:1])[0])
     return NamedTest("lengths", float(stat[0]), pvalue, pvalue <= alpha)
+
+
+def side_mean_gap(assignments: np.ndarray, value: np.ndarray) -> np.ndarray:
+    """Per assignment ``|mean of value over A − mean over B|``, as float64 row products
+    ``Z v / Z 1`` and ``(1 − Z) v / (1 − Z) 1``, :data:`GAP_ROWS` assignments at a time in two
+    reused buffers (the whole float64 ``Z`` and ``1 − Z`` were 0.6 GB of fresh memory at 1,000
+    assignments of 40,000 units)."""
+    side_a = np.empty((min(GAP_ROWS, len(assignments)), assignments.shape[1]))
+    side_b = np.empty_like(side_a)
+    stat = np.empty(len(assignments))
+    for lo in range(0, len(assignments), GAP_ROWS):
+        rows = assignments[lo:lo + GAP_ROWS]
+        a, b = side_a[:len(rows)], side_b[:len(rows)]
+        np.copyto(a, rows)
+        np.subtract(1, a, out=b)
+        stat[lo:lo + len(rows)] = np.abs(a @ value / a.sum(axis=1) - b @ value / b.sum(axis=1))
+    return stat
 
 
 def _warnings(design: Design, options: ComparisonOptions, outcome: ResponseOutcome,

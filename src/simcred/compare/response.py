@@ -98,6 +98,7 @@ from simcred.compare.runs import (
     row_max,
     standardise,
 )
+from simcred.compare.scratch import std_columns
 from simcred.compare.side_counts import SideCounts, is_paired
 from simcred.compare.state_sums import StatePairs, SumTarget, pair_chunks
 from simcred.compare.transitions import Transitions
@@ -164,14 +165,16 @@ class KernelSums:
 class _FourierMap:
     """The seeded feature map: per response feature a bandwidth, frequencies and phases."""
 
-    def __init__(self, residual: np.ndarray, rng: np.random.Generator) -> None:
+    def __init__(self, residual: np.ndarray, rng: np.random.Generator,
+                 scratch: np.ndarray | None = None) -> None:
         n, n_features = residual.shape
         i, j = rng.integers(0, n, (2, BANDWIDTH_PAIRS))
         self.scale, self.w, self.b, self.bandwidth = [], [], [], []
         for k in range(n_features):
-            scale = float(residual[:, k].std()) or 1.0
-            z = residual[:, k] / scale
-            sigma = float(np.median(np.abs(z[i] - z[j]))) or 1.0
+            column = residual[:, k]
+            scale = float(std_columns(column, None if scratch is None else scratch[:, k])[0]) \
+                or 1.0
+            sigma = float(np.median(np.abs(column[i] / scale - column[j] / scale))) or 1.0
             self.scale.append(scale)
             self.w.append(rng.normal(0.0, 1.0 / sigma, FOURIER).astype(np.float32))
             self.b.append(rng.uniform(0.0, 2 * np.pi, FOURIER).astype(np.float32))
@@ -193,12 +196,14 @@ class _FourierMap:
         return out
 
 
-def noisy_responses(data: Transitions) -> np.ndarray | None:
+def noisy_responses(data: Transitions, scratch: np.ndarray | None = None
+                    ) -> np.ndarray | None:
     """Per response feature, whether its adjusted residual has noise of its own (at least
-    ``NOISE_FLOOR`` of the raw response's spread, module docs); None without that spread."""
+    ``NOISE_FLOOR`` of the raw response's spread, module docs); None without that spread.
+    ``scratch``: a buffer of the residual's shape for the standard deviation's temporary."""
     if data.spread is None:
         return None
-    return data.residual.std(axis=0) >= NOISE_FLOOR * data.spread
+    return std_columns(data.residual, scratch) >= NOISE_FLOOR * data.spread
 
 
 def kernel_sums(data: Transitions, n_units: int, rng: np.random.Generator) -> KernelSums:
@@ -210,15 +215,16 @@ def kernel_sums(data: Transitions, n_units: int, rng: np.random.Generator) -> Ke
     spread = data.spread if data.spread is not None else np.zeros(data.residual.shape[1])
     residual = np.asfortranarray(data.residual + RESOLUTION * spread
                                  * rng.normal(size=data.residual.shape))  # columns contiguous
-    feature_map = _FourierMap(residual, rng)
-    noisy = noisy_responses(data)
+    scratch = np.empty_like(residual)  # every standard deviation's squared deviations
+    feature_map = _FourierMap(residual, rng, scratch)
+    noisy = noisy_responses(data, scratch)
     pairs = StatePairs.of(data)
     n_blocks, n_features = len(pairs.blocks), residual.shape[1]
     peak = 2 * int(np.ceil(LEVELS * np.sqrt(2.0))) * int(np.diff(pairs.starts).max(initial=0))
     kernel = SumTarget(pairs, 1 + n_features * FOURIER, n_units, peak)
     moments, moment_map = None, None
     if noisy is not None and noisy.any():
-        moment_map = _Moments.of(residual, noisy)
+        moment_map = _Moments.of(residual, noisy, scratch)
         moments = SumTarget(pairs, 1 + moment_map.width, n_units, None)
     first_pair = np.r_[0, np.cumsum(np.bincount(pairs.block, minlength=n_blocks))]
     for b in range(n_blocks):
@@ -253,8 +259,11 @@ class _Moments:
     pairs: tuple[tuple[int, int], ...]
 
     @classmethod
-    def of(cls, residual: np.ndarray, noisy: np.ndarray) -> _Moments:
-        size_scale, sd = np.abs(residual).std(axis=0), residual.std(axis=0)
+    def of(cls, residual: np.ndarray, noisy: np.ndarray, scratch: np.ndarray | None = None
+           ) -> _Moments:
+        size = np.abs(residual)
+        size_scale = std_columns(size, scratch)
+        sd = std_columns(residual, size)  # |r| is done with: its buffer takes the deviations
         return cls(np.where(size_scale > 0, size_scale, 1.0), np.where(sd > 0, sd, 1.0),
                    noisy_pairs(noisy))
 
