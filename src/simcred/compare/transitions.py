@@ -134,18 +134,23 @@ def _sorted_columns(values: Sequence[np.ndarray], where: Sequence[tuple[np.ndarr
         here, k = slice(at, at + len(rows)), len(rows)
         base = rows * width
         for c in range(width):  # values at t
-            np.take(flat, np.add(base, c, out=index[:k]), out=covariates[c, here], mode="clip")
+            _gather(flat, base, c, index[:k], covariates[c, here])
         for c, f in enumerate(in_j, start=width):  # inputs at t + 1
-            np.take(flat, np.add(base, width + f, out=index[:k]), out=covariates[c, here],
-                    mode="clip")
+            _gather(flat, base, width + f, index[:k], covariates[c, here])
         for r, f in enumerate(out_j):
-            np.take(flat, np.add(base, width + f, out=index[:k]), out=then[:k], mode="clip")
+            _gather(flat, base, width + f, index[:k], then[:k])
             np.subtract(then[:k], covariates[f, here], out=rate[r, here])
             np.divide(rate[r, here], dt, out=rate[r, here])
         at += k
     _reorder(covariates, order)
     _reorder(rate, order)
     return covariates.T, rate.T
+
+
+def _gather(flat: np.ndarray, base: np.ndarray, offset: int, index: np.ndarray,
+            out: np.ndarray) -> None:
+    """``out = flat[base + offset]``, the indices formed in ``index`` (both reused buffers)."""
+    np.take(flat, np.add(base, offset, out=index), out=out, mode="clip")
 
 
 def _reorder(rows: np.ndarray, order: np.ndarray) -> None:

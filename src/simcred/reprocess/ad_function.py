@@ -74,14 +74,10 @@ def resimulation_driver(description: ScenarioDescription, c: ReprocessConfig,
 def recorded_time_gap(description: ScenarioDescription, ego: str, lead: str,
                       driver: DriverConfig, dt: float) -> float | None:
     """The time gap of ``driver``'s ACC whose equilibrium gap is the recorded EGO's gap to
-    ``lead`` (module docs), from their tracks in ``description`` every ``dt`` where both are
-    described; None where the EGO never follows ``lead``."""
-    ego_track, lead_track = description.objects[ego], description.objects[lead]
-    t0, t1 = max(ego_track.t0, lead_track.t0), min(ego_track.t1, lead_track.t1)
-    if t1 < t0:
-        return None
-    t = np.append(np.arange(t0, t1, dt), t1)
-    e, o = ego_track.states(t), lead_track.states(t)
+    ``lead`` (module docs), from their tracks in ``description`` every ``dt`` over its span;
+    None where the EGO never follows ``lead``."""
+    t = description.times(dt)
+    e, o = description.objects[ego].states(t), description.objects[lead].states(t)
     gap = o.x - e.x - driver.vehicle_length
     following = ((gap > 0) & (np.abs(o.y - e.y) < driver.lane_width / 2)
                  & (e.v >= FOLLOWING_SPEED))
