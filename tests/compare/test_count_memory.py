@@ -99,9 +99,11 @@ def test_row_sums_and_matvec_are_float64_exact(monkeypatch, entries):
     assert np.array_equal(matvec(matrix, vector), reference @ vector)
 
 
-@pytest.mark.parametrize("direct_keys", [run_counts.DIRECT_KEYS, 1])  # table, then sort branch
+@pytest.mark.parametrize("sorted_keys, direct_keys", [  # radix, table, then sort branch
+    (run_counts.SORTED_KEYS, run_counts.DIRECT_KEYS), (1, run_counts.DIRECT_KEYS), (1, 1)])
 @pytest.mark.parametrize("exact", [run_counts.EXACT_FLOAT32, 3])  # 3: counts ≥ 3 need float64
-def test_counts_equal_a_literal_count(monkeypatch, direct_keys, exact):
+def test_counts_equal_a_literal_count(monkeypatch, sorted_keys, direct_keys, exact):
+    monkeypatch.setattr(run_counts, "SORTED_KEYS", sorted_keys)
     monkeypatch.setattr(run_counts, "DIRECT_KEYS", direct_keys)
     monkeypatch.setattr(run_counts, "EXACT_FLOAT32", exact)
     monkeypatch.setattr(run_counts, "BLOCK_ROWS", 16)  # several blocks of runs

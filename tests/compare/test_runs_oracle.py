@@ -341,9 +341,9 @@ def test_exact_enumeration_every_split_as_observed_rejects_at_most_alpha(options
 @settings(max_examples=60, deadline=None)
 @given(st.integers(1, 40), st.lists(st.integers(1, 25), min_size=1, max_size=30),
        st.integers(0, 2**32 - 1))
-def test_run_counts_by_table_equal_the_sorted_counts(n_states, lengths, seed):
-    """The lookup-table count (small key spaces, in parts, block by block) gives the sort
-    path's matrix, entry for entry."""
+def test_run_counts_by_radix_and_table_equal_the_sorted_counts(n_states, lengths, seed):
+    """The radix-sorted and the lookup-table counts (small key spaces, in parts, block by
+    block) give the sort path's matrix, entry for entry."""
     rng = np.random.default_rng(seed)
     offsets = np.r_[0, np.cumsum(lengths)]
     codes = np.minimum(rng.geometric(0.3, offsets[-1]) - 1, n_states - 1)
@@ -352,12 +352,15 @@ def test_run_counts_by_table_equal_the_sorted_counts(n_states, lengths, seed):
              (codes[offsets[cut]:], offsets[cut:] - offsets[cut])] if cut else [(codes, offsets)]
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(run_counts, "BLOCK_ROWS", int(rng.integers(1, 40)))
+        radix = run_counts.RunCounts.from_parts(parts, n_states)
+        patch.setattr(run_counts, "SORTED_KEYS", 0)
         table = run_counts.RunCounts.from_parts(parts, n_states)
         patch.setattr(run_counts, "DIRECT_KEYS", 0)
         sorted_ = run_counts.RunCounts.from_codes(codes, offsets, n_states)
-    for name in ("indptr", "indices", "data"):
-        got, want = getattr(table.matrix, name), getattr(sorted_.matrix, name)
-        assert got.dtype == want.dtype and np.array_equal(got, want)
-    for name in ("blocks", "bounds", "successors"):
-        assert np.array_equal(getattr(table, name), getattr(sorted_, name))
+    for counted in (radix, table):
+        for name in ("indptr", "indices", "data"):
+            got, want = getattr(counted.matrix, name), getattr(sorted_.matrix, name)
+            assert got.dtype == want.dtype and np.array_equal(got, want)
+        for name in ("blocks", "bounds", "successors"):
+            assert np.array_equal(getattr(counted, name), getattr(sorted_, name))
 

@@ -10,6 +10,8 @@ from hypothesis import strategies as st
 
 from helpers import ar_set, tied_set
 from simcred.compare import compare, matrix
+from simcred.compare.discretize import StateSpace
+from simcred.compare.encoding import encode
 from simcred.compare.facts import SetFacts
 from simcred.compare.method import Method
 from simcred.compare.process import Prepared, compare_prepared, comparison_options
@@ -90,6 +92,26 @@ def test_joined_counts_equal_counting_the_joined_codes(seed, n_states, sizes):
     assert (got != expected).nnz == 0 and got.shape == expected.shape
     assert np.array_equal(got.indptr, expected.indptr)
     assert np.array_equal(got.indices, expected.indices)
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), rows=st.integers(1, 60), levels=st.integers(1, 6),
+       n_edges=st.lists(st.integers(0, 8), min_size=1, max_size=3))
+def test_codes_by_rank_equal_encoding_the_values(seed, rows, levels, n_edges):
+    """Literal oracle: the codes read through the rank tables are ``encode``'s (a value's bin
+    counts the edges at or below it), on heavy ties, signed zeros and edges equal to values."""
+    rng = np.random.default_rng(seed)
+    values = rng.integers(-levels, levels + 1, (rows, len(n_edges))) * 0.5
+    values[rng.random(values.shape) < 0.2] = -0.0
+    edges = tuple(np.unique(np.r_[rng.choice(values[:, j], n), rng.integers(-4, 5, n) * 0.25])
+                  for j, n in enumerate(n_edges))
+    offsets = np.array([0, rows])
+    prepared = Prepared(values, np.empty(0), offsets, None)
+    space = StateSpace(tuple(f"f{j}" for j in range(len(edges))), edges,
+                       tuple((-9.0, 9.0) for _ in edges))
+    expected = encode(space, values, np.empty(0), offsets).codes
+    got = SortedSet.of(prepared, [2] * len(edges)).codes(edges)
+    assert np.array_equal(got, expected)
 
 
 def test_matrix_of_the_runs_test_equals_pairwise_compare():

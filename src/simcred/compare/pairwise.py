@@ -238,7 +238,7 @@ def _finish(item) -> Comparison:
     if isinstance(other, SortedSet):
         return sorted_sets.compare_sorted(side, other, settings, draw)
     position, counts, first, second, *plan = other
-    mine = sorted_sets.pair_side(side, _plan(*plan), first, second, settings.features)
+    mine = sorted_sets.pair_side(side, _plan(*plan), first, second)
     return sorted_sets.pair_comparison(*((mine, counts) if position == 0 else (counts, mine)),
                                        settings, draw)
 
@@ -258,7 +258,7 @@ def _tallies(item) -> sorted_sets.Tallies:
 
 def _pair_side(item) -> sorted_sets.PairSide:
     side, first, second, *plan = item
-    return sorted_sets.pair_side(side, _plan(*plan), first, second, plan[-1].features)
+    return sorted_sets.pair_side(side, _plan(*plan), first, second)
 
 
 def _default_names(sets: Sequence[SetFacts]) -> list[str]:

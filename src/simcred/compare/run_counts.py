@@ -16,6 +16,8 @@ import scipy.sparse as sp
 
 START = -1  # state code of the start-distribution block
 
+#: Largest key space ``(|S| + 1)·|S|`` whose keys fit 16 bits: counted by a radix sort.
+SORTED_KEYS = 2**16
 #: Largest key space ``(|S| + 1)·|S|`` counted through a lookup table rather than a sort.
 DIRECT_KEYS = 2**22
 #: Rows per block of runs when counting through the lookup table.
@@ -85,6 +87,9 @@ def keyed_counts(parts: Sequence[tuple[np.ndarray, np.ndarray]], n_states: int
     """The (columns × runs) counts of :meth:`RunCounts.from_parts` and the columns' pair keys
     ``(state + 1) · n_states + successor`` (sorted)."""
     size = np.int64(n_states)
+    if (size + 1) * size <= SORTED_KEYS:
+        return joined_counts([_sorted_block_counts(*_block(codes, offsets, lo, hi), int(size))
+                              for codes, offsets in parts for lo, hi in _run_blocks(offsets)])
     if (size + 1) * size > DIRECT_KEYS:
         codes = np.concatenate([c for c, _ in parts])
         starts = np.cumsum([0] + [len(c) for c, _ in parts[:-1]])
@@ -111,17 +116,18 @@ def keyed_counts(parts: Sequence[tuple[np.ndarray, np.ndarray]], n_states: int
     return _stacked(counted), columns
 
 
-def joined_counts(parts: Sequence[tuple[sp.csr_matrix, np.ndarray]]
+def joined_counts(parts: Sequence[tuple[sp.csr_matrix | CompactBlock, np.ndarray]]
                   ) -> tuple[sp.csr_matrix, np.ndarray]:
     """:func:`keyed_counts` of several parts' runs one after the other, from each part's own
     (matrix, columns): the same matrix and columns as counting the joined codes."""
     columns = np.unique(np.concatenate([c for _, c in parts]))
-    placed = []
+    placed: list[sp.csr_matrix | CompactBlock | None] = []
     for matrix, own in parts:
         per_row = np.zeros(len(columns), dtype=np.int64)
         per_row[np.searchsorted(columns, own)] = np.diff(matrix.indptr)
-        placed.append(sp.csr_matrix((matrix.data, matrix.indices, np.r_[0, np.cumsum(per_row)]),
-                                    shape=(len(columns), matrix.shape[1])))
+        placed.append(CompactBlock(np.r_[0, np.cumsum(per_row)], matrix.indices, matrix.data,
+                                   (len(columns), matrix.shape[1])))
+    del parts
     return _stacked(placed), columns
 
 
@@ -162,8 +168,8 @@ def _stacked(matrices: list[sp.csr_matrix | CompactBlock]) -> sp.csr_matrix:
     cursor, first = indptr[:-1].copy(), 0
     for i, counts in enumerate(per_row):
         matrix, matrices[i] = matrices[i], None
-        rows = np.repeat(np.arange(n_rows), counts)
-        at = cursor[rows] + np.arange(matrix.nnz) - matrix.indptr[rows]
+        at = np.repeat(cursor - matrix.indptr[:-1], counts)  # entry k of row r goes to
+        at += np.arange(matrix.nnz)  # cursor[r] + k - indptr[r]
         indices[at] = np.add(matrix.indices, first, dtype=index)
         data[at] = matrix.data
         cursor += counts
@@ -244,6 +250,39 @@ def _block(codes: np.ndarray, offsets: np.ndarray, lo: int, hi: int
            ) -> tuple[np.ndarray, np.ndarray]:
     """The codes and offsets of runs ``lo .. hi - 1`` (views, offsets from 0)."""
     return codes[offsets[lo]:offsets[hi]], offsets[lo:hi + 1] - offsets[lo]
+
+
+def _sorted_block_counts(codes: np.ndarray, offsets: np.ndarray, size: int
+                         ) -> tuple[CompactBlock, np.ndarray]:
+    """The (column × run) counts of one block of runs and its columns' keys, for key spaces of
+    at most :data:`SORTED_KEYS`: the 16-bit keys are radix-sorted (stable, so each key's runs
+    stay in order) and equal (key, run) neighbours counted; no table over the key space and
+    2 bytes a key instead of 8."""
+    n_runs = len(offsets) - 1
+    keys = np.empty(len(codes) - 1, dtype=np.uint16)
+    np.add(codes[:-1], 1, out=keys, casting="unsafe")
+    keys *= np.uint16(size)
+    np.add(keys, codes[1:], out=keys, casting="unsafe")
+    within = np.ones(len(keys), dtype=bool)
+    within[offsets[1:-1] - 1] = False  # a run's last row starts no transition
+    run_index = np.int32 if n_runs < 2**31 else np.int64
+    keys = np.concatenate([codes[offsets[:-1]].astype(np.uint16), keys[within]])
+    runs = np.concatenate([np.arange(n_runs, dtype=run_index),
+                           np.repeat(np.arange(n_runs, dtype=run_index), np.diff(offsets) - 1)])
+    order = np.argsort(keys, kind="stable")
+    keys, runs = keys[order], runs[order]
+    del order
+    new_key = np.ones(len(keys) + 1, dtype=bool)
+    np.not_equal(keys[1:], keys[:-1], out=new_key[1:-1])
+    new_entry = new_key.copy()
+    new_entry[1:-1] |= runs[1:] != runs[:-1]
+    at = np.flatnonzero(new_entry)
+    counts, at = np.diff(at), at[:-1]
+    indptr = np.r_[np.flatnonzero(new_key[at]), len(at)]
+    block = CompactBlock(indptr, runs[at].astype(np.min_scalar_type(max(n_runs - 1, 0))),
+                         counts.astype(np.min_scalar_type(int(counts.max()))), (len(indptr) - 1,
+                                                                                n_runs))
+    return block, keys[at[indptr[:-1]]].astype(np.int64)
 
 
 def _pair_keys(codes: np.ndarray, offsets: np.ndarray, size: np.int64

@@ -36,7 +36,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from simcred.compare.discretize import StateSpace, _check_size
-from simcred.compare.encoding import encode
+from simcred.compare.encoding import code_dtype
 from simcred.compare.process import Prepared
 from simcred.compare.quantiles import EdgePlan, Sketch, Tally, sorted_bin_counts
 from simcred.compare.result import Comparison, ComparisonOptions, InputInfo
@@ -63,22 +63,47 @@ def supports(options: ComparisonOptions) -> bool:
 
 @dataclass(frozen=True, slots=True, eq=False)
 class SortedSet:
-    """A prepared set with every feature's values also sorted, and their sketches."""
+    """A prepared set with every feature's values also sorted, each row's rank in that order,
+    and the sorted values' sketches."""
 
     prepared: Prepared
     ordered: tuple[np.ndarray, ...]
+    ranks: tuple[np.ndarray, ...]
     sketches: tuple[Sketch, ...]
 
     @classmethod
     def of(cls, prepared: Prepared, bins: Sequence[int]) -> SortedSet:
         values = prepared.values
-        ordered = tuple(np.sort(values[:, j]) for j in range(values.shape[1]))
-        return cls(prepared, ordered,
+        index = np.int32 if len(values) < 2**31 else np.int64
+        ordered, ranks = [], []
+        for j in range(values.shape[1]):
+            order = np.argsort(values[:, j])  # ties in any order: they share every bin
+            ordered.append(values[order, j])
+            rank = np.empty(len(order), dtype=index)
+            rank[order] = np.arange(len(order), dtype=index)
+            ranks.append(rank)
+        return cls(prepared, tuple(ordered), tuple(ranks),
                    tuple(Sketch.of_sorted(o, cap=b) for o, b in zip(ordered, bins, strict=True)))
 
     def __sizeof__(self) -> int:
         return object.__sizeof__(self) + self.prepared.__sizeof__() \
-            + sum(o.nbytes for o in self.ordered)
+            + sum(a.nbytes for a in (*self.ordered, *self.ranks))
+
+    def codes(self, candidates: Sequence[np.ndarray]) -> np.ndarray:
+        """The rows' state codes on the grid of ``candidates`` (per feature, a value's bin is
+        the number of edges at or below it: :func:`~simcred.compare.encoding.encode`'s codes),
+        each bin read from a table over the sorted order at the row's rank: no search per row,
+        and 2 bytes a row where the grid has at most 2**16 cells."""
+        shape = [len(c) + 1 for c in candidates]
+        n_states = int(np.prod(shape, dtype=np.int64))
+        dtype = np.uint16 if n_states <= 2**16 else code_dtype(n_states)
+        codes = np.zeros(len(self.prepared.values), dtype=dtype)
+        for c, o, rank, n in zip(candidates, self.ordered, self.ranks, shape, strict=True):
+            below = np.searchsorted(o, c, side="left")  # values under each edge
+            by_rank = np.repeat(np.arange(n, dtype=dtype), np.diff(np.r_[0, below, len(o)]))
+            codes *= dtype(n)
+            codes += by_rank[rank]
+        return codes
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -143,14 +168,12 @@ class PairSide:
                               self.indptr), shape=(len(self.indptr) - 1, self.n_runs))
 
 
-def pair_side(side: SortedSet, plan: PairPlan, a: Tallies, b: Tallies,
-                features: Sequence[str]) -> PairSide:
+def pair_side(side: SortedSet, plan: PairPlan, a: Tallies, b: Tallies) -> PairSide:
     """One set's counts on the pair's candidate edges (from both sets' tallies)."""
     candidates = plan.candidates(a, b)
-    grid = StateSpace(tuple(features), candidates, plan.bounds)
     p = side.prepared
-    codes = encode(grid, p.values, p.time, p.offsets, source=p.info.source).codes
-    matrix, columns = keyed_counts([(codes, p.offsets)], grid.n_states)
+    n_states = int(np.prod([len(c) + 1 for c in candidates], dtype=np.int64))
+    matrix, columns = keyed_counts([(side.codes(candidates), p.offsets)], n_states)
     held = tuple(sorted_bin_counts(c, o) for c, o in zip(candidates, side.ordered, strict=True))
     return PairSide.compact(matrix, columns, held, p.info, candidates, plan.bounds,
                               tuple(p.needs_counts for p in plan.plans))
@@ -178,5 +201,5 @@ def compare_sorted(a: SortedSet, b: SortedSet, options: ComparisonOptions,
     """All steps of one pair in one place (in-process)."""
     plan = PairPlan.of(a.sketches, b.sketches, options.bins)
     tallies = plan.tallies(a), plan.tallies(b)
-    return pair_comparison(pair_side(a, plan, *tallies, options.features),
-                           pair_side(b, plan, *tallies, options.features), options, draw)
+    return pair_comparison(pair_side(a, plan, *tallies), pair_side(b, plan, *tallies), options,
+                           draw)
