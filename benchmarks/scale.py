@@ -157,11 +157,14 @@ def _pair_seconds(paths: list[str], pairs: list[tuple[int, int]], permutations: 
                                   Method.of(None, features=FEATURES, bins=10,
                                             permutations=permutations, seed=0))
     held = {k: pairwise._prepare_sorted((sets[k], settings)) for k in needed}
+    sizes = {k: held[k].prepared.info.runs for k in needed}
+    draws = {(sizes[i], sizes[j]): pairwise._draw((sizes[i], sizes[i] + sizes[j], settings))
+             for i, j in pairs}  # drawn once per size, as the matrix does
     if barrier is not None:
         barrier.wait()
     start = time.perf_counter()
     for i, j in pairs:
-        pairwise._compare_sorted((held[i], held[j], settings))
+        pairwise._compare_sorted((held[i], held[j], settings, draws[sizes[i], sizes[j]]))
     return time.perf_counter() - start
 
 
@@ -169,12 +172,22 @@ def ceiling(paths: list[str], processes: int, permutations: int) -> dict:
     """The pairs' compute alone, dealt round robin to ``processes`` processes that start
     together (no Dask, no transfers, each set read by every process that needs it), against
     all pairs in one process: the speed-up that contention for memory and cores leaves to any
-    scheduler."""
+    scheduler. Every process runs with the Dask workers' thread settings (one BLAS thread:
+    :data:`simcred.engine.WORKER_ENVIRON`), so 16 processes do not start 16 BLAS threads each."""
     import multiprocessing as mp
     from itertools import combinations
+    from unittest import mock
+
+    from simcred.engine import WORKER_ENVIRON
 
     pairs = list(combinations(range(len(paths)), 2))
     context = mp.get_context("spawn")
+    with mock.patch.dict(os.environ, {k: str(v) for k, v in WORKER_ENVIRON.items()}):
+        return _ceiling(context, paths, pairs, processes, permutations)
+
+
+def _ceiling(context, paths: list[str], pairs: list[tuple[int, int]], processes: int,
+             permutations: int) -> dict:
     with context.Pool(1) as pool:
         alone = pool.apply(_pair_seconds, (paths, pairs, permutations))
     manager = context.Manager()
