@@ -77,8 +77,9 @@ class SortedSet:
         index = np.int32 if len(values) < 2**31 else np.int64
         ordered, ranks = [], []
         for j in range(values.shape[1]):
-            order = np.argsort(values[:, j])  # ties in any order: they share every bin
-            ordered.append(values[order, j])
+            column = np.ascontiguousarray(values[:, j])
+            order = np.argsort(column)  # ties in any order: they share every bin
+            ordered.append(column[order])
             rank = np.empty(len(order), dtype=index)
             rank[order] = np.arange(len(order), dtype=index)
             ranks.append(rank)
