@@ -1,5 +1,8 @@
 """Per run, the counts of (state, successor) pairs: the sparse (columns × runs) matrix every
-run-level and response test permutes, counted block by block of runs from the state codes.
+run-level and response test permutes, counted block by block of runs from the state codes:
+by a stable radix sort of 16-bit pair keys where ``(|S| + 1)·|S| ≤ 2**16``, through a table
+over the key space up to :data:`DIRECT_KEYS`, by a sort of int64 keys beyond (all three give
+the same matrix, tested).
 
 The counts are integers stored as float32 (4 bytes per entry instead of 8) wherever every count
 is below 2**24, where float32 holds them exactly; float64 else (:func:`count_dtype`). Sums over

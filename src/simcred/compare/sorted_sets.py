@@ -12,7 +12,9 @@ those edges. Both split by set, exactly:
   binary searches, not passes over the data;
 * the counts by set: the pooled (columns × runs) matrix is the two sets' matrices side by side
   (:func:`~simcred.compare.run_counts.joined_counts`), counted on the candidate edges and
-  relabelled to the final ones as the out-of-core comparison does.
+  relabelled to the final ones as the out-of-core comparison does. A row's bin on a pair's
+  edges is read from a table over the sorted order at the row's rank (kept with the set), so
+  a side costs a gather per feature and a radix sort of 16-bit keys, not a search per row.
 
 So a set is sorted and sketched once, on the worker that holds it; per pair only sketches,
 tallies and the per-run count matrices travel (a few MB instead of two sets), and the pair's
