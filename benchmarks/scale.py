@@ -157,14 +157,13 @@ def _pair_seconds(paths: list[str], pairs: list[tuple[int, int]], permutations: 
                                   Method.of(None, features=FEATURES, bins=10,
                                             permutations=permutations, seed=0))
     held = {k: pairwise._prepare_sorted((sets[k], settings)) for k in needed}
-    sizes = {k: held[k].prepared.info.runs for k in needed}
-    draws = {(sizes[i], sizes[j]): pairwise._draw((sizes[i], sizes[i] + sizes[j], settings))
-             for i, j in pairs}  # drawn once per size, as the matrix does
+    sizes = [(held[i].prepared.info.runs, held[j].prepared.info.runs) for i, j in pairs]
+    draws = pairwise._shared_draws(Engine(), sizes, settings)  # as the matrix draws them
     if barrier is not None:
         barrier.wait()
     start = time.perf_counter()
-    for i, j in pairs:
-        pairwise._compare_sorted((held[i], held[j], settings, draws[sizes[i], sizes[j]]))
+    for (i, j), draw in zip(pairs, draws, strict=True):
+        pairwise._compare_sorted((held[i], held[j], settings, draw))
     return time.perf_counter() - start
 
 

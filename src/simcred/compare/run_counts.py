@@ -130,7 +130,6 @@ def joined_counts(parts: Sequence[tuple[sp.csr_matrix | CompactBlock, np.ndarray
         per_row[np.searchsorted(columns, own)] = np.diff(matrix.indptr)
         placed.append(CompactBlock(np.r_[0, np.cumsum(per_row)], matrix.indices, matrix.data,
                                    (len(columns), matrix.shape[1])))
-    del parts
     return _stacked(placed), columns
 
 
@@ -262,16 +261,8 @@ def _sorted_block_counts(codes: np.ndarray, offsets: np.ndarray, size: int
     stay in order) and equal (key, run) neighbours counted; no table over the key space and
     2 bytes a key instead of 8."""
     n_runs = len(offsets) - 1
-    keys = np.empty(len(codes) - 1, dtype=np.uint16)
-    np.add(codes[:-1], 1, out=keys, casting="unsafe")
-    keys *= np.uint16(size)
-    np.add(keys, codes[1:], out=keys, casting="unsafe")
-    within = np.ones(len(keys), dtype=bool)
-    within[offsets[1:-1] - 1] = False  # a run's last row starts no transition
-    run_index = np.int32 if n_runs < 2**31 else np.int64
-    keys = np.concatenate([codes[offsets[:-1]].astype(np.uint16), keys[within]])
-    runs = np.concatenate([np.arange(n_runs, dtype=run_index),
-                           np.repeat(np.arange(n_runs, dtype=run_index), np.diff(offsets) - 1)])
+    keys, runs = _pair_keys(codes, offsets, size, np.uint16,
+                            np.int32 if n_runs < 2**31 else np.int64)
     order = np.argsort(keys, kind="stable")
     keys, runs = keys[order], runs[order]
     del order
@@ -288,17 +279,21 @@ def _sorted_block_counts(codes: np.ndarray, offsets: np.ndarray, size: int
     return block, keys[at[indptr[:-1]]].astype(np.int64)
 
 
-def _pair_keys(codes: np.ndarray, offsets: np.ndarray, size: np.int64
-               ) -> tuple[np.ndarray, np.ndarray]:
+def _pair_keys(codes: np.ndarray, offsets: np.ndarray, size: int | np.int64,
+               key: type = np.int64, run: type = np.int64) -> tuple[np.ndarray, np.ndarray]:
     """Per start state and per transition: its key ``(from + 1) · |S| + to`` (a start: its
-    state, block START = origin START + 1 = 0) and its run; starts first, run by run."""
+    state, block START = origin START + 1 = 0) and its run, of types ``key`` and ``run`` (that
+    hold them); starts first, run by run."""
     n_runs = len(offsets) - 1
-    starts = codes[offsets[:-1]]
-    keys = (codes[:-1] + 1) * size + codes[1:]
-    keys[offsets[1:-1] - 1] = -1  # a run's last row starts no transition
-    keys = np.concatenate([starts, keys[keys >= 0]])
-    runs = np.concatenate([np.arange(n_runs, dtype=np.int64),
-                           np.repeat(np.arange(n_runs, dtype=np.int64), np.diff(offsets) - 1)])
+    keys = np.empty(len(codes) - 1, dtype=key)
+    np.add(codes[:-1], key(1), out=keys, casting="unsafe")
+    keys *= key(size)
+    np.add(keys, codes[1:], out=keys, casting="unsafe")
+    within = np.ones(len(keys), dtype=bool)
+    within[offsets[1:-1] - 1] = False  # a run's last row starts no transition
+    keys = np.concatenate([codes[offsets[:-1]].astype(key), keys[within]])
+    runs = np.concatenate([np.arange(n_runs, dtype=run),
+                           np.repeat(np.arange(n_runs, dtype=run), np.diff(offsets) - 1)])
     return keys, runs
 
 

@@ -97,16 +97,21 @@ class SortedSet:
         the number of edges at or below it: :func:`~simcred.compare.encoding.encode`'s codes),
         each bin read from a table over the sorted order at the row's rank: no search per row,
         and 2 bytes a row where the grid has at most 2**16 cells."""
-        shape = [len(c) + 1 for c in candidates]
-        n_states = int(np.prod(shape, dtype=np.int64))
+        n_states = grid_states(candidates)
         dtype = np.uint16 if n_states <= 2**16 else code_dtype(n_states)
         codes = np.zeros(len(self.prepared.values), dtype=dtype)
-        for c, o, rank, n in zip(candidates, self.ordered, self.ranks, shape, strict=True):
+        for c, o, rank in zip(candidates, self.ordered, self.ranks, strict=True):
             below = np.searchsorted(o, c, side="left")  # values under each edge
-            by_rank = np.repeat(np.arange(n, dtype=dtype), np.diff(np.r_[0, below, len(o)]))
-            codes *= dtype(n)
+            by_rank = np.repeat(np.arange(len(c) + 1, dtype=dtype),
+                                np.diff(np.r_[0, below, len(o)]))
+            codes *= dtype(len(c) + 1)
             codes += by_rank[rank]
         return codes
+
+
+def grid_states(candidates: Sequence[np.ndarray]) -> int:
+    """Cells of the grid whose edges per feature are ``candidates``."""
+    return int(np.prod([len(c) + 1 for c in candidates], dtype=np.int64))
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -175,8 +180,8 @@ def pair_side(side: SortedSet, plan: PairPlan, a: Tallies, b: Tallies) -> PairSi
     """One set's counts on the pair's candidate edges (from both sets' tallies)."""
     candidates = plan.candidates(a, b)
     p = side.prepared
-    n_states = int(np.prod([len(c) + 1 for c in candidates], dtype=np.int64))
-    matrix, columns = keyed_counts([(side.codes(candidates), p.offsets)], n_states)
+    matrix, columns = keyed_counts([(side.codes(candidates), p.offsets)],
+                                   grid_states(candidates))
     held = tuple(sorted_bin_counts(c, o) for c, o in zip(candidates, side.ordered, strict=True))
     return PairSide.compact(matrix, columns, held, p.info, candidates, plan.bounds,
                               tuple(p.needs_counts for p in plan.plans))
