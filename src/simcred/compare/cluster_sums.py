@@ -114,6 +114,17 @@ class ClusterSums:
     def deviation(self, weights: np.ndarray) -> dict[str, np.ndarray]:
         """(features, replicates) plug-in and bias-corrected squared deviations and shifts, each
         cluster counted ``weights[cluster, r]`` times in replicate ``r``."""
+        out = {name: np.zeros((self.features, weights.shape[1]))
+               for name in ("plugin", "squared", "shift")}
+        for j, c in enumerate(self.components(weights)):
+            plugin = c.d_mean**2 + c.d_sd**2
+            out["plugin"][j] = (c.w * plugin).sum(axis=0)
+            out["squared"][j] = (c.w * (plugin - (c.var_mean + c.var_sd))).sum(axis=0)
+            out["shift"][j] = (c.w_shift * c.shift).sum(axis=0)
+        return out
+
+    def components(self, weights: np.ndarray) -> list[StateComponents]:
+        """Per feature, the per-(state, replicate) terms :meth:`deviation` sums."""
         r = weights.shape[1]
         q = np.asarray(self.matrix @ weights).reshape(-1, self.n_states, r)
         drawn = np.asarray(self.visits @ (weights > 0)).reshape(self.n_states, 2, r)
@@ -129,7 +140,7 @@ class ClusterSums:
         w, w_shift = (normalised(np.where(keep, 0.5 * (count[0] / total[0]
                                                          + count[1] / total[1]), 0.0))
                       for keep in (usable, present))
-        out = {name: np.zeros((self.features, r)) for name in ("plugin", "squared", "shift")}
+        out = []
         with np.errstate(invalid="ignore", divide="ignore"):
             inflate = [1.0 / (1.0 - np.minimum(get("NN", k) / count[k]**2, 1.0))
                        for k in (0, 1)]  # leverage correction of the cluster variance
@@ -143,16 +154,28 @@ class ClusterSums:
                     var_mean = var_mean - 2 * cov_mean
                     rho = np.clip(cov_var / np.sqrt(a["var_v"] * b["var_v"]), -1.0, 1.0)
                     var_sd = var_sd - 2 * np.nan_to_num(rho) * np.sqrt(a["var_sd"] * b["var_sd"])
-                d_mean = np.where(usable, a["mean"] - b["mean"], 0.0)
-                d_sd = np.where(usable, a["sd"] - b["sd"], 0.0)
-                plugin = d_mean**2 + d_sd**2
-                noise = np.where(usable, np.maximum(var_mean, 0.0) + np.maximum(var_sd, 0.0),
-                                 0.0)
-                out["plugin"][j] = (w * plugin).sum(axis=0)
-                out["squared"][j] = (w * (plugin - noise)).sum(axis=0)
-                out["shift"][j] = (w_shift * np.where(present, a["mean"] - b["mean"], 0.0)
-                                   ).sum(axis=0)
+                out.append(StateComponents(
+                    w, w_shift, np.where(usable, a["mean"] - b["mean"], 0.0),
+                    np.where(usable, a["sd"] - b["sd"], 0.0),
+                    np.where(usable, np.maximum(var_mean, 0.0), 0.0),
+                    np.where(usable, np.maximum(var_sd, 0.0), 0.0),
+                    np.where(present, a["mean"] - b["mean"], 0.0)))
         return out
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class StateComponents:
+    """One feature's (states, replicates) terms of the deviation: the state weights of ``θ``
+    and of the shift, the mean and standard-deviation differences (0 where a state is not
+    usable), their cluster variances (the noise ``θ̃`` subtracts) and the shift's difference."""
+
+    w: np.ndarray
+    w_shift: np.ndarray
+    d_mean: np.ndarray
+    d_sd: np.ndarray
+    var_mean: np.ndarray
+    var_sd: np.ndarray
+    shift: np.ndarray
 
 
 def _visits(row: np.ndarray, cluster: np.ndarray, n_rows: int, n_clusters: int
