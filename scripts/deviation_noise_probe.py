@@ -8,15 +8,23 @@ each (``Σ w V̂_μ``, ``Σ w V̂_σ``: cluster variances, the delta method for 
 deviation). Under the same law (kind ``none``) the plug-in is all noise, so the mean of each
 part over the replications is the sampling noise its ``V̂`` should match.
 
+Per class of units (on the side with fewer), the standard deviation's part against three
+variances of its difference: shipped (delta method, pair covariance subtracted), without the
+pair covariance, and without it but with the variance ``2 V̂_μ²`` of the quadratic term
+``(μ̂ − μ)²`` of each side's ``v̂`` (:meth:`ClusterSums.components`).
+
 ``--coverage``: besides, the 90 % / 95 % coverage of the true squared deviation (TRUTH: the
 values of benchmarks/results/response_coverage.json) by the shipped interval and by a
-test-inversion interval — ``X ~ N(δ, V̂)`` per state and moment, ``δ`` allocated as the
-bias-corrected squares ``max(X² − V̂, 0)`` scaled to the candidate ``θ``, the plug-in's law
-from 4,000 normal draws — and how often each would declare equivalence at the true deviation
-(its one-sided 95 % upper bound below it: must be ≤ 0.05).
+test-inversion interval with each of the three variances — ``X ~ N(δ, V)`` per state and
+moment, ``δ`` allocated as the bias-corrected squares ``max(X² − V, 0)`` scaled to the
+candidate ``θ``, the plug-in's law from 4,000 normal draws — and how often each would declare
+equivalence at the true deviation (its one-sided 95 % upper bound below it: must be ≤ 0.05).
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/deviation_noise_probe.py --coverage \
         --reps 200 --out benchmarks/results/deviation_noise_probe.json
+
+``--truth``: instead, the true deviation each noise correction defines (``√(mean θ̃)`` over
+``--reps`` draws of ``--runs`` pairs, as response_coverage.py computes the shipped one).
 """
 
 from __future__ import annotations
@@ -38,6 +46,10 @@ from simcred.compare import conditional, effect  # noqa: E402
 from simcred.compare.cluster_sums import ClusterSums, Entries  # noqa: E402
 
 RESPONSES = ("dv", "a")  # gap and v are kinematic consequences here (deviation ~1e-15)
+#: The variances of the differences compared: (key in the terms, label).
+ESTIMATES = (("v", "shipped"), ("v_nocov", "no_covariance"), ("v_second", "second_order"))
+UNIT_CLASSES = (("2", 2, 2), ("3", 3, 3), ("4", 4, 4), ("5-6", 5, 6), ("7-10", 7, 10),
+                ("11+", 11, 10**9))
 TRUTH = {"none": {"dv": 0.0, "a": 0.0},
          "variance": {"dv": 0.034591484297009735, "a": 0.07457864023300198},
          "delay": {"dv": 0.06260837378919096, "a": 0.04740284923211059},
@@ -52,18 +64,51 @@ def recording(into: list):
         out = shipped(data, design, *args, **kwargs)
         entries = Entries.of(data, design)
         sums = ClusterSums.of(entries, entries.entering())
-        observed = sums.components(np.ones((entries.n_clusters, 1)))
-        into.append({f.feature: (f, {"a": np.r_[o.w[:, 0], o.w[:, 0]],
-                                     "x": np.r_[o.d_mean[:, 0], o.d_sd[:, 0]],
-                                     "v": np.r_[o.var_mean[:, 0], o.var_sd[:, 0]]})
-                     for f, o in zip(out.features, observed, strict=True)})
+        ones = np.ones((entries.n_clusters, 1))
+        units = np.asarray(sums.visits.sum(axis=1)).reshape(-1, 2).min(axis=1)
+        into.append({f.feature: (f, _terms(o, n, q, units)) for f, o, n, q in zip(
+            out.features, sums.components(ones), sums.components(ones, pair_covariance=False),
+            sums.components(ones, pair_covariance=False, second_order=True), strict=True)})
         return out
     return wrapped
 
 
-def inverted(t: dict, level: float, rng) -> tuple[float, float]:
-    """The test-inversion interval of θ (module docs) at ``level``."""
-    a, x, v = t["a"], t["x"], t["v"]
+def _terms(shipped, no_covariance, second, units) -> dict[str, np.ndarray]:
+    """Per state and moment (means, then standard deviations): weight, difference and the
+    shipped variances; the same with the standard deviation's variance without the pair
+    members' covariance, and with the second-order term too (the mean's as shipped); per state
+    the units of the side with fewer."""
+    w = shipped.w[:, 0]
+    return {"a": np.r_[w, w], "x": np.r_[shipped.d_mean[:, 0], shipped.d_sd[:, 0]],
+            "v": np.r_[shipped.var_mean[:, 0], shipped.var_sd[:, 0]],
+            "v_nocov": np.r_[shipped.var_mean[:, 0], no_covariance.var_sd[:, 0]],
+            "v_second": np.r_[shipped.var_mean[:, 0], second.var_sd[:, 0]],
+            "units": units}
+
+
+def by_units(terms: list) -> dict[str, dict[str, float]]:
+    """The standard-deviation part per class of units (on the side with fewer): its weight,
+    ``Σ w Δσ̂²`` and each variance's share of it (1 = the noise matches, under the same law)."""
+    out = {}
+    for label, lo, hi in UNIT_CLASSES:
+        rows = []
+        for t in terms:
+            half = len(t["a"]) // 2
+            keep = (t["units"] >= lo) & (t["units"] <= hi) & (t["a"][:half] > 0)
+            a = t["a"][half:][keep]
+            rows.append([a.sum(), (a * t["x"][half:][keep]**2).sum()]
+                        + [(a * t[v][half:][keep]).sum() for v, _ in ESTIMATES])
+        weight, plugin, *noise = np.mean(rows, axis=0)
+        if weight > 0.01:
+            out[label] = {"weight": float(weight), "plugin_sd": float(plugin)} | {
+                label: float(n / plugin) for (_, label), n in zip(ESTIMATES, noise, strict=True)}
+    return out
+
+
+def inverted(t: dict, level: float, rng, variance: str = "v") -> tuple[float, float]:
+    """The test-inversion interval of θ (module docs) at ``level``, with the variances of
+    ``variance`` (a key of :data:`ESTIMATES`)."""
+    a, x, v = t["a"], t["x"], t[variance]
     observed = float((a * x**2).sum())
     share = np.maximum(x**2 - v, 0.0)
     share = share if (a * share).sum() > 0 else v.copy()
@@ -88,32 +133,79 @@ def _root(f, top: float, target: float) -> float:
     return 0.5 * (lo + hi)
 
 
-def summary(kind: str, rows: list, coverage: bool, rng) -> dict:
+def bracketed(path: str) -> dict[str, dict[str, float]]:
+    """True deviations with each correction's own same-law offset removed: per kind and
+    response, the mean over the corrections of ``√(θ_kind − θ_none)`` (``--truth`` output)."""
+    table = json.loads(Path(path).read_text())["table"]
+    out = {}
+    for kind, cells in table.items():
+        if kind == "none":
+            continue
+        out[kind] = {name: float(np.mean([np.sqrt(max(
+            cell[f"{label}_squared"] - table["none"][name][f"{label}_squared"], 0.0))
+            for _, label in ESTIMATES])) for name, cell in cells.items()}
+    return out
+
+
+def summary(kind: str, rows: list, coverage: bool, rng, other: dict | None = None) -> dict:
+    """Noise terms per moment and class of units; with ``coverage``, each interval's coverage
+    of the true deviation (and of ``other``, bracketed truths per response, if given), its
+    misses low, and its equivalence declarations at the truth."""
     out = {}
     for name in RESPONSES:
         terms = [r[name][1] for r in rows]
         cell = {}
         for moment, part in (("mean", slice(None, None, 2)), ("sd", slice(1, None, 2))):
-            for key, value in (("plugin", lambda t: t["x"]**2), ("noise", lambda t: t["v"])):
+            for key, value in (("plugin", lambda t: t["x"]**2), ("noise", lambda t: t["v"]),
+                               ("noise_second_order", lambda t: t["v_second"])):
                 cell[f"{key}_{moment}"] = float(np.mean(
                     [(t["a"] * value(t)).reshape(2, -1)[part].sum() for t in terms]))
         if coverage:
-            truth = TRUTH[kind][name] ** 2
+            truths_here = {"": TRUTH[kind][name]} | ({"other_": other[name]} if other else {})
             for level in (0.90, 0.95):
-                shipped = [r[name][0].bounds((1 - level) / 2) for r in rows]
-                inverse = [inverted(t, level, rng) for t in terms]
-                cell[f"shipped_{level}"] = float(np.mean([lo**2 <= truth <= hi**2
-                                                          for lo, hi in shipped]))
-                cell[f"inverted_{level}"] = float(np.mean([lo <= truth <= hi
-                                                           for lo, hi in inverse]))
-                cell[f"inverted_low_above_{level}"] = float(np.mean([lo > truth
-                                                                     for lo, _ in inverse]))
-            cell["inverted_equivalent_at_truth"] = float(np.mean(
-                [inverted(t, 0.90, rng)[1] < truth for t in terms]))
-            cell["shipped_equivalent_at_truth"] = float(np.mean(
-                [r[name][0].upper < TRUTH[kind][name] for r in rows]))
-        out[name] = cell
+                methods = {"shipped": [np.square(r[name][0].bounds((1 - level) / 2))
+                                       for r in rows]}
+                methods |= {f"inverted_{label}": [inverted(t, level, rng, variance)
+                                                  for t in terms]
+                            for variance, label in ESTIMATES}
+                for method, bounds in methods.items():
+                    for prefix, truth in truths_here.items():
+                        t2 = truth**2
+                        cell[f"{method}_{prefix}{level}"] = float(np.mean(
+                            [lo <= t2 <= hi for lo, hi in bounds]))
+                        cell[f"{method}_{prefix}low_above_{level}"] = float(np.mean(
+                            [lo > t2 for lo, _ in bounds]))
+                        if level == 0.90:  # its high end is the one-sided 95 % upper bound
+                            cell[f"{method}_{prefix}equivalent_at_truth"] = float(np.mean(
+                                [hi < t2 for _, hi in bounds]))
+            if other:
+                cell["other_truth"] = other[name]
         print(kind, name, json.dumps({k: round(v, 4) for k, v in cell.items()}), flush=True)
+        cell["by_units"] = by_units(terms)
+        print("  by units (sd part; variance / Σ w Δσ̂²):", json.dumps(
+            {k: {m: round(x, 3) for m, x in v.items()} for k, v in cell["by_units"].items()}),
+            flush=True)
+        out[name] = cell
+    return out
+
+
+def truths(kind: str, rows: list) -> dict:
+    """Per response, ``√(mean θ̃)`` over the draws with each variance of :data:`ESTIMATES`
+    (θ̃ = plug-in less the noise), with its standard error: the true deviation that each noise
+    correction would define (``--truth``)."""
+    out = {}
+    for name in RESPONSES:
+        cell = {}
+        for variance, label in ESTIMATES:
+            squared = [float((t["a"] * (t["x"]**2 - t[variance])).sum())
+                       for t in (r[name][1] for r in rows)]
+            mean = float(np.mean(squared))
+            cell[label] = float(np.sqrt(max(mean, 0.0)))
+            cell[f"{label}_squared"] = mean
+            cell[f"{label}_squared_se"] = float(np.std(squared, ddof=1) / np.sqrt(len(rows)))
+        out[name] = cell
+        print(kind, name, "truth", json.dumps({k: round(v, 6) for k, v in cell.items()}),
+              flush=True)
     return out
 
 
@@ -124,21 +216,30 @@ def main(argv=None):
     parser.add_argument("--runs", type=int, default=40)
     parser.add_argument("--bootstrap", type=int, default=500)
     parser.add_argument("--coverage", action="store_true")
+    parser.add_argument("--truth", action="store_true",
+                        help="the true deviation under each noise correction instead: --reps "
+                             "draws of --runs pairs, seeds 10**6 + i as response_coverage.py's")
+    parser.add_argument("--bracketed", default=None, metavar="TRUTH_JSON",
+                        help="--coverage also scores the shipped interval against the "
+                             "bracketed truths of a --truth output (see bracketed())")
     parser.add_argument("--out", default="deviation_noise_probe.json")
     args = parser.parse_args(argv)
     table = {}
+    other = bracketed(args.bracketed) if args.bracketed else {}
     for kind in args.kinds.split(","):
         rows: list = []
         effect_call = conditional.response_effects
         try:
             conditional.response_effects = recording(rows)
             for rep in range(args.reps):
-                d = defect(np.random.default_rng(rep), kind, runs=args.runs)
-                response_coverage.effects(d, rep, args.bootstrap)
+                seed = 10**6 + rep if args.truth else rep
+                d = defect(np.random.default_rng(seed), kind, runs=args.runs)
+                response_coverage.effects(d, rep, 2 if args.truth else args.bootstrap)
         finally:
             conditional.response_effects = effect_call
-        table[kind] = summary(kind, rows, args.coverage and kind != "none",
-                              np.random.default_rng(123))
+        table[kind] = truths(kind, rows) if args.truth else summary(
+            kind, rows, args.coverage and kind != "none", np.random.default_rng(123),
+            other.get(kind))
     Path(args.out).write_text(json.dumps({"args": vars(args), "table": table}, indent=1))
 
 

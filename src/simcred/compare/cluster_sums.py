@@ -123,8 +123,12 @@ class ClusterSums:
             out["shift"][j] = (c.w_shift * c.shift).sum(axis=0)
         return out
 
-    def components(self, weights: np.ndarray) -> list[StateComponents]:
-        """Per feature, the per-(state, replicate) terms :meth:`deviation` sums."""
+    def components(self, weights: np.ndarray, pair_covariance: bool = True,
+                   second_order: bool = False) -> list[StateComponents]:
+        """Per feature, the per-(state, replicate) terms :meth:`deviation` sums. For
+        scripts/deviation_noise_probe.py: ``pair_covariance=False`` leaves the pair members'
+        covariance out of the variances, ``second_order=True`` adds to each side's variance of
+        ``v̂`` the variance ``2 V̂_μ²`` of its quadratic term ``(μ̂ − μ)²``."""
         r = weights.shape[1]
         q = np.asarray(self.matrix @ weights).reshape(-1, self.n_states, r)
         drawn = np.asarray(self.visits @ (weights > 0)).reshape(self.n_states, 2, r)
@@ -145,11 +149,11 @@ class ClusterSums:
             inflate = [1.0 / (1.0 - np.minimum(get("NN", k) / count[k]**2, 1.0))
                        for k in (0, 1)]  # leverage correction of the cluster variance
             for j in range(self.features):
-                sides = [_side_moments(get, count[k], inflate[k], k, j) for k in (0, 1)]
-                a, b = sides
+                a, b = [_side_moments(get, count[k], inflate[k], k, j, second_order)
+                        for k in (0, 1)]
                 var_mean = a["var_mean"] + b["var_mean"]
                 var_sd = a["var_sd"] + b["var_sd"]
-                if self.pairs:  # the two members of a pair are resampled together
+                if self.pairs and pair_covariance:  # the members are resampled together
                     cov_mean, cov_var = _pair_covariances(get, count, inflate, a, b, j)
                     var_mean = var_mean - 2 * cov_mean
                     rho = np.clip(cov_var / np.sqrt(a["var_v"] * b["var_v"]), -1.0, 1.0)
@@ -217,8 +221,10 @@ def _product_spec(j: int, pairs: bool) -> list[tuple[tuple, tuple[int, int],
     return out
 
 
-def _side_moments(get, n, inflate, k, j) -> dict[str, np.ndarray]:
-    """Mean, standard deviation and their cluster variances of one side in every state."""
+def _side_moments(get, n, inflate, k, j, second_order: bool = False
+                  ) -> dict[str, np.ndarray]:
+    """Mean, standard deviation and their cluster variances of one side in every state
+    (``second_order``: :meth:`ClusterSums.components`)."""
     mean = get("S1", k, j) / n
     var = np.maximum(get("S2", k, j) / n - mean**2, 0.0)
     nn, ns1, ns2 = get("NN", k), get("NS1", k, j), get("NS2", k, j)
@@ -229,7 +235,8 @@ def _side_moments(get, n, inflate, k, j) -> dict[str, np.ndarray]:
     var_mean = np.maximum(s11 - 2 * mean * ns1 + mean**2 * nn, 0.0) / n**2 * inflate
     var_v = np.maximum(s22 + a**2 * s11 + b**2 * nn + 2 * a * s12 + 2 * b * ns2
                        + 2 * a * b * ns1, 0.0) / n**2 * inflate
-    var_sd = np.minimum(var_v / (4 * var), var)  # delta method, at most the variance itself
+    spread_v = var_v + 2 * var_mean**2 if second_order else var_v
+    var_sd = np.minimum(spread_v / (4 * var), var)  # delta method, at most the variance itself
     return {"mean": mean, "sd": np.sqrt(var), "var_mean": var_mean, "var_v": var_v,
             "var_sd": np.nan_to_num(var_sd), "a": a, "b": b}
 
