@@ -220,7 +220,7 @@ def main(argv=None):
                         help="the true deviation under each noise correction instead: --reps "
                              "draws of --runs pairs, seeds 10**6 + i as response_coverage.py's")
     parser.add_argument("--bracketed", default=None, metavar="TRUTH_JSON",
-                        help="--coverage also scores the shipped interval against the "
+                        help="--coverage also scores every interval against the "
                              "bracketed truths of a --truth output (see bracketed())")
     parser.add_argument("--out", default="deviation_noise_probe.json")
     args = parser.parse_args(argv)

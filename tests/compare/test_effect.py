@@ -41,9 +41,10 @@ def _paired(units_a: int) -> Design:
                   tuple(f"A:{i}" for i in range(units_a)) + tuple(f"B:{i}" for i in range(units_a)))
 
 
-def _literal(cells, units_a: int, pairs: bool, weight=None):
+def _literal(cells, units_a: int, pairs: bool, weight=None, pair_covariance=True,
+             second_order=False):
     """θ̂, θ̃ and shift written out transition by transition (``weight[u]``: times unit ``u``
-    is drawn; a pair's members share it)."""
+    is drawn; a pair's members share it; the last two: :meth:`ClusterSums.components`)."""
     weight = weight or {}
 
     def w(u):
@@ -68,7 +69,10 @@ def _literal(cells, units_a: int, pairs: bool, weight=None):
         a, b = sides
         share = 0.5 * (a["n"] / total[0] + b["n"] / total[1])
         d_mean, d_sd = a["mean"] - b["mean"], a["sd"] - b["sd"]
-        if pairs:  # a pair's two members enter one cluster
+        side_mean_var = [m["lev"] * sum(w(u) * p**2 for u, p in m["psi_m"].items())
+                         for m in sides]
+        extra = [2 * v**2 if second_order else 0.0 for v in side_mean_var]
+        if pairs and pair_covariance:  # a pair's two members enter one cluster
             clusters = range(units_a)
 
             def pair(key, c, a=a, b=b):
@@ -80,15 +84,14 @@ def _literal(cells, units_a: int, pairs: bool, weight=None):
             va = sum(w(c) * pair("psi_v", c)[0] ** 2 for c in clusters)
             vb = sum(w(c) * pair("psi_v", c)[1] ** 2 for c in clusters)
             cov = sum(w(c) * pa * pb for c in clusters for pa, pb in [pair("psi_v", c)])
-            sd_a = min(va / (4 * a["var"]), a["var"])
-            sd_b = min(vb / (4 * b["var"]), b["var"])
+            sd_a = min((va + extra[0]) / (4 * a["var"]), a["var"])
+            sd_b = min((vb + extra[1]) / (4 * b["var"]), b["var"])
             rho = max(-1.0, min(1.0, cov / (va * vb) ** 0.5)) if va * vb > 0 else 0.0
             v_sd = sd_a + sd_b - 2 * rho * (sd_a * sd_b) ** 0.5
         else:
-            v_mean = sum(m["lev"] * sum(w(u) * p**2 for u, p in m["psi_m"].items())
-                         for m in sides)
-            v_sd = sum(min(m["lev"] * sum(w(u) * p**2 for u, p in m["psi_v"].items())
-                           / (4 * m["var"]), m["var"]) for m in sides)
+            v_mean = sum(side_mean_var)
+            v_sd = sum(min((m["lev"] * sum(w(u) * p**2 for u, p in m["psi_v"].items()) + e)
+                           / (4 * m["var"]), m["var"]) for m, e in zip(sides, extra, strict=True))
         plugin += share * (d_mean**2 + d_sd**2)
         corrected += share * (d_mean**2 + d_sd**2 - v_mean - v_sd)
         shift += share * d_mean
@@ -117,6 +120,29 @@ def test_literal_oracle_on_a_tiny_case(pairs):
     assert replicate["plugin"][0, 0] == pytest.approx(plugin, rel=1e-12)
     assert replicate["squared"][0, 0] == pytest.approx(corrected, rel=1e-12)
     assert replicate["shift"][0, 0] == pytest.approx(shift, rel=1e-12)
+
+
+@pytest.mark.parametrize("pairs", [False, True])
+@pytest.mark.parametrize(("pair_covariance", "second_order"),
+                         [(True, False), (False, False), (True, True), (False, True)])
+def test_components_match_the_literal_variances(pairs, pair_covariance, second_order):
+    """The per-state terms, summed as ``deviation`` sums them, give the literal ``θ̃`` with and
+    without the pair covariance and the second-order term of the variance."""
+    data = _transitions(TINY)
+    design = _paired(2) if pairs else runs_design(2, 2)
+    entries = Entries.of(data, design)
+    sums = ClusterSums.of(entries, entries.entering())
+    (c,) = sums.components(np.ones((entries.n_clusters, 1)), pair_covariance, second_order)
+    corrected = float((c.w * (c.d_mean**2 + c.d_sd**2 - c.var_mean - c.var_sd)).sum())
+    _, literal, _ = _literal(TINY, 2, pairs, pair_covariance=pair_covariance,
+                             second_order=second_order)
+    assert corrected == pytest.approx(literal, rel=1e-12, abs=1e-15)
+    if (pair_covariance, second_order) != (True, False):  # the option changes the number
+        (shipped,) = sums.components(np.ones((entries.n_clusters, 1)))
+        shipped_value = float((shipped.w * (shipped.d_mean**2 + shipped.d_sd**2
+                                            - shipped.var_mean - shipped.var_sd)).sum())
+        assert (corrected != pytest.approx(shipped_value, rel=1e-9)) or (
+            not pairs and not second_order)
 
 
 @pytest.mark.parametrize("pairs", [False, True])
