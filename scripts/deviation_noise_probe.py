@@ -23,6 +23,10 @@ equivalence at the true deviation (its one-sided 95 % upper bound below it: must
     OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/deviation_noise_probe.py --coverage \
         --reps 200 --out benchmarks/results/deviation_noise_probe.json
 
+``--per-state``: instead, per state code visited in most replications, the two standard
+deviations' variances and covariance over the replications against the means of their
+estimates (delta method, its second-order term, the members' covariance).
+
 ``--truth``: instead, the true deviation each noise correction defines (``√(mean θ̃)`` over
 ``--reps`` draws of ``--runs`` pairs, as response_coverage.py computes the shipped one).
 """
@@ -43,7 +47,12 @@ import response_coverage  # noqa: E402
 
 from response_designs import defect  # noqa: E402
 from simcred.compare import conditional, effect  # noqa: E402
-from simcred.compare.cluster_sums import ClusterSums, Entries  # noqa: E402
+from simcred.compare.cluster_sums import (  # noqa: E402
+    ClusterSums,
+    Entries,
+    _pair_covariances,
+    _side_moments,
+)
 
 RESPONSES = ("dv", "a")  # gap and v are kinematic consequences here (deviation ~1e-15)
 #: The variances of the differences compared: (key in the terms, label).
@@ -189,6 +198,69 @@ def summary(kind: str, rows: list, coverage: bool, rng, other: dict | None = Non
     return out
 
 
+def per_state_recording(into: dict):
+    """``response_effects`` that also appends, per entering state code and response, each
+    side's standard deviation and its delta-method variance (first order, the second-order
+    term), the members' covariance estimate and the units on the side with fewer."""
+    shipped = effect.response_effects
+
+    def wrapped(data, design, *args, **kwargs):
+        out = shipped(data, design, *args, **kwargs)
+        entries = Entries.of(data, design)
+        keep = entries.entering()
+        sums = ClusterSums.of(entries, keep)
+        q = np.asarray(sums.matrix @ np.ones((entries.n_clusters, 1))).reshape(
+            -1, sums.n_states, 1)[..., 0]
+
+        def get(*name):
+            return q[sums.column[name]]
+
+        count = [get("N", k) for k in (0, 1)]
+        inflate = [1.0 / (1.0 - np.minimum(get("NN", k) / count[k]**2, 1.0)) for k in (0, 1)]
+        units = np.asarray(sums.visits.sum(axis=1)).reshape(-1, 2).min(axis=1)
+        for j, name in enumerate(f.feature for f in out.features):
+            a, b = [_side_moments(get, count[k], inflate[k], k, j) for k in (0, 1)]
+            cov = _pair_covariances(get, count, inflate, a, b, j)[1] / (4 * a["sd"] * b["sd"])
+            for i, code in enumerate(np.unique(data.state)[keep]):
+                into.setdefault((name, int(code)), []).append(
+                    [units[i]] + [m["sd"][i] for m in (a, b)]
+                    + [m["var_v"][i] / (4 * m["sd"][i]**2) for m in (a, b)]
+                    + [2 * m["var_mean"][i]**2 / (4 * m["sd"][i]**2) for m in (a, b)] + [cov[i]])
+        return out
+    return wrapped
+
+
+def per_state(records: dict, reps: int) -> dict:
+    """Per class of units: the standard deviations' variances and covariance over the
+    replications of each state code visited in ≥ 60 % of them, against the means of the
+    estimates (the states' edges move a little between replications: the empirical values
+    are, if anything, too large)."""
+    out = {}
+    for name in RESPONSES:
+        rows = []
+        for (feature, _), values in records.items():
+            v = np.array(values)
+            if feature != name or len(v) < 0.6 * reps:
+                continue
+            empirical = np.cov(v[:, 1], v[:, 2])
+            rows.append([np.median(v[:, 0]), empirical[0, 0] + empirical[1, 1],
+                         empirical[0, 1], v[:, 3].mean() + v[:, 4].mean(),
+                         v[:, 5].mean() + v[:, 6].mean(), v[:, 7].mean()])
+        rows = np.array(rows)
+        cell = {}
+        for label, lo, hi in (("2-3", 2, 3), ("4-6", 4, 6), ("7+", 7, 10**9)):
+            here = rows[(rows[:, 0] >= lo) & (rows[:, 0] <= hi)]
+            if len(here):
+                r = here.mean(axis=0)
+                cell[label] = {"states": len(here), "variances": r[1], "covariance": r[2],
+                               "variances_first_order": r[3], "second_order_term": r[4],
+                               "covariance_estimate": r[5]}
+        out[name] = cell
+        print(name, "per state", json.dumps({k: {m: round(x, 6) for m, x in v.items()}
+                                             for k, v in cell.items()}), flush=True)
+    return out
+
+
 def truths(kind: str, rows: list) -> dict:
     """Per response, ``√(mean θ̃)`` over the draws with each variance of :data:`ESTIMATES`
     (θ̃ = plug-in less the noise), with its standard error: the true deviation that each noise
@@ -219,6 +291,9 @@ def main(argv=None):
     parser.add_argument("--truth", action="store_true",
                         help="the true deviation under each noise correction instead: --reps "
                              "draws of --runs pairs, seeds 10**6 + i as response_coverage.py's")
+    parser.add_argument("--per-state", action="store_true",
+                        help="instead: per state code, the standard deviations' variances and "
+                             "covariance over the replications against their estimates")
     parser.add_argument("--bracketed", default=None, metavar="TRUTH_JSON",
                         help="--coverage also scores every interval against the "
                              "bracketed truths of a --truth output (see bracketed())")
@@ -228,15 +303,20 @@ def main(argv=None):
     other = bracketed(args.bracketed) if args.bracketed else {}
     for kind in args.kinds.split(","):
         rows: list = []
+        records: dict = {}
         effect_call = conditional.response_effects
         try:
-            conditional.response_effects = recording(rows)
+            conditional.response_effects = per_state_recording(records) if args.per_state \
+                else recording(rows)
             for rep in range(args.reps):
                 seed = 10**6 + rep if args.truth else rep
                 d = defect(np.random.default_rng(seed), kind, runs=args.runs)
                 response_coverage.effects(d, rep, 2 if args.truth else args.bootstrap)
         finally:
             conditional.response_effects = effect_call
+        if args.per_state:
+            table[kind] = per_state(records, args.reps)
+            continue
         table[kind] = truths(kind, rows) if args.truth else summary(
             kind, rows, args.coverage and kind != "none", np.random.default_rng(123),
             other.get(kind))
