@@ -209,19 +209,15 @@ def per_state_recording(into: dict):
         entries = Entries.of(data, design)
         keep = entries.entering()
         sums = ClusterSums.of(entries, keep)
-        q = np.asarray(sums.matrix @ np.ones((entries.n_clusters, 1))).reshape(
-            -1, sums.n_states, 1)[..., 0]
-
-        def get(*name):
-            return q[sums.column[name]]
-
-        count = [get("N", k) for k in (0, 1)]
-        inflate = [1.0 / (1.0 - np.minimum(get("NN", k) / count[k]**2, 1.0)) for k in (0, 1)]
+        get, count, inflate = sums.weighted(np.ones((entries.n_clusters, 1)))
         units = np.asarray(sums.visits.sum(axis=1)).reshape(-1, 2).min(axis=1)
+        codes = np.unique(data.state)[keep]
         for j, name in enumerate(f.feature for f in out.features):
-            a, b = [_side_moments(get, count[k], inflate[k], k, j) for k in (0, 1)]
-            cov = _pair_covariances(get, count, inflate, a, b, j)[1] / (4 * a["sd"] * b["sd"])
-            for i, code in enumerate(np.unique(data.state)[keep]):
+            sides = [_side_moments(get, count[k], inflate[k], k, j) for k in (0, 1)]
+            cov = _pair_covariances(get, count, inflate, *sides, j)[1][:, 0]
+            a, b = ({key: value[:, 0] for key, value in m.items()} for m in sides)
+            cov = cov / (4 * a["sd"] * b["sd"])
+            for i, code in enumerate(codes):
                 into.setdefault((name, int(code)), []).append(
                     [units[i]] + [m["sd"][i] for m in (a, b)]
                     + [m["var_v"][i] / (4 * m["sd"][i]**2) for m in (a, b)]

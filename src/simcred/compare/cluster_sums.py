@@ -11,6 +11,7 @@ deviation with one product.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -129,16 +130,9 @@ class ClusterSums:
         scripts/deviation_noise_probe.py: ``pair_covariance=False`` leaves the pair members'
         covariance out of the variances, ``second_order=True`` adds to each side's variance of
         ``v̂`` the variance ``2 V̂_μ²`` of its quadratic term ``(μ̂ − μ)²``."""
-        r = weights.shape[1]
-        q = np.asarray(self.matrix @ weights).reshape(-1, self.n_states, r)
-        drawn = np.asarray(self.visits @ (weights > 0)).reshape(self.n_states, 2, r)
+        get, count, inflate = self.weighted(weights)
+        drawn = np.asarray(self.visits @ (weights > 0)).reshape(self.n_states, 2, -1)
         total = self.totals.T @ weights  # (2, r)
-        col = self.column
-
-        def get(*name):
-            return q[col[name]]
-
-        count = [get("N", k) for k in (0, 1)]
         usable = (drawn >= MIN_UNITS).all(axis=1)  # θ: a variance between units needs two
         present = (drawn >= 1).all(axis=1)  # the shift: a mean needs one (module docs)
         w, w_shift = (normalised(np.where(keep, 0.5 * (count[0] / total[0]
@@ -146,8 +140,6 @@ class ClusterSums:
                       for keep in (usable, present))
         out = []
         with np.errstate(invalid="ignore", divide="ignore"):
-            inflate = [1.0 / (1.0 - np.minimum(get("NN", k) / count[k]**2, 1.0))
-                       for k in (0, 1)]  # leverage correction of the cluster variance
             for j in range(self.features):
                 a, b = [_side_moments(get, count[k], inflate[k], k, j, second_order)
                         for k in (0, 1)]
@@ -165,6 +157,20 @@ class ClusterSums:
                     np.where(usable, np.maximum(var_sd, 0.0), 0.0),
                     np.where(present, a["mean"] - b["mean"], 0.0)))
         return out
+
+    def weighted(self, weights: np.ndarray) -> tuple[Callable, list, list]:
+        """The replicates' sums: a getter of one named (states, replicates) sum, each side's
+        transitions and the leverage correction of each side's cluster variances."""
+        q = np.asarray(self.matrix @ weights).reshape(-1, self.n_states, weights.shape[1])
+
+        def get(*name):
+            return q[self.column[name]]
+
+        count = [get("N", k) for k in (0, 1)]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            inflate = [1.0 / (1.0 - np.minimum(get("NN", k) / count[k]**2, 1.0))
+                       for k in (0, 1)]  # leverage correction of the cluster variance
+        return get, count, inflate
 
 
 @dataclass(frozen=True, slots=True, eq=False)
