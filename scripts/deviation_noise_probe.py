@@ -29,6 +29,13 @@ estimates (delta method, its second-order term, the members' covariance).
 
 ``--truth``: instead, the true deviation each noise correction defines (``√(mean θ̃)`` over
 ``--reps`` draws of ``--runs`` pairs, as response_coverage.py computes the shipped one).
+
+``--crossfit K``: instead, a bias correction without variance estimates, against the shipped
+one: the pairs split at random into two halves ``K`` times, each state's differences of means
+and of standard deviations computed in each half, and ``θ`` estimated by the mean over the
+splits of ``Σ w Δ⁽¹⁾ Δ⁽²⁾`` (the halves are independent, so a product has the square of the
+halves' expected difference as its mean; the full sample's states and weights, renormalised
+over the states both halves of a side visit).
 """
 
 from __future__ import annotations
@@ -153,6 +160,59 @@ def bracketed(path: str) -> dict[str, dict[str, float]]:
         out[kind] = {name: float(np.mean([np.sqrt(max(
             cell[f"{label}_squared"] - table["none"][name][f"{label}_squared"], 0.0))
             for _, label in ESTIMATES])) for name, cell in cells.items()}
+    return out
+
+
+def crossfit_recording(into: list, splits: int):
+    """``response_effects`` that also appends, per call and response, the shipped ``θ̃``'s two
+    parts and the cross-fitted ones (module docs, ``--crossfit``)."""
+    shipped = effect.response_effects
+
+    def wrapped(data, design, *args, **kwargs):
+        out = shipped(data, design, *args, **kwargs)
+        entries = Entries.of(data, design)
+        sums = ClusterSums.of(entries, entries.entering())
+        parts = sums.components(np.ones((entries.n_clusters, 1)))
+        halves = np.random.default_rng(len(into)).permuted(
+            np.arange(entries.n_clusters)[:, None].repeat(splits, axis=1), axis=0)
+        first = (halves < entries.n_clusters // 2).astype(np.float64)
+        get, count, inflate = sums.weighted(np.hstack([first, 1.0 - first]))
+        row = {}
+        for j, (f, c) in enumerate(zip(out.features, parts, strict=True)):
+            w = c.w[:, 0]
+            row[f.feature] = {"mean_shipped": float((w * (c.d_mean[:, 0]**2
+                                                         - c.var_mean[:, 0])).sum()),
+                              "sd_shipped": float((w * (c.d_sd[:, 0]**2
+                                                       - c.var_sd[:, 0])).sum())}
+            with np.errstate(invalid="ignore", divide="ignore"):
+                a, b = (_side_moments(get, count[k], inflate[k], k, j) for k in (0, 1))
+                for moment in ("mean", "sd"):
+                    d = a[moment] - b[moment]
+                    product = d[:, :splits] * d[:, splits:]
+                    seen = np.isfinite(product)
+                    weight = np.where(seen, w[:, None], 0.0)
+                    weight /= weight.sum(axis=0)
+                    row[f.feature][f"{moment}_crossfit"] = float(
+                        (weight * np.where(seen, product, 0.0)).sum(axis=0).mean())
+        into.append(row)
+        return out
+    return wrapped
+
+
+def crossfit_summary(kind: str, rows: list, truth: dict) -> dict:
+    """Per response, the mean (± its standard error) and the sampling sd over the replications
+    of each correction's two parts and of their sum ``θ̃``, against the squared truth."""
+    out = {}
+    for name in RESPONSES:
+        cell = {"truth_squared": truth.get(name, 0.0)**2}
+        for method in ("shipped", "crossfit"):
+            parts = {m: np.array([r[name][f"{m}_{method}"] for r in rows]) for m in ("mean", "sd")}
+            for label, v in (parts | {"theta": parts["mean"] + parts["sd"]}).items():
+                cell[f"{label}_{method}"] = float(v.mean())
+                cell[f"{label}_{method}_se"] = float(v.std(ddof=1) / np.sqrt(len(v)))
+                cell[f"{label}_{method}_sd"] = float(v.std(ddof=1))
+        print(kind, name, json.dumps({k: round(v, 6) for k, v in cell.items()}), flush=True)
+        out[name] = cell
     return out
 
 
@@ -290,6 +350,9 @@ def main(argv=None):
     parser.add_argument("--per-state", action="store_true",
                         help="instead: per state code, the standard deviations' variances and "
                              "covariance over the replications against their estimates")
+    parser.add_argument("--crossfit", type=int, default=0, metavar="K",
+                        help="instead: the cross-fitted correction over K random halvings "
+                             "against the shipped one (scored against --bracketed's truths)")
     parser.add_argument("--bracketed", default=None, metavar="TRUTH_JSON",
                         help="--coverage also scores every interval against the "
                              "bracketed truths of a --truth output (see bracketed())")
@@ -303,7 +366,7 @@ def main(argv=None):
         effect_call = conditional.response_effects
         try:
             conditional.response_effects = per_state_recording(records) if args.per_state \
-                else recording(rows)
+                else crossfit_recording(rows, args.crossfit) if args.crossfit else recording(rows)
             for rep in range(args.reps):
                 seed = 10**6 + rep if args.truth else rep
                 d = defect(np.random.default_rng(seed), kind, runs=args.runs)
@@ -312,6 +375,9 @@ def main(argv=None):
             conditional.response_effects = effect_call
         if args.per_state:
             table[kind] = per_state(records, args.reps)
+            continue
+        if args.crossfit:
+            table[kind] = crossfit_summary(kind, rows, other.get(kind, {}))
             continue
         table[kind] = truths(kind, rows) if args.truth else summary(
             kind, rows, args.coverage and kind != "none", np.random.default_rng(123),
