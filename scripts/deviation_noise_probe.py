@@ -55,6 +55,8 @@ import response_coverage  # noqa: E402
 from response_designs import defect  # noqa: E402
 from simcred.compare import conditional, effect  # noqa: E402
 from simcred.compare.cluster_sums import (  # noqa: E402
+    MIN_SHARE,
+    MIN_UNITS,
     ClusterSums,
     Entries,
     _pair_covariances,
@@ -197,6 +199,66 @@ def crossfit_recording(into: list, splits: int):
         into.append(row)
         return out
     return wrapped
+
+
+def permutation_recording(into: list):
+    """``response_effects`` that also appends, per call and response, the shipped ``θ̃`` and
+    the permutation-calibrated one with and without ``1 / (1 − h)`` (module docs)."""
+    shipped = effect.response_effects
+
+    def wrapped(data, design, *args, **kwargs):
+        out = shipped(data, design, *args, **kwargs)
+        assignments = args[6]  # response_effects(data, design, ..., rng, assignments)
+        entries = Entries.of(data, design)
+        keep = entries.entering()
+        take = keep[entries.state]
+        state, count = (np.cumsum(keep) - 1)[entries.state[take]], entries.count[take]
+        visits = np.zeros((int(keep.sum()), assignments.shape[1]))
+        visits[state, entries.unit[take]] = 1.0
+        by_pair = np.zeros((int(keep.sum()), entries.n_clusters))
+        np.add.at(by_pair, (state, entries.cluster[take]), count)
+        leverage = ((by_pair / by_pair.sum(axis=1, keepdims=True))**2).sum(axis=1)
+        j = entries.first.shape[1]
+        squared, entering, weight = [], [], None
+        for start, sides, total in effect.assignment_sides(entries, keep, assignments):
+            w, sq = effect.plugin_terms(sides, total, j)
+            units_a = visits @ assignments[start:start + sq.shape[-1]].T
+            units = [units_a, visits.sum(axis=1, keepdims=True) - units_a]
+            entering.append(np.all([(u >= MIN_UNITS) & (c[0] / t >= MIN_SHARE)
+                                    for u, c, t in zip(units, sides, total, strict=True)],
+                                   axis=0))
+            squared.append(sq)
+            weight = w[:, 0] if weight is None else weight  # the observed row's
+        squared, entering = np.concatenate(squared, axis=-1), np.concatenate(entering, axis=-1)
+        valid = entering[:, 1:]
+        row = {}
+        for k, f in enumerate(out.features):
+            null = (squared[k][:, 1:] * valid).sum(axis=1) / np.maximum(valid.sum(axis=1), 1)
+            excess = weight * (squared[k][:, 0] - np.where(valid.any(axis=1), null,
+                                                           squared[k][:, 0]))
+            row[f.feature] = {"shipped": f.squared, "permutation": float(excess.sum()),
+                              "permutation_leverage": float((excess / (1 - leverage)).sum()),
+                              "assignments_entering": float(valid.mean())}
+        into.append(row)
+        return out
+    return wrapped
+
+
+def permutation_summary(kind: str, rows: list, truth: dict) -> dict:
+    """Per response, the mean (± its standard error) and the sampling sd over the replications
+    of the shipped and the permutation-calibrated ``θ̃``, against the squared truth."""
+    out = {}
+    for name in RESPONSES:
+        cell = {"truth_squared": truth.get(name, 0.0)**2}
+        for method in ("shipped", "permutation", "permutation_leverage",
+                       "assignments_entering"):
+            v = np.array([r[name][method] for r in rows])
+            cell[method] = float(v.mean())
+            cell[f"{method}_se"] = float(v.std(ddof=1) / np.sqrt(len(v)))
+            cell[f"{method}_sd"] = float(v.std(ddof=1))
+        print(kind, name, json.dumps({k: round(v, 6) for k, v in cell.items()}), flush=True)
+        out[name] = cell
+    return out
 
 
 def crossfit_summary(kind: str, rows: list, truth: dict) -> dict:
@@ -353,6 +415,10 @@ def main(argv=None):
     parser.add_argument("--crossfit", type=int, default=0, metavar="K",
                         help="instead: the cross-fitted correction over K random halvings "
                              "against the shipped one (scored against --bracketed's truths)")
+    parser.add_argument("--permutation-mean", action="store_true",
+                        help="instead: the permutation-calibrated correction against the "
+                             "shipped one (scored against --bracketed's truths)")
+    parser.add_argument("--permutations", type=int, default=19)
     parser.add_argument("--bracketed", default=None, metavar="TRUTH_JSON",
                         help="--coverage also scores every interval against the "
                              "bracketed truths of a --truth output (see bracketed())")
@@ -366,18 +432,21 @@ def main(argv=None):
         effect_call = conditional.response_effects
         try:
             conditional.response_effects = per_state_recording(records) if args.per_state \
-                else crossfit_recording(rows, args.crossfit) if args.crossfit else recording(rows)
+                else crossfit_recording(rows, args.crossfit) if args.crossfit \
+                else permutation_recording(rows) if args.permutation_mean else recording(rows)
             for rep in range(args.reps):
                 seed = 10**6 + rep if args.truth else rep
                 d = defect(np.random.default_rng(seed), kind, runs=args.runs)
-                response_coverage.effects(d, rep, 2 if args.truth else args.bootstrap)
+                response_coverage.effects(d, rep, 2 if args.truth else args.bootstrap,
+                                          permutations=args.permutations)
         finally:
             conditional.response_effects = effect_call
         if args.per_state:
             table[kind] = per_state(records, args.reps)
             continue
-        if args.crossfit:
-            table[kind] = crossfit_summary(kind, rows, other.get(kind, {}))
+        if args.crossfit or args.permutation_mean:
+            table[kind] = (crossfit_summary if args.crossfit else permutation_summary)(
+                kind, rows, other.get(kind, {}))
             continue
         table[kind] = truths(kind, rows) if args.truth else summary(
             kind, rows, args.coverage and kind != "none", np.random.default_rng(123),

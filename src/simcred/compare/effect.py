@@ -252,29 +252,39 @@ def _not_estimable(name: str, unit: str, margin: float | None) -> FeatureEffect:
 def _permuted_plugin(entries: Entries, keep: np.ndarray, assignments: np.ndarray
                      ) -> np.ndarray:
     """(features, P + 1) plug-in squared deviation of every assignment (states fixed)."""
+    j = entries.first.shape[1]
+    out = np.zeros((j, assignments.shape[0]))
+    for start, sides, total in assignment_sides(entries, keep, assignments):
+        out[:, start:start + len(total[0])] = _plugin(sides, total, j)
+    return out
+
+
+def assignment_sides(entries: Entries, keep: np.ndarray, assignments: np.ndarray,
+                     batch: int = 256):
+    """Per batch of assignments (the entering states ``keep`` fixed): its first row, each
+    side's (1 + 2J, states, k) sums (count, then the sums of the residual and of its square)
+    and each side's transitions (k,)."""
     take = keep[entries.state]
     state = (np.cumsum(keep) - 1)[entries.state[take]]
     unit = entries.unit[take]
     n_states, n_units = int(keep.sum()), assignments.shape[1]
-    j = entries.first.shape[1]
     values = np.hstack([entries.count[take, None], entries.first[take], entries.second[take]])
     width = values.shape[1]
     matrix = unit_matrix([(unit, state, values)], n_units, n_states)
     totals = np.bincount(entries.unit, weights=entries.count, minlength=n_units)
     pooled = np.asarray(matrix.sum(axis=1)).reshape(width, n_states, 1)
     product = side_sums(matrix, is_paired(assignments))
-    out = np.zeros((j, assignments.shape[0]))
-    for start in range(0, assignments.shape[0], 256):
-        rows = assignments[start:start + 256]
+    for start in range(0, assignments.shape[0], batch):
+        rows = assignments[start:start + batch]
         a = product(rows).reshape(width, n_states, -1)
         total_a = rows @ totals
-        out[:, start:start + 256] = _plugin([a, pooled - a], [total_a, totals.sum() - total_a], j)
-    return out
+        yield start, [a, pooled - a], [total_a, totals.sum() - total_a]
 
 
-def _plugin(sides, total, j: int) -> np.ndarray:
-    """(features, assignments) plug-in squared deviation from per-side (1 + 2J, states, k) sums
-    (a state with fewer than 2 transitions on a side drops out)."""
+def plugin_terms(sides, total, j: int) -> tuple[np.ndarray, np.ndarray]:
+    """The plug-in's state weights (states, k) and squared differences of means plus of
+    standard deviations (features, states, k) from per-side (1 + 2J, states, k) sums (a state
+    with fewer than 2 transitions on a side has weight 0)."""
     count = [s[0] for s in sides]
     usable = (count[0] >= 2) & (count[1] >= 2)
     w = normalised(np.where(usable, 0.5 * (count[0] / total[0] + count[1] / total[1]), 0.0))
@@ -282,7 +292,12 @@ def _plugin(sides, total, j: int) -> np.ndarray:
         mean = [s[1:1 + j] / c for s, c in zip(sides, count, strict=True)]
         sd = [np.sqrt(np.maximum(s[1 + j:] / c - m**2, 0.0))
               for s, c, m in zip(sides, count, mean, strict=True)]
-    squared = np.nan_to_num((mean[0] - mean[1])**2 + (sd[0] - sd[1])**2)
+    return w, np.nan_to_num((mean[0] - mean[1])**2 + (sd[0] - sd[1])**2)
+
+
+def _plugin(sides, total, j: int) -> np.ndarray:
+    """(features, assignments) plug-in squared deviation (:func:`plugin_terms`)."""
+    w, squared = plugin_terms(sides, total, j)
     return (w * squared).sum(axis=1)
 
 
