@@ -202,8 +202,11 @@ def crossfit_recording(into: list, splits: int):
 
 
 def permutation_recording(into: list):
-    """``response_effects`` that also appends, per call and response, the shipped ``θ̃`` and
-    the permutation-calibrated one with and without ``1 / (1 − h)`` (module docs)."""
+    """``response_effects`` that also appends, per call and response, the shipped ``θ̃``, the
+    permutation-calibrated one with and without ``1 / (1 − h)`` (module docs) and the bounds of
+    two intervals around the calibrated one: the assignments' law of the calibrated estimate
+    itself (each assignment taken as the observed one), and that law widened by the linear
+    term's variance (:func:`_calibrated`)."""
     shipped = effect.response_effects
 
     def wrapped(data, design, *args, **kwargs):
@@ -219,43 +222,78 @@ def permutation_recording(into: list):
         np.add.at(by_pair, (state, entries.cluster[take]), count)
         leverage = ((by_pair / by_pair.sum(axis=1, keepdims=True))**2).sum(axis=1)
         j = entries.first.shape[1]
-        squared, entering, weight = [], [], None
+        parts, entering, weight = [], [], None
         for start, sides, total in effect.assignment_sides(entries, keep, assignments):
-            w, sq = effect.plugin_terms(sides, total, j)
-            units_a = visits @ assignments[start:start + sq.shape[-1]].T
+            w, mean_part, sd_part = effect.plugin_terms(sides, total, j)
+            units_a = visits @ assignments[start:start + w.shape[-1]].T
             units = [units_a, visits.sum(axis=1, keepdims=True) - units_a]
             entering.append(np.all([(u >= MIN_UNITS) & (c[0] / t >= MIN_SHARE)
                                     for u, c, t in zip(units, sides, total, strict=True)],
                                    axis=0))
-            squared.append(sq)
+            parts.append(np.stack([mean_part, sd_part]))
             weight = w[:, 0] if weight is None else weight  # the observed row's
-        squared, entering = np.concatenate(squared, axis=-1), np.concatenate(entering, axis=-1)
-        valid = entering[:, 1:]
-        row = {}
-        for k, f in enumerate(out.features):
-            null = (squared[k][:, 1:] * valid).sum(axis=1) / np.maximum(valid.sum(axis=1), 1)
-            excess = weight * (squared[k][:, 0] - np.where(valid.any(axis=1), null,
-                                                           squared[k][:, 0]))
-            row[f.feature] = {"shipped": f.squared, "permutation": float(excess.sum()),
-                              "permutation_leverage": float((excess / (1 - leverage)).sum()),
-                              "assignments_entering": float(valid.mean())}
-        into.append(row)
+        parts, entering = np.concatenate(parts, axis=-1), np.concatenate(entering, axis=-1)
+        rng = np.random.default_rng(len(into))
+        into.append({f.feature: {"shipped": f.squared} | _calibrated(
+            parts[:, k], entering[:, 1:], weight, leverage, rng)
+            for k, f in enumerate(out.features)})
         return out
     return wrapped
 
 
+def _calibrated(parts, valid, weight, leverage, rng) -> dict[str, float]:
+    """The calibrated estimate and its two intervals' bounds from the (mean, sd) parts' squared
+    differences (2, states, P + 1) under every assignment (column 0 observed), the states'
+    entry under each (states, P) and the observed weights: the estimate less, per state, the
+    parts' mean over the assignments under which it enters, over ``1 − h``; the assignments'
+    law of that estimate (each assignment as the observed one; the law of the noise, exact
+    under the same law), and that law plus a normal linear term ``4 Σ w² T c`` (``T`` a part's
+    calibrated square, ``c`` its assignments' mean: the variance of ``2 δ e`` where ``δ ≠ 0``)."""
+    entered = valid.any(axis=1)
+    null = np.where(entered, (parts[..., 1:] * valid).sum(axis=-1)
+                    / np.maximum(valid.sum(axis=1), 1), parts[..., 0])  # (2, states)
+    excess = parts[..., 0] - null
+    estimate = float((weight * excess.sum(axis=0) / (1 - leverage)).sum())
+    w_k = weight[:, None] * valid
+    law = (w_k * (parts[..., 1:] - null[..., None]).sum(axis=0) / (1 - leverage)[:, None]
+           ).sum(axis=0) / np.maximum(w_k.sum(axis=0), 1e-300)
+    linear = max(4 * float((weight**2 * (excess / (1 - leverage) * null).sum(axis=0)).sum()),
+                 0.0)
+    wide = np.repeat(law, 10) + np.sqrt(linear) * rng.standard_normal(10 * len(law))
+    out = {"permutation": float((weight * excess.sum(axis=0)).sum()),
+           "permutation_leverage": estimate, "assignments_entering": float(valid.mean())}
+    for name, values in (("law", law), ("law_linear", wide)):
+        for level in (0.90, 0.95):
+            tail = (1 - level) / 2
+            out[f"{name}_{level}_low"] = estimate - float(np.quantile(values, 1 - tail))
+            out[f"{name}_{level}_high"] = estimate - float(np.quantile(values, tail))
+    return out
+
+
 def permutation_summary(kind: str, rows: list, truth: dict) -> dict:
     """Per response, the mean (± its standard error) and the sampling sd over the replications
-    of the shipped and the permutation-calibrated ``θ̃``, against the squared truth."""
+    of the shipped and the permutation-calibrated ``θ̃``, against the squared truth; each
+    interval's coverage, misses low, mean width and equivalence declared at the truth (its
+    90 % interval's high end is the one-sided 95 % upper bound)."""
     out = {}
     for name in RESPONSES:
-        cell = {"truth_squared": truth.get(name, 0.0)**2}
+        t2 = truth.get(name, 0.0)**2
+        cell = {"truth_squared": t2}
         for method in ("shipped", "permutation", "permutation_leverage",
                        "assignments_entering"):
             v = np.array([r[name][method] for r in rows])
             cell[method] = float(v.mean())
             cell[f"{method}_se"] = float(v.std(ddof=1) / np.sqrt(len(v)))
             cell[f"{method}_sd"] = float(v.std(ddof=1))
+        for interval in ("law", "law_linear"):
+            for level in (0.90, 0.95):
+                low = np.array([r[name][f"{interval}_{level}_low"] for r in rows])
+                high = np.array([r[name][f"{interval}_{level}_high"] for r in rows])
+                cell[f"{interval}_{level}"] = float(np.mean((low <= t2) & (t2 <= high)))
+                cell[f"{interval}_{level}_low_above"] = float(np.mean(low > t2))
+                cell[f"{interval}_{level}_width"] = float(np.mean(high - low))
+                if level == 0.90:
+                    cell[f"{interval}_equivalent_at_truth"] = float(np.mean(high < t2))
         print(kind, name, json.dumps({k: round(v, 6) for k, v in cell.items()}), flush=True)
         out[name] = cell
     return out

@@ -281,10 +281,10 @@ def assignment_sides(entries: Entries, keep: np.ndarray, assignments: np.ndarray
         yield start, [a, pooled - a], [total_a, totals.sum() - total_a]
 
 
-def plugin_terms(sides, total, j: int) -> tuple[np.ndarray, np.ndarray]:
-    """The plug-in's state weights (states, k) and squared differences of means plus of
-    standard deviations (features, states, k) from per-side (1 + 2J, states, k) sums (a state
-    with fewer than 2 transitions on a side has weight 0)."""
+def plugin_terms(sides, total, j: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The plug-in's state weights (states, k) and squared differences of the means and of the
+    standard deviations (each features, states, k) from per-side (1 + 2J, states, k) sums (a
+    state with fewer than 2 transitions on a side has weight 0)."""
     count = [s[0] for s in sides]
     usable = (count[0] >= 2) & (count[1] >= 2)
     w = normalised(np.where(usable, 0.5 * (count[0] / total[0] + count[1] / total[1]), 0.0))
@@ -292,13 +292,13 @@ def plugin_terms(sides, total, j: int) -> tuple[np.ndarray, np.ndarray]:
         mean = [s[1:1 + j] / c for s, c in zip(sides, count, strict=True)]
         sd = [np.sqrt(np.maximum(s[1 + j:] / c - m**2, 0.0))
               for s, c, m in zip(sides, count, mean, strict=True)]
-    return w, np.nan_to_num((mean[0] - mean[1])**2 + (sd[0] - sd[1])**2)
+    return w, np.nan_to_num((mean[0] - mean[1])**2), np.nan_to_num((sd[0] - sd[1])**2)
 
 
 def _plugin(sides, total, j: int) -> np.ndarray:
     """(features, assignments) plug-in squared deviation (:func:`plugin_terms`)."""
-    w, squared = plugin_terms(sides, total, j)
-    return (w * squared).sum(axis=1)
+    w, mean_part, sd_part = plugin_terms(sides, total, j)
+    return (w * (mean_part + sd_part)).sum(axis=1)
 
 
 def _signed_root(x: np.ndarray) -> np.ndarray:
