@@ -82,7 +82,7 @@ References
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -260,10 +260,10 @@ def _permuted_plugin(entries: Entries, keep: np.ndarray, assignments: np.ndarray
 
 
 def assignment_sides(entries: Entries, keep: np.ndarray, assignments: np.ndarray,
-                     batch: int = 256):
-    """Per batch of assignments (the entering states ``keep`` fixed): its first row, each
-    side's (1 + 2J, states, k) sums (count, then the sums of the residual and of its square)
-    and each side's transitions (k,)."""
+                     batch: int = 256) -> Iterator[tuple[int, list, list]]:
+    """Per batch of assignments (the entering states ``keep`` fixed): the index of its first
+    row, each side's (1 + 2J, states, k) sums (count, then the sums of the residual and of its
+    square) and each side's transitions (k,)."""
     take = keep[entries.state]
     state = (np.cumsum(keep) - 1)[entries.state[take]]
     unit = entries.unit[take]
