@@ -55,8 +55,6 @@ import response_coverage  # noqa: E402
 from response_designs import defect  # noqa: E402
 from simcred.compare import conditional, effect  # noqa: E402
 from simcred.compare.cluster_sums import (  # noqa: E402
-    MIN_SHARE,
-    MIN_UNITS,
     ClusterSums,
     Entries,
     _pair_covariances,
@@ -201,104 +199,6 @@ def crossfit_recording(into: list, splits: int):
     return wrapped
 
 
-def permutation_recording(into: list):
-    """``response_effects`` that also appends, per call and response, the shipped ``θ̃``, the
-    permutation-calibrated one with and without ``1 / (1 − h)`` (module docs) and the bounds of
-    two intervals around the calibrated one: the assignments' law of the calibrated estimate
-    itself (each assignment taken as the observed one), and that law widened by the linear
-    term's variance (:func:`_calibrated`)."""
-    shipped = effect.response_effects
-
-    def wrapped(data, design, *args, **kwargs):
-        out = shipped(data, design, *args, **kwargs)
-        assignments = args[6]  # response_effects(data, design, ..., rng, assignments)
-        entries = Entries.of(data, design)
-        keep = entries.entering()
-        take = keep[entries.state]
-        state, count = (np.cumsum(keep) - 1)[entries.state[take]], entries.count[take]
-        visits = np.zeros((int(keep.sum()), assignments.shape[1]))
-        visits[state, entries.unit[take]] = 1.0
-        by_pair = np.zeros((int(keep.sum()), entries.n_clusters))
-        np.add.at(by_pair, (state, entries.cluster[take]), count)
-        leverage = ((by_pair / by_pair.sum(axis=1, keepdims=True))**2).sum(axis=1)
-        j = entries.first.shape[1]
-        parts, entering, weight = [], [], None
-        for start, sides, total in effect.assignment_sides(entries, keep, assignments):
-            w, mean_part, sd_part = effect.plugin_terms(sides, total, j)
-            units_a = visits @ assignments[start:start + w.shape[-1]].T
-            units = [units_a, visits.sum(axis=1, keepdims=True) - units_a]
-            entering.append(np.all([(u >= MIN_UNITS) & (c[0] / t >= MIN_SHARE)
-                                    for u, c, t in zip(units, sides, total, strict=True)],
-                                   axis=0))
-            parts.append(np.stack([mean_part, sd_part]))
-            weight = w[:, 0] if weight is None else weight  # the observed row's
-        parts, entering = np.concatenate(parts, axis=-1), np.concatenate(entering, axis=-1)
-        rng = np.random.default_rng(len(into))
-        into.append({f.feature: {"shipped": f.squared} | _calibrated(
-            parts[:, k], entering[:, 1:], weight, leverage, rng)
-            for k, f in enumerate(out.features)})
-        return out
-    return wrapped
-
-
-def _calibrated(parts, valid, weight, leverage, rng) -> dict[str, float]:
-    """The calibrated estimate and its two intervals' bounds from the (mean, sd) parts' squared
-    differences (2, states, P + 1) under every assignment (column 0 observed), the states'
-    entry under each (states, P) and the observed weights: the estimate less, per state, the
-    parts' mean over the assignments under which it enters, over ``1 − h``; the assignments'
-    law of that estimate (each assignment as the observed one; the law of the noise, exact
-    under the same law), and that law plus a normal linear term ``4 Σ w² T c`` (``T`` a part's
-    calibrated square, ``c`` its assignments' mean: the variance of ``2 δ e`` where ``δ ≠ 0``)."""
-    entered = valid.any(axis=1)
-    null = np.where(entered, (parts[..., 1:] * valid).sum(axis=-1)
-                    / np.maximum(valid.sum(axis=1), 1), parts[..., 0])  # (2, states)
-    excess = parts[..., 0] - null
-    estimate = float((weight * excess.sum(axis=0) / (1 - leverage)).sum())
-    w_k = weight[:, None] * valid
-    law = (w_k * (parts[..., 1:] - null[..., None]).sum(axis=0) / (1 - leverage)[:, None]
-           ).sum(axis=0) / np.maximum(w_k.sum(axis=0), 1e-300)
-    linear = max(4 * float((weight**2 * (excess / (1 - leverage) * null).sum(axis=0)).sum()),
-                 0.0)
-    wide = np.repeat(law, 10) + np.sqrt(linear) * rng.standard_normal(10 * len(law))
-    out = {"permutation": float((weight * excess.sum(axis=0)).sum()),
-           "permutation_leverage": estimate, "assignments_entering": float(valid.mean())}
-    for name, values in (("law", law), ("law_linear", wide)):
-        for level in (0.90, 0.95):
-            tail = (1 - level) / 2
-            out[f"{name}_{level}_low"] = estimate - float(np.quantile(values, 1 - tail))
-            out[f"{name}_{level}_high"] = estimate - float(np.quantile(values, tail))
-    return out
-
-
-def permutation_summary(kind: str, rows: list, truth: dict) -> dict:
-    """Per response, the mean (± its standard error) and the sampling sd over the replications
-    of the shipped and the permutation-calibrated ``θ̃``, against the squared truth; each
-    interval's coverage, misses low, mean width and equivalence declared at the truth (its
-    90 % interval's high end is the one-sided 95 % upper bound)."""
-    out = {}
-    for name in RESPONSES:
-        t2 = truth.get(name, 0.0)**2
-        cell = {"truth_squared": t2}
-        for method in ("shipped", "permutation", "permutation_leverage",
-                       "assignments_entering"):
-            v = np.array([r[name][method] for r in rows])
-            cell[method] = float(v.mean())
-            cell[f"{method}_se"] = float(v.std(ddof=1) / np.sqrt(len(v)))
-            cell[f"{method}_sd"] = float(v.std(ddof=1))
-        for interval in ("law", "law_linear"):
-            for level in (0.90, 0.95):
-                low = np.array([r[name][f"{interval}_{level}_low"] for r in rows])
-                high = np.array([r[name][f"{interval}_{level}_high"] for r in rows])
-                cell[f"{interval}_{level}"] = float(np.mean((low <= t2) & (t2 <= high)))
-                cell[f"{interval}_{level}_low_above"] = float(np.mean(low > t2))
-                cell[f"{interval}_{level}_width"] = float(np.mean(high - low))
-                if level == 0.90:
-                    cell[f"{interval}_equivalent_at_truth"] = float(np.mean(high < t2))
-        print(kind, name, json.dumps({k: round(v, 6) for k, v in cell.items()}), flush=True)
-        out[name] = cell
-    return out
-
-
 def crossfit_summary(kind: str, rows: list, truth: dict) -> dict:
     """Per response, the mean (± its standard error) and the sampling sd over the replications
     of each correction's two parts and of their sum ``θ̃``, against the squared truth."""
@@ -437,6 +337,21 @@ def truths(kind: str, rows: list) -> dict:
     return out
 
 
+def replications(hook, kind: str, reps: int, runs: int, seed0: int, bootstrap: int,
+                 **options) -> None:
+    """Compare ``reps`` draws of the ``kind`` design (seeds ``seed0 + i``, ``runs`` pairs) with
+    ``hook`` standing in for ``response_effects`` (it records what it measures); ``options``
+    as :func:`response_coverage.effects` takes them."""
+    effect_call = conditional.response_effects
+    try:
+        conditional.response_effects = hook
+        for rep in range(reps):
+            d = defect(np.random.default_rng(seed0 + rep), kind, runs=runs)
+            response_coverage.effects(d, rep, bootstrap, **options)
+    finally:
+        conditional.response_effects = effect_call
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--kinds", default="none,variance,delay,clip")
@@ -453,10 +368,6 @@ def main(argv=None):
     parser.add_argument("--crossfit", type=int, default=0, metavar="K",
                         help="instead: the cross-fitted correction over K random halvings "
                              "against the shipped one (scored against --bracketed's truths)")
-    parser.add_argument("--permutation-mean", action="store_true",
-                        help="instead: the permutation-calibrated correction against the "
-                             "shipped one (scored against --bracketed's truths)")
-    parser.add_argument("--permutations", type=int, default=19)
     parser.add_argument("--bracketed", default=None, metavar="TRUTH_JSON",
                         help="--coverage also scores every interval against the "
                              "bracketed truths of a --truth output (see bracketed())")
@@ -467,24 +378,15 @@ def main(argv=None):
     for kind in args.kinds.split(","):
         rows: list = []
         records: dict = {}
-        effect_call = conditional.response_effects
-        try:
-            conditional.response_effects = per_state_recording(records) if args.per_state \
-                else crossfit_recording(rows, args.crossfit) if args.crossfit \
-                else permutation_recording(rows) if args.permutation_mean else recording(rows)
-            for rep in range(args.reps):
-                seed = 10**6 + rep if args.truth else rep
-                d = defect(np.random.default_rng(seed), kind, runs=args.runs)
-                response_coverage.effects(d, rep, 2 if args.truth else args.bootstrap,
-                                          permutations=args.permutations)
-        finally:
-            conditional.response_effects = effect_call
+        replications(per_state_recording(records) if args.per_state
+                     else crossfit_recording(rows, args.crossfit) if args.crossfit
+                     else recording(rows), kind, args.reps, args.runs,
+                     10**6 if args.truth else 0, 2 if args.truth else args.bootstrap)
         if args.per_state:
             table[kind] = per_state(records, args.reps)
             continue
-        if args.crossfit or args.permutation_mean:
-            table[kind] = (crossfit_summary if args.crossfit else permutation_summary)(
-                kind, rows, other.get(kind, {}))
+        if args.crossfit:
+            table[kind] = crossfit_summary(kind, rows, other.get(kind, {}))
             continue
         table[kind] = truths(kind, rows) if args.truth else summary(
             kind, rows, args.coverage and kind != "none", np.random.default_rng(123),

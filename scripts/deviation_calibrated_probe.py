@@ -1,0 +1,189 @@
+"""The response deviation's bias correction calibrated by the design's own assignments, and
+intervals around it, against the shipped correction (issue 21, interval coverage; paired
+designs, tests/response_designs.py ``defect``, seeds 0 to ``--reps`` − 1).
+
+Per entering state, the plug-in's squared differences less their mean over the assignments
+(the pairs' members swapped) under which the state would still enter (each side ≥
+``MIN_UNITS`` units and ≥ ``MIN_SHARE`` of its transitions: the observed labels are selected
+by that rule), divided by ``1 − h`` (``h = Σ_c (N_c / N)²`` over the pairs' transitions in the
+state: under a difference ``δ`` the assignments' mean holds ``h δ²``), summed with the observed
+state weights. Under the same law the observed labels are one of the assignments, so the
+correction is exact there. Three intervals around it (:func:`_calibrated`), scored for
+coverage of the bracketed truths (deviation_noise_probe.py ``--truth``) and for equivalence
+declared at the truth.
+
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/deviation_calibrated_probe.py \
+        --reps 200 --bracketed benchmarks/results/deviation_noise_probe_truth.json \
+        --out benchmarks/results/deviation_noise_probe_permutation.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(ROOT / "scripts"))
+from deviation_noise_probe import RESPONSES, bracketed, replications  # noqa: E402
+
+from simcred.compare import effect  # noqa: E402
+from simcred.compare.cluster_sums import MIN_SHARE, MIN_UNITS, Entries  # noqa: E402
+
+
+def permutation_recording(into: list):
+    """``response_effects`` that also appends, per call and response, the shipped ``θ̃``, the
+    permutation-calibrated one with and without ``1 / (1 − h)`` (module docs) and the bounds of
+    two intervals around the calibrated one: the assignments' law of the calibrated estimate
+    itself (each assignment taken as the observed one), and that law widened by the linear
+    term's variance (:func:`_calibrated`)."""
+    shipped = effect.response_effects
+
+    def wrapped(data, design, *args, **kwargs):
+        out = shipped(data, design, *args, **kwargs)
+        assignments = args[6]  # response_effects(data, design, ..., rng, assignments)
+        entries = Entries.of(data, design)
+        keep = entries.entering()
+        take = keep[entries.state]
+        state, count = (np.cumsum(keep) - 1)[entries.state[take]], entries.count[take]
+        visits = np.zeros((int(keep.sum()), assignments.shape[1]))
+        visits[state, entries.unit[take]] = 1.0
+        by_pair = np.zeros((int(keep.sum()), entries.n_clusters))
+        np.add.at(by_pair, (state, entries.cluster[take]), count)
+        leverage = ((by_pair / by_pair.sum(axis=1, keepdims=True))**2).sum(axis=1)
+        j = entries.first.shape[1]
+        parts, entering, weight = [], [], None
+        for start, sides, total in effect.assignment_sides(entries, keep, assignments):
+            w, mean_part, sd_part = effect.plugin_terms(sides, total, j)
+            units_a = visits @ assignments[start:start + w.shape[-1]].T
+            units = [units_a, visits.sum(axis=1, keepdims=True) - units_a]
+            entering.append(np.all([(u >= MIN_UNITS) & (c[0] / t >= MIN_SHARE)
+                                    for u, c, t in zip(units, sides, total, strict=True)],
+                                   axis=0))
+            parts.append(np.stack([mean_part, sd_part]))
+            weight = w[:, 0] if weight is None else weight  # the observed row's
+        parts, entering = np.concatenate(parts, axis=-1), np.concatenate(entering, axis=-1)
+        rng = np.random.default_rng(len(into))
+        into.append({f.feature: {"shipped": f.squared} | _calibrated(
+            parts[:, k], entering[:, 1:], weight, leverage, rng,
+            _pairs_linear_variance(entries, keep, weight / (1 - leverage), k))
+            for k, f in enumerate(out.features)})
+        return out
+    return wrapped
+
+
+def _pairs_linear_variance(entries: Entries, keep: np.ndarray, weight: np.ndarray, k: int
+                           ) -> float:
+    """The variance of the linear term ``Σ_s 2 w_s δ_s e_s`` of the calibrated estimate from
+    the pairs' own influences ``ψ_c`` on every state's difference of means and of standard
+    deviations (so pairs that visit several states carry their covariance): ``4 Σ_c L̂_c²``
+    with ``L̂_c = Σ w δ̂ ψ_c``, less its noise ``4 wᵀ (G ∘ G) w`` (``G = Ψᵀ Ψ``: ``δ̂ δ̂ᵀ``
+    holds ``δ δᵀ + G``), at least 0. ``weight``: the states' ``w / (1 − h)``."""
+    take = keep[entries.state]
+    state = (np.cumsum(keep) - 1)[entries.state[take]]
+    n_states, side, cluster = int(keep.sum()), entries.side[take], entries.cluster[take]
+    sums = np.zeros((3, 2, n_states, entries.n_clusters))  # N, S1, S2 per side, state, pair
+    for i, values in enumerate((entries.count[take], entries.first[take, k],
+                                entries.second[take, k])):
+        np.add.at(sums[i], (side, state, cluster), values)
+    n, s1, s2 = (x.sum(axis=-1, keepdims=True) for x in sums)  # (2, states, 1)
+    mean, var = s1 / n, np.maximum(s2 / n - (s1 / n)**2, 0.0)
+    sd = np.sqrt(var)
+    psi_mean = (sums[1] - mean * sums[0]) / n
+    with np.errstate(invalid="ignore", divide="ignore"):
+        psi_sd = np.nan_to_num((sums[2] - 2 * mean * sums[1] + (mean**2 - var) * sums[0])
+                               / (2 * sd * n))
+    psi = np.vstack([psi_mean[0] - psi_mean[1], psi_sd[0] - psi_sd[1]]).T  # (pairs, 2 states)
+    coefficient = np.r_[weight, weight] * np.r_[(mean[0] - mean[1])[:, 0], (sd[0] - sd[1])[:, 0]]
+    gram = psi.T @ psi
+    w2 = np.r_[weight, weight]
+    return max(4 * float(((psi @ coefficient)**2).sum() - w2 @ (gram * gram) @ w2), 0.0)
+
+
+def _calibrated(parts, valid, weight, leverage, rng, pairs_variance: float = 0.0
+                ) -> dict[str, float]:
+    """The calibrated estimate and its three intervals' bounds from the (mean, sd) parts' squared
+    differences (2, states, P + 1) under every assignment (column 0 observed), the states'
+    entry under each (states, P) and the observed weights: the estimate less, per state, the
+    parts' mean over the assignments under which it enters, over ``1 − h``; the assignments'
+    law of that estimate (each assignment as the observed one; the law of the noise, exact
+    under the same law), and that law plus a normal linear term: ``4 Σ w² T c`` (``T`` a part's
+    calibrated square, ``c`` its assignments' mean: the variance of ``2 δ e`` where ``δ ≠ 0``,
+    per state), or ``pairs_variance`` (:func:`_pairs_linear_variance`, across states)."""
+    entered = valid.any(axis=1)
+    null = np.where(entered, (parts[..., 1:] * valid).sum(axis=-1)
+                    / np.maximum(valid.sum(axis=1), 1), parts[..., 0])  # (2, states)
+    excess = parts[..., 0] - null
+    estimate = float((weight * excess.sum(axis=0) / (1 - leverage)).sum())
+    w_k = weight[:, None] * valid
+    law = (w_k * (parts[..., 1:] - null[..., None]).sum(axis=0) / (1 - leverage)[:, None]
+           ).sum(axis=0) / np.maximum(w_k.sum(axis=0), 1e-300)
+    linear = max(4 * float((weight**2 * (excess / (1 - leverage) * null).sum(axis=0)).sum()),
+                 0.0)
+    normal = rng.standard_normal(10 * len(law))
+    wide = np.repeat(law, 10) + np.sqrt(linear) * normal
+    out = {"permutation": float((weight * excess.sum(axis=0)).sum()),
+           "permutation_leverage": estimate, "assignments_entering": float(valid.mean())}
+    for name, values in (("law", law), ("law_linear", wide),
+                         ("law_pairs", np.repeat(law, 10) + np.sqrt(pairs_variance) * normal)):
+        for level in (0.90, 0.95):
+            tail = (1 - level) / 2
+            out[f"{name}_{level}_low"] = estimate - float(np.quantile(values, 1 - tail))
+            out[f"{name}_{level}_high"] = estimate - float(np.quantile(values, tail))
+    return out
+
+
+def permutation_summary(kind: str, rows: list, truth: dict) -> dict:
+    """Per response, the mean (± its standard error) and the sampling sd over the replications
+    of the shipped and the permutation-calibrated ``θ̃``, against the squared truth; each
+    interval's coverage, misses low, mean width and equivalence declared at the truth (its
+    90 % interval's high end is the one-sided 95 % upper bound)."""
+    out = {}
+    for name in RESPONSES:
+        t2 = truth.get(name, 0.0)**2
+        cell = {"truth_squared": t2}
+        for method in ("shipped", "permutation", "permutation_leverage",
+                       "assignments_entering"):
+            v = np.array([r[name][method] for r in rows])
+            cell[method] = float(v.mean())
+            cell[f"{method}_se"] = float(v.std(ddof=1) / np.sqrt(len(v)))
+            cell[f"{method}_sd"] = float(v.std(ddof=1))
+        for interval in ("law", "law_linear", "law_pairs"):
+            for level in (0.90, 0.95):
+                low = np.array([r[name][f"{interval}_{level}_low"] for r in rows])
+                high = np.array([r[name][f"{interval}_{level}_high"] for r in rows])
+                cell[f"{interval}_{level}"] = float(np.mean((low <= t2) & (t2 <= high)))
+                cell[f"{interval}_{level}_low_above"] = float(np.mean(low > t2))
+                cell[f"{interval}_{level}_width"] = float(np.mean(high - low))
+                if level == 0.90:
+                    cell[f"{interval}_equivalent_at_truth"] = float(np.mean(high < t2))
+        print(kind, name, json.dumps({k: round(v, 6) for k, v in cell.items()}), flush=True)
+        out[name] = cell
+    return out
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--kinds", default="none,variance,delay,clip")
+    parser.add_argument("--reps", type=int, default=80)
+    parser.add_argument("--runs", type=int, default=40)
+    parser.add_argument("--permutations", type=int, default=199)
+    parser.add_argument("--bracketed", required=True, metavar="TRUTH_JSON",
+                        help="a deviation_noise_probe.py --truth output")
+    parser.add_argument("--out", default="deviation_calibrated_probe.json")
+    args = parser.parse_args(argv)
+    truths, table = bracketed(args.bracketed), {}
+    for kind in args.kinds.split(","):
+        rows: list = []
+        replications(permutation_recording(rows), kind, args.reps, args.runs, 0, 2,
+                     permutations=args.permutations)
+        table[kind] = permutation_summary(kind, rows, truths.get(kind, {}))
+    Path(args.out).write_text(json.dumps({"args": vars(args), "table": table}, indent=1))
+
+
+if __name__ == "__main__":
+    main()
