@@ -38,9 +38,7 @@ from simcred.compare.cluster_sums import MIN_SHARE, MIN_UNITS, Entries  # noqa: 
 def permutation_recording(into: list):
     """``response_effects`` that also appends, per call and response, the shipped ``θ̃``, the
     permutation-calibrated one with and without ``1 / (1 − h)`` (module docs) and the bounds of
-    two intervals around the calibrated one: the assignments' law of the calibrated estimate
-    itself (each assignment taken as the observed one), and that law widened by the linear
-    term's variance (:func:`_calibrated`)."""
+    three intervals around the calibrated one (:func:`_calibrated`)."""
     shipped = effect.response_effects
 
     def wrapped(data, design, *args, **kwargs):
@@ -50,6 +48,7 @@ def permutation_recording(into: list):
         keep = entries.entering()
         take = keep[entries.state]
         state, count = (np.cumsum(keep) - 1)[entries.state[take]], entries.count[take]
+        per_pair = _per_pair(entries, take, state)
         visits = np.zeros((int(keep.sum()), assignments.shape[1]))
         visits[state, entries.unit[take]] = 1.0
         by_pair = np.zeros((int(keep.sum()), entries.n_clusters))
@@ -70,26 +69,31 @@ def permutation_recording(into: list):
         rng = np.random.default_rng(len(into))
         into.append({f.feature: {"shipped": f.squared} | _calibrated(
             parts[:, k], entering[:, 1:], weight, leverage, rng,
-            _pairs_linear_variance(entries, keep, weight / (1 - leverage), k))
+            _pairs_linear_variance(per_pair, weight / (1 - leverage), k))
             for k, f in enumerate(out.features)})
         return out
     return wrapped
 
 
-def _pairs_linear_variance(entries: Entries, keep: np.ndarray, weight: np.ndarray, k: int
-                           ) -> float:
+def _per_pair(entries: Entries, take: np.ndarray, state: np.ndarray) -> np.ndarray:
+    """(1 + 2J, 2, states, pairs) sums of the entering states' transitions per side and pair:
+    the count, then the sums of each response's residual, then of its square."""
+    values = np.hstack([entries.count[take, None], entries.first[take], entries.second[take]])
+    sums = np.zeros((values.shape[1], 2, int(state.max(initial=-1)) + 1, entries.n_clusters))
+    for i in range(values.shape[1]):
+        np.add.at(sums[i], (entries.side[take], state, entries.cluster[take]), values[:, i])
+    return sums
+
+
+def _pairs_linear_variance(per_pair: np.ndarray, weight: np.ndarray, k: int) -> float:
     """The variance of the linear term ``Σ_s 2 w_s δ_s e_s`` of the calibrated estimate from
     the pairs' own influences ``ψ_c`` on every state's difference of means and of standard
     deviations (so pairs that visit several states carry their covariance): ``4 Σ_c L̂_c²``
     with ``L̂_c = Σ w δ̂ ψ_c``, less its noise ``4 wᵀ (G ∘ G) w`` (``G = Ψᵀ Ψ``: ``δ̂ δ̂ᵀ``
-    holds ``δ δᵀ + G``), at least 0. ``weight``: the states' ``w / (1 − h)``."""
-    take = keep[entries.state]
-    state = (np.cumsum(keep) - 1)[entries.state[take]]
-    n_states, side, cluster = int(keep.sum()), entries.side[take], entries.cluster[take]
-    sums = np.zeros((3, 2, n_states, entries.n_clusters))  # N, S1, S2 per side, state, pair
-    for i, values in enumerate((entries.count[take], entries.first[take, k],
-                                entries.second[take, k])):
-        np.add.at(sums[i], (side, state, cluster), values)
+    holds ``δ δᵀ + G``), at least 0. ``per_pair``: :func:`_per_pair`; ``weight``: the states'
+    ``w / (1 − h)``."""
+    j = (len(per_pair) - 1) // 2
+    sums = per_pair[[0, 1 + k, 1 + j + k]]  # N, S1, S2 per side, state, pair
     n, s1, s2 = (x.sum(axis=-1, keepdims=True) for x in sums)  # (2, states, 1)
     mean, var = s1 / n, np.maximum(s2 / n - (s1 / n)**2, 0.0)
     sd = np.sqrt(var)
@@ -98,9 +102,9 @@ def _pairs_linear_variance(entries: Entries, keep: np.ndarray, weight: np.ndarra
         psi_sd = np.nan_to_num((sums[2] - 2 * mean * sums[1] + (mean**2 - var) * sums[0])
                                / (2 * sd * n))
     psi = np.vstack([psi_mean[0] - psi_mean[1], psi_sd[0] - psi_sd[1]]).T  # (pairs, 2 states)
-    coefficient = np.r_[weight, weight] * np.r_[(mean[0] - mean[1])[:, 0], (sd[0] - sd[1])[:, 0]]
-    gram = psi.T @ psi
     w2 = np.r_[weight, weight]
+    coefficient = w2 * np.r_[(mean[0] - mean[1])[:, 0], (sd[0] - sd[1])[:, 0]]
+    gram = psi.T @ psi
     return max(4 * float(((psi @ coefficient)**2).sum() - w2 @ (gram * gram) @ w2), 0.0)
 
 
