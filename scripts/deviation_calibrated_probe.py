@@ -10,7 +10,9 @@ state: under a difference ``δ`` the assignments' mean holds ``h δ²``), summed
 state weights. Under the same law the observed labels are one of the assignments, so the
 correction is exact there. Three intervals around it (:func:`_calibrated`), scored for
 coverage of the bracketed truths (deviation_noise_probe.py ``--truth``) and for equivalence
-declared at the truth.
+declared at the truth. The ``v_`` fields: the same with the standard deviations' part taken
+through the variances, ``(v̂_A − v̂_B)²`` calibrated and divided by the observed
+``(σ̂_A + σ̂_B)²`` (:func:`_variance_parts`).
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/deviation_calibrated_probe.py \
         --reps 200 --bracketed benchmarks/results/deviation_noise_probe_truth.json \
@@ -63,16 +65,35 @@ def permutation_recording(into: list):
             entering.append(np.all([(u >= MIN_UNITS) & (c[0] / t >= MIN_SHARE)
                                     for u, c, t in zip(units, sides, total, strict=True)],
                                    axis=0))
-            parts.append(np.stack([mean_part, sd_part]))
+            parts.append(np.stack([mean_part, sd_part, *_variance_parts(sides, j)]))
             weight = w[:, 0] if weight is None else weight  # the observed row's
         parts, entering = np.concatenate(parts, axis=-1), np.concatenate(entering, axis=-1)
+        # the variance route: (Δv)² calibrated, over the observed (σ̂_A + σ̂_B)²
+        by_variance = np.stack([parts[0], parts[2] / np.where(
+            parts[3][..., :1] > 0, parts[3][..., :1], np.inf)])
         rng = np.random.default_rng(len(into))
         into.append({f.feature: {"shipped": f.squared} | _calibrated(
-            parts[:, k], entering[:, 1:], weight, leverage, rng,
-            _pairs_linear_variance(per_pair, weight / (1 - leverage), k))
+            parts[:2, k], entering[:, 1:], weight, leverage, rng,
+            _pairs_linear_variance(per_pair, weight / (1 - leverage), k)) | {
+            f"v_{name}": value for name, value in _calibrated(
+                by_variance[:, k], entering[:, 1:], weight, leverage,
+                np.random.default_rng(len(into)),
+                _pairs_linear_variance(per_pair, weight / (1 - leverage), k)).items()}
             for k, f in enumerate(out.features)})
         return out
     return wrapped
+
+
+def _variance_parts(sides, j: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per feature, state and assignment: the squared difference of the two sides' variances
+    ``(v̂_A − v̂_B)²`` and the squared sum of their standard deviations ``(σ̂_A + σ̂_B)²``
+    (``(σ_A − σ_B)² = (v_A − v_B)² / (σ_A + σ_B)²``)."""
+    count = [s[0] for s in sides]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        var = [np.maximum(s[1 + j:] / c - (s[1:1 + j] / c)**2, 0.0)
+               for s, c in zip(sides, count, strict=True)]
+    return (np.nan_to_num((var[0] - var[1])**2),
+            np.nan_to_num((np.sqrt(var[0]) + np.sqrt(var[1]))**2))
 
 
 def _per_pair(entries: Entries, take: np.ndarray, state: np.ndarray) -> np.ndarray:
@@ -151,12 +172,13 @@ def permutation_summary(kind: str, rows: list, truth: dict) -> dict:
         t2 = truth.get(name, 0.0)**2
         cell = {"truth_squared": t2}
         for method in ("shipped", "permutation", "permutation_leverage",
-                       "assignments_entering"):
+                       "assignments_entering", "v_permutation_leverage"):
             v = np.array([r[name][method] for r in rows])
             cell[method] = float(v.mean())
             cell[f"{method}_se"] = float(v.std(ddof=1) / np.sqrt(len(v)))
             cell[f"{method}_sd"] = float(v.std(ddof=1))
-        for interval in ("law", "law_linear", "law_pairs"):
+        for interval in ("law", "law_linear", "law_pairs", "v_law", "v_law_linear",
+                         "v_law_pairs"):
             for level in (0.90, 0.95):
                 low = np.array([r[name][f"{interval}_{level}_low"] for r in rows])
                 high = np.array([r[name][f"{interval}_{level}_high"] for r in rows])

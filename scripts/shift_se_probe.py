@@ -2,7 +2,7 @@
 cluster bootstrap's (shipped) and a delete-one-cluster jackknife's (the same
 :meth:`ClusterSums.deviation`, weights ``1 − e_c``), each divided by the standard deviation of
 the shift over independent replications of the design (tests/response_designs.py ``defect``,
-40 paired runs, seeds 0 to ``--reps`` − 1, 500 bootstrap replicates).
+``--pairs`` paired runs, seeds 0 to ``--reps`` − 1, 500 bootstrap replicates).
 
 ``--synthetic-leaders``: every leader a fresh synthetic profile (speed 8-30 m/s, AR(1)
 accelerations), an infinite population of independent scenarios, instead of one of the 56,509
@@ -10,6 +10,9 @@ overlapping windows of 50 recorded tracks. ``--no-fit``: the shift of the raw re
 its pooled mean) instead of the response after the pooled global cubic fit, which every sample
 estimates anew but the bootstrap holds fixed. ``--full B``: instead, per replication the spread of
 the shift over ``B`` resamples of the pairs each compared anew (new pooled edges and states).
+``--smooth B``: also the spread of a Bayesian bootstrap over ``B`` replicates (every pair
+weighted by an Exp(1) draw, so no state loses its visitors in a replicate). ``--pairs``: the
+pairs per replication (default 40).
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/shift_se_probe.py --reps 200 \\
         --out benchmarks/results/shift_se_probe.json
@@ -37,9 +40,11 @@ from simcred.traces import TraceSet  # noqa: E402
 RESPONSES = ("dv", "a")  # gap and v are kinematic consequences here (shift ~1e-15)
 
 
-def recording(into: list):
+def recording(into: list, smooth: int = 0):
     """``response_effects`` that also appends, per call, each response's (shift, bootstrap
-    standard deviation, jackknife standard error)."""
+    standard deviation, jackknife standard error[, the standard deviation over ``smooth``
+    replicates of a Bayesian bootstrap: every cluster weighted by an Exp(1) draw, so that no
+    state loses its visitors in a replicate])."""
     shipped = effect.response_effects
 
     def wrapped(data, design, *args, **kwargs):
@@ -50,8 +55,16 @@ def recording(into: list):
             n = entries.n_clusters
             jack = ClusterSums.of(entries, keep).deviation(np.ones((n, n)) - np.eye(n))["shift"]
             se = np.sqrt((n - 1) / n * ((jack - jack.mean(axis=1, keepdims=True))**2).sum(axis=1))
-            into.append({f.feature: (f.shift, float(np.std(f.shift_replicates, ddof=1)),
-                                     float(s)) for f, s in zip(out.features, se, strict=True)})
+            rows = [[f.shift, float(np.std(f.shift_replicates, ddof=1)), float(s)]
+                    for f, s in zip(out.features, se, strict=True)]
+            if smooth:
+                rng = np.random.default_rng(len(into))
+                drawn = ClusterSums.of(entries, keep).deviation(
+                    rng.exponential(size=(n, smooth)))["shift"]
+                for row, spread in zip(rows, drawn.std(axis=1, ddof=1), strict=True):
+                    row.append(float(spread))
+            into.append({f.feature: tuple(row) for f, row in zip(out.features, rows,
+                                                                  strict=True)})
         return out
     return wrapped
 
@@ -104,6 +117,9 @@ def main() -> None:
     parser.add_argument("--synthetic-leaders", action="store_true")
     parser.add_argument("--full", type=int, default=0, metavar="B")
     parser.add_argument("--no-fit", action="store_true")
+    parser.add_argument("--smooth", type=int, default=0, metavar="B",
+                        help="also a Bayesian bootstrap's spread over B replicates")
+    parser.add_argument("--pairs", type=int, default=40)
     parser.add_argument("--out", type=Path)
     args = parser.parse_args()
     if args.synthetic_leaders:
@@ -114,9 +130,9 @@ def main() -> None:
     result = {}
     for kind in args.kinds.split(","):
         found: list = []
-        conditional.response_effects = shipped if args.full else recording(found)
+        conditional.response_effects = shipped if args.full else recording(found, args.smooth)
         for rep in range(args.reps):
-            d = response_designs.defect(np.random.default_rng(rep), kind, runs=40)
+            d = response_designs.defect(np.random.default_rng(rep), kind, runs=args.pairs)
             if args.full:
                 found.append(full_resampling(d, rep, args.full))
             else:
@@ -126,13 +142,15 @@ def main() -> None:
             spread = float(shift.std(ddof=1))
             cell = result[f"{kind}/{name}"] = {"sampling_sd": spread}
             for k, label in enumerate(("full_resampling" if args.full else "bootstrap",
-                                       *(() if args.full else ("jackknife",))), start=1):
+                                       *(() if args.full else ("jackknife",)),
+                                       *(("smooth",) if args.smooth else ())), start=1):
                 cell[f"{label}_over_sampling"] = float(
                     np.mean([r[name][k] for r in found]) / spread)
             print(kind, name, {k: round(v, 4) for k, v in result[f"{kind}/{name}"].items()},
                   flush=True)
     if args.out:
-        args.out.write_text(json.dumps({"reps": args.reps, "pairs": 40, "bootstrap": 500,
+        args.out.write_text(json.dumps({"reps": args.reps, "pairs": args.pairs, "bootstrap": 500,
+                                        "smooth": args.smooth,
                                         "full_resamples": args.full,
                                         "synthetic_leaders": args.synthetic_leaders,
                                         "no_fit": args.no_fit,
