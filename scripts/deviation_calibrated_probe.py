@@ -24,6 +24,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -45,29 +46,9 @@ def permutation_recording(into: list):
 
     def wrapped(data, design, *args, **kwargs):
         out = shipped(data, design, *args, **kwargs)
-        assignments = args[6]  # response_effects(data, design, ..., rng, assignments)
-        entries = Entries.of(data, design)
-        keep = entries.entering()
-        take = keep[entries.state]
-        state, count = (np.cumsum(keep) - 1)[entries.state[take]], entries.count[take]
-        per_pair = _per_pair(entries, take, state)
-        visits = np.zeros((int(keep.sum()), assignments.shape[1]))
-        visits[state, entries.unit[take]] = 1.0
-        by_pair = np.zeros((int(keep.sum()), entries.n_clusters))
-        np.add.at(by_pair, (state, entries.cluster[take]), count)
-        leverage = ((by_pair / by_pair.sum(axis=1, keepdims=True))**2).sum(axis=1)
-        j = entries.first.shape[1]
-        parts, entering, weight = [], [], None
-        for start, sides, total in effect.assignment_sides(entries, keep, assignments):
-            w, mean_part, sd_part = effect.plugin_terms(sides, total, j)
-            units_a = visits @ assignments[start:start + w.shape[-1]].T
-            units = [units_a, visits.sum(axis=1, keepdims=True) - units_a]
-            entering.append(np.all([(u >= MIN_UNITS) & (c[0] / t >= MIN_SHARE)
-                                    for u, c, t in zip(units, sides, total, strict=True)],
-                                   axis=0))
-            parts.append(np.stack([mean_part, sd_part, *_variance_parts(sides, j)]))
-            weight = w[:, 0] if weight is None else weight  # the observed row's
-        parts, entering = np.concatenate(parts, axis=-1), np.concatenate(entering, axis=-1)
+        found = assignment_parts(data, design, args[6])  # (..., rng, assignments)
+        parts, entering, weight = found.parts, found.entering, found.weight
+        leverage, per_pair = found.leverage, found.per_pair
         # the variance route: (Δv)² calibrated, over the observed (σ̂_A + σ̂_B)²
         by_variance = np.stack([parts[0], parts[2] / np.where(
             parts[3][..., :1] > 0, parts[3][..., :1], np.inf)])
@@ -82,6 +63,58 @@ def permutation_recording(into: list):
             for k, f in enumerate(out.features)})
         return out
     return wrapped
+
+
+@dataclass(frozen=True)
+class AssignmentParts:
+    """Per entering state: the plug-in's parts under every assignment (4, features, states,
+    P + 1: mean and standard-deviation squared differences, then the squared difference of the
+    variances and the squared sum of the standard deviations; column 0 observed), whether the
+    state would enter under each (states, P + 1), the observed weights, ``h`` and the sums per
+    pair (:func:`_per_pair`)."""
+
+    keep: np.ndarray
+    parts: np.ndarray
+    entering: np.ndarray
+    weight: np.ndarray
+    leverage: np.ndarray
+    per_pair: np.ndarray
+
+
+def assignment_parts(data, design, assignments: np.ndarray) -> AssignmentParts:
+    entries = Entries.of(data, design)
+    keep = entries.entering()
+    take = keep[entries.state]
+    state, count = (np.cumsum(keep) - 1)[entries.state[take]], entries.count[take]
+    visits = np.zeros((int(keep.sum()), assignments.shape[1]))
+    visits[state, entries.unit[take]] = 1.0
+    by_pair = np.zeros((int(keep.sum()), entries.n_clusters))
+    np.add.at(by_pair, (state, entries.cluster[take]), count)
+    leverage = ((by_pair / by_pair.sum(axis=1, keepdims=True))**2).sum(axis=1)
+    j = entries.first.shape[1]
+    parts, entering, weight = [], [], None
+    for start, sides, total in effect.assignment_sides(entries, keep, assignments):
+        w, mean_part, sd_part = effect.plugin_terms(sides, total, j)
+        units_a = visits @ assignments[start:start + w.shape[-1]].T
+        units = [units_a, visits.sum(axis=1, keepdims=True) - units_a]
+        entering.append(np.all([(u >= MIN_UNITS) & (c[0] / t >= MIN_SHARE)
+                                for u, c, t in zip(units, sides, total, strict=True)],
+                               axis=0))
+        parts.append(np.stack([mean_part, sd_part, *_variance_parts(sides, j)]))
+        weight = w[:, 0] if weight is None else weight  # the observed row's
+    return AssignmentParts(keep, np.concatenate(parts, axis=-1),
+                           np.concatenate(entering, axis=-1), weight, leverage,
+                           _per_pair(entries, take, state))
+
+
+def calibrated_excess(parts: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per part and state, the observed squared difference less its mean over the assignments
+    under which the state enters (``valid``, states × P), and that mean (the observed value
+    where none does)."""
+    entered = valid.any(axis=1)
+    null = np.where(entered, (parts[..., 1:] * valid).sum(axis=-1)
+                    / np.maximum(valid.sum(axis=1), 1), parts[..., 0])
+    return parts[..., 0] - null, null
 
 
 def _variance_parts(sides, j: int) -> tuple[np.ndarray, np.ndarray]:
@@ -139,10 +172,7 @@ def _calibrated(parts, valid, weight, leverage, rng, pairs_variance: float = 0.0
     under the same law), and that law plus a normal linear term: ``4 Σ w² T c`` (``T`` a part's
     calibrated square, ``c`` its assignments' mean: the variance of ``2 δ e`` where ``δ ≠ 0``,
     per state), or ``pairs_variance`` (:func:`_pairs_linear_variance`, across states)."""
-    entered = valid.any(axis=1)
-    null = np.where(entered, (parts[..., 1:] * valid).sum(axis=-1)
-                    / np.maximum(valid.sum(axis=1), 1), parts[..., 0])  # (2, states)
-    excess = parts[..., 0] - null
+    excess, null = calibrated_excess(parts, valid)
     estimate = float((weight * excess.sum(axis=0) / (1 - leverage)).sum())
     w_k = weight[:, None] * valid
     law = (w_k * (parts[..., 1:] - null[..., None]).sum(axis=0) / (1 - leverage)[:, None]

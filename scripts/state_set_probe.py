@@ -4,12 +4,13 @@ interval coverage; tests/response_designs.py ``defect``, paired)
 The state grid is held fixed at the pooled equal-frequency edges of one draw of
 ``--truth-runs`` pairs (seed 10**6, as the truths of response_coverage.py), so that a state is
 the same cell in every sample. The population's per-state terms — each entering state's weight
-``w_s`` and bias-corrected squared deviation ``θ_s`` (the shipped correction, whose truths agree
-with the second-order one for ``a`` within 0.3 %), means over ``--truth-draws`` draws of
-``--truth-runs`` pairs — give the truth over all the population's states, ``Σ w_s θ_s / Σ w_s``,
-and, per replication at ``--runs`` pairs, the truth over the states that enter there (the same
-sum over those states only). Against both: the calibrated estimate of
-scripts/deviation_calibrated_probe.py and the shipped ``θ̃`` of the same replication.
+``w_s`` and its bias-corrected mean and standard-deviation parts (the shipped correction, whose
+truths agree with the second-order one for ``a`` within 0.3 %; ``θ_s`` is their sum), means
+over ``--truth-draws`` draws of ``--truth-runs`` pairs — give the truth over all the
+population's states, ``Σ w_s θ_s / Σ w_s``, and, per replication at ``--runs`` pairs, the truth
+over the states that enter there: with the population's weights, and with the sample's own
+(then also per part). Against it, with the same weights: the calibrated estimate of
+scripts/deviation_calibrated_probe.py, in total and per part.
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/state_set_probe.py --reps 200 \\
         --out benchmarks/results/state_set_probe.json
@@ -28,7 +29,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(ROOT / "scripts"))
 import response_coverage  # noqa: E402
-from deviation_calibrated_probe import permutation_recording  # noqa: E402
+from deviation_calibrated_probe import assignment_parts, calibrated_excess  # noqa: E402
 from deviation_noise_probe import RESPONSES, replications  # noqa: E402
 
 from response_designs import defect  # noqa: E402
@@ -56,13 +57,10 @@ def fixed_grid(kind: str, runs: int):
     return restore
 
 
-def entering_codes(data, design) -> np.ndarray:
-    return np.unique(data.state)[Entries.of(data, design).entering()]
-
-
 def population_recording(into: list):
-    """``response_effects`` that also appends, per call, each response's ``{code: (w_s, θ_s)}``
-    over the entering states (the shipped per-state terms of :meth:`ClusterSums.components`)."""
+    """``response_effects`` that also appends, per call, each response's ``{code: (w_s, mean
+    part, standard-deviation part)}`` over the entering states (the shipped per-state terms of
+    :meth:`ClusterSums.components`, bias-corrected; ``θ_s`` is their sum)."""
     shipped = effect.response_effects
 
     def wrapped(data, design, *args, **kwargs):
@@ -71,72 +69,78 @@ def population_recording(into: list):
         keep = entries.entering()
         codes = np.unique(data.state)[keep]
         terms = ClusterSums.of(entries, keep).components(np.ones((entries.n_clusters, 1)))
-        into.append({f.feature: {int(code): (float(c.w[i, 0]), float(
-            c.d_mean[i, 0]**2 - c.var_mean[i, 0] + c.d_sd[i, 0]**2 - c.var_sd[i, 0]))
-            for i, code in enumerate(codes)} for f, c in zip(out.features, terms, strict=True)})
+        into.append({f.feature: {int(code): (
+            float(c.w[i, 0]), float(c.d_mean[i, 0]**2 - c.var_mean[i, 0]),
+            float(c.d_sd[i, 0]**2 - c.var_sd[i, 0])) for i, code in enumerate(codes)}
+            for f, c in zip(out.features, terms, strict=True)})
         return out
     return wrapped
 
 
-def with_codes(hook, codes: list):
-    """``hook`` that also appends, per call, the entering state codes and their observed
-    weights (the same for every response)."""
+def calibrated_recording(into: list):
+    """``response_effects`` that also appends, per call and response, the entering state codes,
+    their observed weights and each one's calibrated mean and standard-deviation parts
+    (scripts/deviation_calibrated_probe.py: the squared differences less their assignments'
+    mean, over ``1 − h``; their weighted sum is its estimate)."""
+    shipped = effect.response_effects
+
     def wrapped(data, design, *args, **kwargs):
-        entries = Entries.of(data, design)
-        keep = entries.entering()
-        terms = ClusterSums.of(entries, keep).components(np.ones((entries.n_clusters, 1)))
-        codes.append((np.unique(data.state)[keep], terms[0].w[:, 0]))
-        return hook(data, design, *args, **kwargs)
+        out = shipped(data, design, *args, **kwargs)
+        found = assignment_parts(data, design, args[6])
+        codes = np.unique(data.state)[found.keep]
+        into.append({f.feature: (codes, found.weight, calibrated_excess(
+            found.parts[:2, k], found.entering[:, 1:])[0] / (1 - found.leverage))
+            for k, f in enumerate(out.features)})
+        return out
     return wrapped
 
 
-def population(draws: list) -> dict[str, dict[int, tuple[float, float]]]:
-    """Per response, per state code: the mean weight and ``θ_s`` over the draws it entered."""
+def population(draws: list) -> dict[str, dict[int, np.ndarray]]:
+    """Per response, per state code: the mean weight and parts over the draws it entered."""
     out = {}
     for name in RESPONSES:
         found: dict = {}
         for draw in draws:
             for code, terms in draw[name].items():
                 found.setdefault(code, []).append(terms)
-        out[name] = {code: tuple(np.mean(v, axis=0)) for code, v in found.items()}
+        out[name] = {code: np.mean(v, axis=0) for code, v in found.items()}
     return out
 
 
-def restricted_truth(terms: dict[int, tuple[float, float]], codes, weights=None
-                     ) -> tuple[float, float, float]:
-    """``Σ w θ / Σ w`` over ``codes`` (those the population holds) with the population's
-    weights, the population weight share they cover, and the same sum with the sample's own
-    ``weights`` (NaN without)."""
+def one_sample(terms: dict[int, np.ndarray], codes, weight, parts) -> np.ndarray:
+    """For one sample's entering states (those the population holds): the population weight
+    share they cover; the population's θ over them with its own weights; then with the
+    sample's weights renormalised over them, the population's mean and sd parts and θ, and the
+    calibrated mean and sd parts and θ; last, the share of the sample's weight they hold."""
     held = np.array([int(c) in terms for c in codes], dtype=bool)
-    here = [terms[int(c)] for c in np.asarray(codes)[held]]
-    total = sum(w for w, _ in terms.values())
-    if not here:
-        return float("nan"), 0.0, float("nan")
-    w = np.array([h[0] for h in here])
-    theta = np.array([h[1] for h in here])
-    own = float("nan") if weights is None else float(
-        (weights[held] * theta).sum() / weights[held].sum())
-    return float((w * theta).sum() / w.sum()), float(w.sum() / total), own
+    pop = np.array([terms[int(c)] for c in np.asarray(codes)[held]]).reshape(-1, 3)
+    total = sum(t[0] for t in terms.values())
+    w = weight[held] / weight[held].sum()
+    own = pop[:, 0] / pop[:, 0].sum()
+    cal = parts[:, held]
+    pop_parts = w @ pop[:, 1:]
+    cal_parts = cal @ w
+    return np.array([pop[:, 0].sum() / total, own @ pop[:, 1:].sum(axis=1), *pop_parts,
+                     pop_parts.sum(), *cal_parts, cal_parts.sum(),
+                     weight[held].sum() / weight.sum()])
 
 
-def summary(kind: str, terms: dict, rows: list, codes: list) -> dict:
+FIELDS = ("weight_share_covered", "truth_sample_states", "truth_mean_part", "truth_sd_part",
+          "truth_sample_weights", "calibrated_mean_part", "calibrated_sd_part", "calibrated",
+          "sample_weight_held")
+
+
+def summary(kind: str, terms: dict, rows: list) -> dict:
     out = {}
     for name in RESPONSES:
-        full = restricted_truth(terms[name], list(terms[name]))[0]
-        restricted = np.array([restricted_truth(terms[name], c, w) for c, w in codes])
-        cell = {"truth_all_states": full, "population_states": len(terms[name]),
-                "truth_sample_states": float(restricted[:, 0].mean()),
-                "truth_sample_states_se": float(restricted[:, 0].std(ddof=1)
-                                                / np.sqrt(len(codes))),
-                "truth_sample_weights": float(restricted[:, 2].mean()),
-                "truth_sample_weights_se": float(restricted[:, 2].std(ddof=1)
-                                                 / np.sqrt(len(codes))),
-                "weight_share_covered": float(restricted[:, 1].mean()),
-                "sample_states": float(np.mean([len(c) for c, _ in codes]))}
-        for method in ("shipped", "permutation_leverage"):
-            v = np.array([r[name][method] for r in rows])
-            cell[method] = float(v.mean())
-            cell[f"{method}_se"] = float(v.std(ddof=1) / np.sqrt(len(v)))
+        pop = np.array(list(terms[name].values()))
+        values = np.array([one_sample(terms[name], *r[name]) for r in rows])
+        cell = {"truth_all_states": float(pop[:, 0] @ pop[:, 1:].sum(axis=1) / pop[:, 0].sum()),
+                "population_states": len(pop),
+                "sample_states": float(np.mean([len(r[name][0]) for r in rows]))}
+        for k, field in enumerate(FIELDS):
+            cell[field] = float(values[:, k].mean())
+            cell[f"{field}_se"] = float(values[:, k].std(ddof=1) / np.sqrt(len(values)))
         print(kind, name, json.dumps({k: round(v, 6) for k, v in cell.items()}), flush=True)
         out[name] = cell
     return out
@@ -161,12 +165,12 @@ def main(argv=None):
                 replications(population_recording(draws), kind, 1, args.truth_runs,
                              10**6 + 1 + i, 2)
             terms = population(draws)
-            rows, codes = [], []
-            replications(with_codes(permutation_recording(rows), codes), kind, args.reps,
-                         args.runs, 0, 2, permutations=args.permutations)
+            rows: list = []
+            replications(calibrated_recording(rows), kind, args.reps, args.runs, 0, 2,
+                         permutations=args.permutations)
         finally:
             restore()
-        table[kind] = summary(kind, terms, rows, codes)
+        table[kind] = summary(kind, terms, rows)
     Path(args.out).write_text(json.dumps({"args": vars(args), "table": table}, indent=1))
 
 
