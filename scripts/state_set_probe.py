@@ -79,9 +79,10 @@ def population_recording(into: list):
 
 def calibrated_recording(into: list):
     """``response_effects`` that also appends, per call and response, the entering state codes,
-    their observed weights and each one's calibrated mean and standard-deviation parts
+    their observed weights, each one's calibrated mean and standard-deviation parts
     (scripts/deviation_calibrated_probe.py: the squared differences less their assignments'
-    mean, over ``1 − h``; their weighted sum is its estimate)."""
+    mean, over ``1 − h``; their weighted sum is its estimate) and per state the share of its
+    visiting pairs that visit it with one member only."""
     shipped = effect.response_effects
 
     def wrapped(data, design, *args, **kwargs):
@@ -89,10 +90,21 @@ def calibrated_recording(into: list):
         found = assignment_parts(data, design, args[6])
         codes = np.unique(data.state)[found.keep]
         into.append({f.feature: (codes, found.weight, calibrated_excess(
-            found.parts[:2, k], found.entering[:, 1:])[0] / (1 - found.leverage))
-            for k, f in enumerate(out.features)})
+            found.parts[:2, k], found.entering[:, 1:])[0] / (1 - found.leverage),
+            _one_sided(data, design, found.keep)) for k, f in enumerate(out.features)})
         return out
     return wrapped
+
+
+def _one_sided(data, design, keep: np.ndarray) -> np.ndarray:
+    """Per entering state, the share of the pairs visiting it whose other member does not."""
+    entries = Entries.of(data, design)
+    take = keep[entries.state]
+    state = (np.cumsum(keep) - 1)[entries.state[take]]
+    sides = np.zeros((int(keep.sum()), entries.n_clusters, 2), dtype=bool)
+    sides[state, entries.cluster[take], entries.side[take]] = True
+    visiting = sides.any(axis=2).sum(axis=1)
+    return (sides.any(axis=2) & ~sides.all(axis=2)).sum(axis=1) / np.maximum(visiting, 1)
 
 
 def population(draws: list) -> dict[str, dict[int, np.ndarray]]:
@@ -107,27 +119,27 @@ def population(draws: list) -> dict[str, dict[int, np.ndarray]]:
     return out
 
 
-def one_sample(terms: dict[int, np.ndarray], codes, weight, parts) -> np.ndarray:
+def one_sample(terms: dict[int, np.ndarray], codes, weight, parts, one_sided) -> np.ndarray:
     """For one sample's entering states (those the population holds): the population weight
     share they cover; the population's θ over them with its own weights; then with the
     sample's weights renormalised over them, the population's mean and sd parts and θ, and the
-    calibrated mean and sd parts and θ; last, the share of the sample's weight they hold."""
+    calibrated mean and sd parts and θ; the share of the sample's weight they hold; the
+    weighted share of their visiting pairs that visit with one member only."""
     held = np.array([int(c) in terms for c in codes], dtype=bool)
     pop = np.array([terms[int(c)] for c in np.asarray(codes)[held]]).reshape(-1, 3)
     total = sum(t[0] for t in terms.values())
     w = weight[held] / weight[held].sum()
     own = pop[:, 0] / pop[:, 0].sum()
-    cal = parts[:, held]
     pop_parts = w @ pop[:, 1:]
-    cal_parts = cal @ w
+    cal_parts = parts[:, held] @ w
     return np.array([pop[:, 0].sum() / total, own @ pop[:, 1:].sum(axis=1), *pop_parts,
                      pop_parts.sum(), *cal_parts, cal_parts.sum(),
-                     weight[held].sum() / weight.sum()])
+                     weight[held].sum() / weight.sum(), w @ one_sided[held]])
 
 
 FIELDS = ("weight_share_covered", "truth_sample_states", "truth_mean_part", "truth_sd_part",
           "truth_sample_weights", "calibrated_mean_part", "calibrated_sd_part", "calibrated",
-          "sample_weight_held")
+          "sample_weight_held", "one_sided_pairs")
 
 
 def summary(kind: str, terms: dict, rows: list) -> dict:
