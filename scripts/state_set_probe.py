@@ -160,7 +160,7 @@ def summary(kind: str, terms: dict, rows: list) -> dict:
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--kinds", default="variance,clip,delay")
+    parser.add_argument("--kinds", default="none,variance,delay,clip")
     parser.add_argument("--reps", type=int, default=200)
     parser.add_argument("--runs", type=int, default=40)
     parser.add_argument("--truth-runs", type=int, default=1500)
