@@ -52,27 +52,29 @@ def permutation_recording(into: list):
         # the variance route: (Δv)² calibrated, over the observed (σ̂_A + σ̂_B)²
         by_variance = np.stack([parts[0], parts[2] / np.where(
             parts[3][..., :1] > 0, parts[3][..., :1], np.inf)])
-        rng = np.random.default_rng(len(into))
-        into.append({f.feature: {"shipped": f.squared} | _calibrated(
-            parts[:2, k], entering[:, 1:], weight, leverage, rng,
-            _pairs_linear_variance(per_pair, weight / (1 - leverage), k)) | {
-            f"v_{name}": value for name, value in _calibrated(
-                by_variance[:, k], entering[:, 1:], weight, leverage,
-                np.random.default_rng(len(into)),
-                _pairs_linear_variance(per_pair, weight / (1 - leverage), k)).items()}
-            for k, f in enumerate(out.features)})
+        rng, valid = np.random.default_rng(len(into)), entering[:, 1:]
+        row = {}
+        for k, f in enumerate(out.features):
+            linear = _pairs_linear_variance(per_pair, weight / (1 - leverage), k)
+            row[f.feature] = {"shipped": f.squared} | _calibrated(
+                parts[:2, k], valid, weight, leverage, rng, linear) | {
+                f"v_{name}": value for name, value in _calibrated(
+                    by_variance[:, k], valid, weight, leverage,
+                    np.random.default_rng(len(into)), linear).items()}
+        into.append(row)
         return out
     return wrapped
 
 
 @dataclass(frozen=True)
 class AssignmentParts:
-    """Per entering state: the plug-in's parts under every assignment (4, features, states,
-    P + 1: mean and standard-deviation squared differences, then the squared difference of the
-    variances and the squared sum of the standard deviations; column 0 observed), whether the
-    state would enter under each (states, P + 1), the observed weights, ``h`` and the sums per
-    pair (:func:`_per_pair`)."""
+    """The design's sums (``entries``) and, per entering state: the plug-in's parts under every
+    assignment (4, features, states, P + 1: mean and standard-deviation squared differences,
+    then the squared difference of the variances and the squared sum of the standard
+    deviations; column 0 observed), whether the state would enter under each (states, P + 1),
+    the observed weights, ``h`` and the sums per pair (:func:`_per_pair`)."""
 
+    entries: Entries
     keep: np.ndarray
     parts: np.ndarray
     entering: np.ndarray
@@ -102,7 +104,7 @@ def assignment_parts(data, design, assignments: np.ndarray) -> AssignmentParts:
                                axis=0))
         parts.append(np.stack([mean_part, sd_part, *_variance_parts(sides, j)]))
         weight = w[:, 0] if weight is None else weight  # the observed row's
-    return AssignmentParts(keep, np.concatenate(parts, axis=-1),
+    return AssignmentParts(entries, keep, np.concatenate(parts, axis=-1),
                            np.concatenate(entering, axis=-1), weight, leverage,
                            _per_pair(entries, take, state))
 

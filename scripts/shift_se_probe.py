@@ -53,14 +53,14 @@ def recording(into: list, smooth: int = 0):
         keep = entries.entering()
         if keep.any():
             n = entries.n_clusters
-            jack = ClusterSums.of(entries, keep).deviation(np.ones((n, n)) - np.eye(n))["shift"]
+            sums = ClusterSums.of(entries, keep)
+            jack = sums.deviation(np.ones((n, n)) - np.eye(n))["shift"]
             se = np.sqrt((n - 1) / n * ((jack - jack.mean(axis=1, keepdims=True))**2).sum(axis=1))
             rows = [[f.shift, float(np.std(f.shift_replicates, ddof=1)), float(s)]
                     for f, s in zip(out.features, se, strict=True)]
             if smooth:
                 rng = np.random.default_rng(len(into))
-                drawn = ClusterSums.of(entries, keep).deviation(
-                    rng.exponential(size=(n, smooth)))["shift"]
+                drawn = sums.deviation(rng.exponential(size=(n, smooth)))["shift"]
                 for row, spread in zip(rows, drawn.std(axis=1, ddof=1), strict=True):
                     row.append(float(spread))
             into.append({f.feature: tuple(row) for f, row in zip(out.features, rows,

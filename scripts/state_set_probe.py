@@ -91,14 +91,13 @@ def calibrated_recording(into: list):
         codes = np.unique(data.state)[found.keep]
         into.append({f.feature: (codes, found.weight, calibrated_excess(
             found.parts[:2, k], found.entering[:, 1:])[0] / (1 - found.leverage),
-            _one_sided(data, design, found.keep)) for k, f in enumerate(out.features)})
+            _one_sided(found.entries, found.keep)) for k, f in enumerate(out.features)})
         return out
     return wrapped
 
 
-def _one_sided(data, design, keep: np.ndarray) -> np.ndarray:
+def _one_sided(entries: Entries, keep: np.ndarray) -> np.ndarray:
     """Per entering state, the share of the pairs visiting it whose other member does not."""
-    entries = Entries.of(data, design)
     take = keep[entries.state]
     state = (np.cumsum(keep) - 1)[entries.state[take]]
     sides = np.zeros((int(keep.sum()), entries.n_clusters, 2), dtype=bool)
