@@ -12,7 +12,10 @@ correction is exact there. Three intervals around it (:func:`_calibrated`), scor
 coverage of the bracketed truths (deviation_noise_probe.py ``--truth``) and for equivalence
 declared at the truth. The ``v_`` fields: the same with the standard deviations' part taken
 through the variances, ``(v̂_A − v̂_B)²`` calibrated and divided by the observed
-``(σ̂_A + σ̂_B)²`` (:func:`_variance_parts`).
+``(σ̂_A + σ̂_B)²`` (:func:`_variance_parts`). ``permutation_mixing`` (session 23): the same
+estimate over ``1 − E(a − b)²`` instead of ``1 − h``, the mean over the entering assignments of
+the exact mixing of the two laws on each side (:func:`_mixing`; ``leverage_mean`` and
+``mixing_mean`` are the two factors' weighted means).
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/deviation_calibrated_probe.py \
         --reps 200 --bracketed benchmarks/results/deviation_noise_probe_truth.json \
@@ -49,6 +52,8 @@ def permutation_recording(into: list):
         found = assignment_parts(data, design, args[6])  # (..., rng, assignments)
         parts, entering, weight = found.parts, found.entering, found.weight
         leverage, per_pair = found.leverage, found.per_pair
+        valid_mixing = found.mixing[:, 1:] * entering[:, 1:]
+        mixing = valid_mixing.sum(axis=1) / np.maximum(entering[:, 1:].sum(axis=1), 1)
         # the variance route: (Δv)² calibrated, over the observed (σ̂_A + σ̂_B)²
         by_variance = np.stack([parts[0], parts[2] / np.where(
             parts[3][..., :1] > 0, parts[3][..., :1], np.inf)])
@@ -56,7 +61,13 @@ def permutation_recording(into: list):
         row = {}
         for k, f in enumerate(out.features):
             linear = _pairs_linear_variance(per_pair, weight / (1 - leverage), k)
-            row[f.feature] = {"shipped": f.squared} | _calibrated(
+            excess = calibrated_excess(parts[:2, k], entering[:, 1:])[0].sum(axis=0)
+            row[f.feature] = {"shipped": f.squared,
+                              "permutation_mixing": float((weight * np.where(
+                                  mixing < 1 - 1e-9, excess, 0.0) / np.maximum(
+                                  1 - mixing, 1e-9)).sum()),
+                              "leverage_mean": float((weight * leverage).sum()),
+                              "mixing_mean": float((weight * mixing).sum())} | _calibrated(
                 parts[:2, k], valid, weight, leverage, rng, linear) | {
                 f"v_{name}": value for name, value in _calibrated(
                     by_variance[:, k], valid, weight, leverage,
@@ -81,6 +92,7 @@ class AssignmentParts:
     weight: np.ndarray
     leverage: np.ndarray
     per_pair: np.ndarray
+    mixing: np.ndarray
 
 
 def assignment_parts(data, design, assignments: np.ndarray) -> AssignmentParts:
@@ -90,14 +102,18 @@ def assignment_parts(data, design, assignments: np.ndarray) -> AssignmentParts:
     state, count = (np.cumsum(keep) - 1)[entries.state[take]], entries.count[take]
     visits = np.zeros((int(keep.sum()), assignments.shape[1]))
     visits[state, entries.unit[take]] = 1.0
+    from_a = np.zeros_like(visits)  # A's transitions per state and unit (B's units: 0)
+    on_a = take & (entries.side == 0)
+    from_a[(np.cumsum(keep) - 1)[entries.state[on_a]], entries.unit[on_a]] = entries.count[on_a]
     by_pair = np.zeros((int(keep.sum()), entries.n_clusters))
     np.add.at(by_pair, (state, entries.cluster[take]), count)
     leverage = ((by_pair / by_pair.sum(axis=1, keepdims=True))**2).sum(axis=1)
     j = entries.first.shape[1]
-    parts, entering, weight = [], [], None
+    parts, entering, weight, mixing = [], [], None, []
     for start, sides, total in effect.assignment_sides(entries, keep, assignments):
         w, mean_part, sd_part = effect.plugin_terms(sides, total, j)
         units_a = visits @ assignments[start:start + w.shape[-1]].T
+        mixing.append(_mixing(from_a, assignments[start:start + w.shape[-1]], sides))
         units = [units_a, visits.sum(axis=1, keepdims=True) - units_a]
         entering.append(np.all([(u >= MIN_UNITS) & (c[0] / t >= MIN_SHARE)
                                 for u, c, t in zip(units, sides, total, strict=True)],
@@ -106,7 +122,18 @@ def assignment_parts(data, design, assignments: np.ndarray) -> AssignmentParts:
         weight = w[:, 0] if weight is None else weight  # the observed row's
     return AssignmentParts(entries, keep, np.concatenate(parts, axis=-1),
                            np.concatenate(entering, axis=-1), weight, leverage,
-                           _per_pair(entries, take, state))
+                           _per_pair(entries, take, state), np.concatenate(mixing, axis=-1))
+
+
+def _mixing(from_a: np.ndarray, assignments: np.ndarray, sides) -> np.ndarray:
+    """Per state and assignment, ``(a − b)²``: ``a`` the share of A's own transitions on the
+    assignment's side A, ``b`` on its side B. A mean difference ``δ`` shows as ``(a − b) δ``
+    under the assignment whatever the two sides' levels (each side is a mixture of the two
+    laws), so its assignments' mean leaks ``E(a − b)² δ²`` (1 for the observed labels)."""
+    own_a = from_a @ assignments.T.astype(np.float64)
+    a = own_a / np.maximum(sides[0][0], 1.0)
+    b = (from_a.sum(axis=1, keepdims=True) - own_a) / np.maximum(sides[1][0], 1.0)
+    return (a - b)**2
 
 
 def calibrated_excess(parts: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -204,7 +231,8 @@ def permutation_summary(kind: str, rows: list, truth: dict) -> dict:
         t2 = truth.get(name, 0.0)**2
         cell = {"truth_squared": t2}
         for method in ("shipped", "permutation", "permutation_leverage",
-                       "assignments_entering", "v_permutation_leverage"):
+                       "assignments_entering", "v_permutation_leverage", "permutation_mixing",
+                       "leverage_mean", "mixing_mean"):
             v = np.array([r[name][method] for r in rows])
             cell[method] = float(v.mean())
             cell[f"{method}_se"] = float(v.std(ddof=1) / np.sqrt(len(v)))
