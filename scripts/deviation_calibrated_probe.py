@@ -62,7 +62,10 @@ def permutation_recording(into: list):
         for k, f in enumerate(out.features):
             linear = _pairs_linear_variance(per_pair, weight / (1 - leverage), k)
             excess = calibrated_excess(parts[:2, k], entering[:, 1:])[0].sum(axis=0)
+            extra_noise = calibrated_excess(parts[4, k], entering[:, 1:])[0]
             row[f.feature] = {"shipped": f.squared,
+                              "permutation_kurtosis": float(
+                                  (weight * (excess - extra_noise) / (1 - leverage)).sum()),
                               "permutation_mixing": float((weight * np.where(
                                   mixing < 1 - 1e-9, excess, 0.0) / np.maximum(
                                   1 - mixing, 1e-9)).sum()),
@@ -102,6 +105,7 @@ def assignment_parts(data, design, assignments: np.ndarray) -> AssignmentParts:
     state, count = (np.cumsum(keep) - 1)[entries.state[take]], entries.count[take]
     visits = np.zeros((int(keep.sum()), assignments.shape[1]))
     visits[state, entries.unit[take]] = 1.0
+    higher = _higher_sums(data, state, entries.unit[take], take, visits.shape)
     from_a = np.zeros_like(visits)  # A's transitions per state and unit (B's units: 0)
     on_a = take & (entries.side == 0)
     from_a[(np.cumsum(keep) - 1)[entries.state[on_a]], entries.unit[on_a]] = entries.count[on_a]
@@ -118,11 +122,45 @@ def assignment_parts(data, design, assignments: np.ndarray) -> AssignmentParts:
         entering.append(np.all([(u >= MIN_UNITS) & (c[0] / t >= MIN_SHARE)
                                 for u, c, t in zip(units, sides, total, strict=True)],
                                axis=0))
-        parts.append(np.stack([mean_part, sd_part, *_variance_parts(sides, j)]))
+        parts.append(np.stack([mean_part, sd_part, *_variance_parts(sides, j),
+                               _sd_noise(sides, higher, assignments[start:start + w.shape[-1]],
+                                         j)]))
         weight = w[:, 0] if weight is None else weight  # the observed row's
     return AssignmentParts(entries, keep, np.concatenate(parts, axis=-1),
                            np.concatenate(entering, axis=-1), weight, leverage,
                            _per_pair(entries, take, state), np.concatenate(mixing, axis=-1))
+
+
+def _higher_sums(data, state: np.ndarray, unit: np.ndarray, take: np.ndarray,
+                 shape: tuple[int, int]) -> np.ndarray:
+    """(2, J, entering states, units) sums of each response's residual cubed and to the fourth
+    power per (state, unit), grouped as :meth:`Entries.of` groups the transitions."""
+    new = np.r_[True, (data.state[1:] != data.state[:-1]) | (data.unit[1:] != data.unit[:-1])]
+    starts = np.flatnonzero(new)
+    x = data.effect_residual
+    out = np.zeros((2, x.shape[1], *shape))
+    for p, power in enumerate((3, 4)):
+        sums = np.add.reduceat(x**power, starts, axis=0)[take]
+        for k in range(x.shape[1]):
+            out[p, k, state, unit] = sums[:, k]
+    return out
+
+
+def _sd_noise(sides, higher: np.ndarray, assignments: np.ndarray, j: int) -> np.ndarray:
+    """(J, states, k) the delta-method noise of ``σ̂`` on each side, ``(m4 − m2²) / (4 m2 n)``
+    from the side's own central moments, summed over the two sides."""
+    third_a, fourth_a = (higher[p] @ assignments.T.astype(np.float64) for p in (0, 1))
+    pooled = higher.sum(axis=-1, keepdims=True)
+    noise = 0.0
+    for s, third, fourth in ((sides[0], third_a, fourth_a),
+                             (sides[1], pooled[0] - third_a, pooled[1] - fourth_a)):
+        n = np.maximum(s[0], 1.0)
+        mean, raw2, raw3, raw4 = s[1:1 + j] / n, s[1 + j:] / n, third / n, fourth / n
+        m2 = np.maximum(raw2 - mean**2, 0.0)
+        m4 = raw4 - 4 * mean * raw3 + 6 * mean**2 * raw2 - 3 * mean**4
+        with np.errstate(invalid="ignore", divide="ignore"):
+            noise = noise + np.nan_to_num((m4 - m2**2) / (4 * m2 * n))
+    return noise
 
 
 def _mixing(from_a: np.ndarray, assignments: np.ndarray, sides) -> np.ndarray:
@@ -232,6 +270,7 @@ def permutation_summary(kind: str, rows: list, truth: dict) -> dict:
         cell = {"truth_squared": t2}
         for method in ("shipped", "permutation", "permutation_leverage",
                        "assignments_entering", "v_permutation_leverage", "permutation_mixing",
+                       "permutation_kurtosis",
                        "leverage_mean", "mixing_mean"):
             v = np.array([r[name][method] for r in rows])
             cell[method] = float(v.mean())
