@@ -15,7 +15,11 @@ through the variances, ``(v̂_A − v̂_B)²`` calibrated and divided by the obs
 ``(σ̂_A + σ̂_B)²`` (:func:`_variance_parts`). ``permutation_mixing`` (session 23): the same
 estimate over ``1 − E(a − b)²`` instead of ``1 − h``, the mean over the entering assignments of
 the exact mixing of the two laws on each side (:func:`_mixing`; ``leverage_mean`` and
-``mixing_mean`` are the two factors' weighted means).
+``mixing_mean`` are the two factors' weighted means). ``permutation_kurtosis`` (session 23):
+the calibrated estimate with the standard deviation's excess less the observed labels' noise
+of ``σ̂`` over the entering assignments' mean noise (each side's delta-method noise from its own
+central moments, :func:`_sd_noise`; a swapped side mixes the two laws, whose excess kurtosis
+makes ``σ̂`` noisier than under the observed labels).
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/deviation_calibrated_probe.py \
         --reps 200 --bracketed benchmarks/results/deviation_noise_probe_truth.json \
@@ -107,8 +111,8 @@ def assignment_parts(data, design, assignments: np.ndarray) -> AssignmentParts:
     visits[state, entries.unit[take]] = 1.0
     higher = _higher_sums(data, state, entries.unit[take], take, visits.shape)
     from_a = np.zeros_like(visits)  # A's transitions per state and unit (B's units: 0)
-    on_a = take & (entries.side == 0)
-    from_a[(np.cumsum(keep) - 1)[entries.state[on_a]], entries.unit[on_a]] = entries.count[on_a]
+    on_a = entries.side[take] == 0
+    from_a[state[on_a], entries.unit[take][on_a]] = count[on_a]
     by_pair = np.zeros((int(keep.sum()), entries.n_clusters))
     np.add.at(by_pair, (state, entries.cluster[take]), count)
     leverage = ((by_pair / by_pair.sum(axis=1, keepdims=True))**2).sum(axis=1)
