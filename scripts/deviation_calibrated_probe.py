@@ -19,7 +19,8 @@ the exact mixing of the two laws on each side (:func:`_mixing`; ``leverage_mean`
 the calibrated estimate with the standard deviation's excess less the observed labels' noise
 of ``σ̂`` over the entering assignments' mean noise (each side's delta-method noise from its own
 central moments, :func:`_sd_noise`; a swapped side mixes the two laws, whose excess kurtosis
-makes ``σ̂`` noisier than under the observed labels).
+makes ``σ̂`` noisier than under the observed labels); ``permutation_kurtosis_units`` the same
+with the noise between units (:func:`_sd_noise_units`).
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/deviation_calibrated_probe.py \
         --reps 200 --bracketed benchmarks/results/deviation_noise_probe_truth.json \
@@ -67,9 +68,12 @@ def permutation_recording(into: list):
             linear = _pairs_linear_variance(per_pair, weight / (1 - leverage), k)
             excess = calibrated_excess(parts[:2, k], entering[:, 1:])[0].sum(axis=0)
             extra_noise = calibrated_excess(parts[4, k], entering[:, 1:])[0]
+            extra_unit_noise = calibrated_excess(parts[5, k], entering[:, 1:])[0]
             row[f.feature] = {"shipped": f.squared,
                               "permutation_kurtosis": float(
                                   (weight * (excess - extra_noise) / (1 - leverage)).sum()),
+                              "permutation_kurtosis_units": float(
+                                  (weight * (excess - extra_unit_noise) / (1 - leverage)).sum()),
                               "permutation_mixing": float((weight * np.where(
                                   mixing < 1 - 1e-9, excess, 0.0) / np.maximum(
                                   1 - mixing, 1e-9)).sum()),
@@ -110,6 +114,7 @@ def assignment_parts(data, design, assignments: np.ndarray) -> AssignmentParts:
     visits = np.zeros((int(keep.sum()), assignments.shape[1]))
     visits[state, entries.unit[take]] = 1.0
     higher = _higher_sums(data, state, entries.unit[take], take, visits.shape)
+    unit_products = _unit_products(entries, take, state, visits.shape)
     from_a = np.zeros_like(visits)  # A's transitions per state and unit (B's units: 0)
     on_a = entries.side[take] == 0
     from_a[state[on_a], entries.unit[take][on_a]] = count[on_a]
@@ -128,7 +133,9 @@ def assignment_parts(data, design, assignments: np.ndarray) -> AssignmentParts:
                                axis=0))
         parts.append(np.stack([mean_part, sd_part, *_variance_parts(sides, j),
                                _sd_noise(sides, higher, assignments[start:start + w.shape[-1]],
-                                         j)]))
+                                         j),
+                               _sd_noise_units(sides, unit_products,
+                                               assignments[start:start + w.shape[-1]], j)]))
         weight = w[:, 0] if weight is None else weight  # the observed row's
     return AssignmentParts(entries, keep, np.concatenate(parts, axis=-1),
                            np.concatenate(entering, axis=-1), weight, leverage,
@@ -164,6 +171,41 @@ def _sd_noise(sides, higher: np.ndarray, assignments: np.ndarray, j: int) -> np.
         m4 = raw4 - 4 * mean * raw3 + 6 * mean**2 * raw2 - 3 * mean**4
         with np.errstate(invalid="ignore", divide="ignore"):
             noise = noise + np.nan_to_num((m4 - m2**2) / (4 * m2 * n))
+    return noise
+
+
+def _unit_products(entries: Entries, take: np.ndarray, state: np.ndarray,
+                   shape: tuple[int, int]) -> np.ndarray:
+    """(6, J, entering states, units) per-(state, unit) products of the count ``N`` and the sums
+    ``S1``, ``S2`` of each response's residual and its square: ``S2², S1², N², S2 S1, S2 N,
+    S1 N`` (what each side's between-unit noise of ``σ̂`` needs, :func:`_sd_noise_units`)."""
+    n = entries.count[take, None] * np.ones_like(entries.first[take])
+    s1, s2 = entries.first[take], entries.second[take]
+    out = np.zeros((6, s1.shape[1], *shape))
+    unit = entries.unit[take]
+    for p, value in enumerate((s2 * s2, s1 * s1, n * n, s2 * s1, s2 * n, s1 * n)):
+        for k in range(s1.shape[1]):
+            out[p, k, state, unit] = value[:, k]
+    return out
+
+
+def _sd_noise_units(sides, products: np.ndarray, assignments: np.ndarray, j: int
+                    ) -> np.ndarray:
+    """(J, states, k) each side's noise of ``σ̂`` between its units, summed over the sides:
+    ``Σ_u e_u² / (4 m2 n²)`` with ``e_u = S2_u − 2 μ S1_u + (μ² − m2) N_u`` (the unit's sum of
+    the influence ``(x − μ)² − m2``), from the side sums of :func:`_unit_products`."""
+    side_a = products @ assignments.T.astype(np.float64)  # (6, J, states, k)
+    pooled = products.sum(axis=-1, keepdims=True)
+    noise = 0.0
+    for s, q in ((sides[0], side_a), (sides[1], pooled - side_a)):
+        n = np.maximum(s[0], 1.0)
+        mean = s[1:1 + j] / n
+        m2 = np.maximum(s[1 + j:] / n - mean**2, 0.0)
+        c = mean**2 - m2
+        squares = (q[0] + 4 * mean**2 * q[1] + c**2 * q[2] - 4 * mean * q[3] + 2 * c * q[4]
+                   - 4 * mean * c * q[5])
+        with np.errstate(invalid="ignore", divide="ignore"):
+            noise = noise + np.nan_to_num(squares / (4 * m2 * n**2))
     return noise
 
 
@@ -274,7 +316,7 @@ def permutation_summary(kind: str, rows: list, truth: dict) -> dict:
         cell = {"truth_squared": t2}
         for method in ("shipped", "permutation", "permutation_leverage",
                        "assignments_entering", "v_permutation_leverage", "permutation_mixing",
-                       "permutation_kurtosis",
+                       "permutation_kurtosis", "permutation_kurtosis_units",
                        "leverage_mean", "mixing_mean"):
             v = np.array([r[name][method] for r in rows])
             cell[method] = float(v.mean())
