@@ -164,6 +164,14 @@ def _higher_sums(data, state: np.ndarray, unit: np.ndarray, take: np.ndarray,
     return out
 
 
+def _side_moments(side: np.ndarray, j: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A side's transitions (at least 1), mean and variance per response from its (1 + 2J, ...)
+    sums."""
+    n = np.maximum(side[0], 1.0)
+    mean = side[1:1 + j] / n
+    return n, mean, np.maximum(side[1 + j:] / n - mean**2, 0.0)
+
+
 def _sd_noise(sides, higher: np.ndarray, assignments: np.ndarray, j: int) -> np.ndarray:
     """(J, states, k) the delta-method noise of ``σ̂`` on each side, ``(m4 − m2²) / (4 m2 n)``
     from the side's own central moments, summed over the two sides."""
@@ -172,9 +180,8 @@ def _sd_noise(sides, higher: np.ndarray, assignments: np.ndarray, j: int) -> np.
     noise = 0.0
     for s, third, fourth in ((sides[0], third_a, fourth_a),
                              (sides[1], pooled[0] - third_a, pooled[1] - fourth_a)):
-        n = np.maximum(s[0], 1.0)
-        mean, raw2, raw3, raw4 = s[1:1 + j] / n, s[1 + j:] / n, third / n, fourth / n
-        m2 = np.maximum(raw2 - mean**2, 0.0)
+        n, mean, m2 = _side_moments(s, j)
+        raw2, raw3, raw4 = s[1 + j:] / n, third / n, fourth / n
         m4 = raw4 - 4 * mean * raw3 + 6 * mean**2 * raw2 - 3 * mean**4
         with np.errstate(invalid="ignore", divide="ignore"):
             noise = noise + np.nan_to_num((m4 - m2**2) / (4 * m2 * n))
@@ -205,9 +212,7 @@ def _sd_noise_units(sides, products: np.ndarray, assignments: np.ndarray, j: int
     pooled = products.sum(axis=-1, keepdims=True)
     noise = 0.0
     for s, q in ((sides[0], side_a), (sides[1], pooled - side_a)):
-        n = np.maximum(s[0], 1.0)
-        mean = s[1:1 + j] / n
-        m2 = np.maximum(s[1 + j:] / n - mean**2, 0.0)
+        n, mean, m2 = _side_moments(s, j)
         c = mean**2 - m2
         squares = (q[0] + 4 * mean**2 * q[1] + c**2 * q[2] - 4 * mean * q[3] + 2 * c * q[4]
                    - 4 * mean * c * q[5])
