@@ -24,6 +24,13 @@ with the noise between units (:func:`_sd_noise_units`); the ``u_`` fields: the t
 moved to that estimate (the same laws of the noise, centred on the corrected estimate; taking
 each assignment's standard-deviation part less its own noise as the law instead narrowed it
 to 26–36 % coverage at 90 %: the noise estimate moves with the noise it estimates).
+``u_inv`` / ``c_inv`` (session 24): the test-inversion interval (:func:`inverted_bounds`) of the
+corrected / the calibrated estimate: at each candidate ``θ₀`` the estimate's law is taken as
+``θ₀`` plus the assignments' law of the noise plus a normal linear term whose variance ``κ θ₀``
+grows with the candidate (the deviation spread over the states as the calibrated squares), so
+the upper bound's width is set by the deviation it tests, not by the estimate. ``g_inv``: the
+same with ``κ`` from the pairs' influences across states (:func:`_kappa_pairs`); ``uc_inv`` and
+``gc_inv``: those two with the upper bound by CLs (:func:`inverted_bounds`).
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/deviation_calibrated_probe.py \
         --reps 200 --bracketed benchmarks/results/deviation_noise_probe_truth.json \
@@ -43,7 +50,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(ROOT / "scripts"))
-from deviation_noise_probe import RESPONSES, bracketed, replications  # noqa: E402
+from deviation_noise_probe import RESPONSES, _root, bracketed, replications  # noqa: E402
 
 from simcred.compare import effect  # noqa: E402
 from simcred.compare.cluster_sums import MIN_SHARE, MIN_UNITS, Entries  # noqa: E402
@@ -90,6 +97,19 @@ def permutation_recording(into: list):
                 - row[f.feature]["permutation_leverage"]
             row[f.feature] |= {f"u_{name}": value + shift for name, value in row[f.feature].items()
                                if name.startswith("law")}
+            excess_k, null_k, law_k = _noise_law(parts[:2, k], valid, weight, leverage)
+            kappa = _linear_per_theta(excess_k, null_k, weight, leverage)
+            kappa_pairs = _kappa_pairs(per_pair, k, excess_k, weight, leverage)
+            by_pairs = kappa if kappa_pairs is None else kappa_pairs
+            for prefix, estimate, factor, cls in (
+                    ("u_", "permutation_kurtosis_units", kappa, False),
+                    ("c_", "permutation_leverage", kappa, False),
+                    ("g_", "permutation_kurtosis_units", by_pairs, False),
+                    ("uc_", "permutation_kurtosis_units", kappa, True),
+                    ("gc_", "permutation_kurtosis_units", by_pairs, True)):
+                row[f.feature] |= {prefix + name: value for name, value in inverted_bounds(
+                    row[f.feature][estimate], law_k, factor, np.random.default_rng(
+                        10_000 + len(into)).standard_normal(10 * len(law_k)), cls).items()}
         into.append(row)
         return out
     return wrapped
@@ -264,13 +284,9 @@ def _per_pair(entries: Entries, take: np.ndarray, state: np.ndarray) -> np.ndarr
     return sums
 
 
-def _pairs_linear_variance(per_pair: np.ndarray, weight: np.ndarray, k: int) -> float:
-    """The variance of the linear term ``Σ_s 2 w_s δ_s e_s`` of the calibrated estimate from
-    the pairs' own influences ``ψ_c`` on every state's difference of means and of standard
-    deviations (so pairs that visit several states carry their covariance): ``4 Σ_c L̂_c²``
-    with ``L̂_c = Σ w δ̂ ψ_c``, less its noise ``4 wᵀ (G ∘ G) w`` (``G = Ψᵀ Ψ``: ``δ̂ δ̂ᵀ``
-    holds ``δ δᵀ + G``), at least 0. ``per_pair``: :func:`_per_pair`; ``weight``: the states'
-    ``w / (1 − h)``."""
+def _pair_influences(per_pair: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """Response ``k``'s pairs' influences on every entering state's difference of means and of
+    standard deviations (pairs, 2 · states), and those differences (2 · states)."""
     j = (len(per_pair) - 1) // 2
     sums = per_pair[[0, 1 + k, 1 + j + k]]  # N, S1, S2 per side, state, pair
     n, s1, s2 = (x.sum(axis=-1, keepdims=True) for x in sums)  # (2, states, 1)
@@ -280,11 +296,38 @@ def _pairs_linear_variance(per_pair: np.ndarray, weight: np.ndarray, k: int) -> 
     with np.errstate(invalid="ignore", divide="ignore"):
         psi_sd = np.nan_to_num((sums[2] - 2 * mean * sums[1] + (mean**2 - var) * sums[0])
                                / (2 * sd * n))
-    psi = np.vstack([psi_mean[0] - psi_mean[1], psi_sd[0] - psi_sd[1]]).T  # (pairs, 2 states)
+    psi = np.vstack([psi_mean[0] - psi_mean[1], psi_sd[0] - psi_sd[1]]).T
+    return psi, np.r_[(mean[0] - mean[1])[:, 0], (sd[0] - sd[1])[:, 0]]
+
+
+def _pairs_linear_variance(per_pair: np.ndarray, weight: np.ndarray, k: int) -> float:
+    """The variance of the linear term ``Σ_s 2 w_s δ_s e_s`` of the calibrated estimate from
+    the pairs' own influences ``ψ_c`` on every state's difference of means and of standard
+    deviations (so pairs that visit several states carry their covariance): ``4 Σ_c L̂_c²``
+    with ``L̂_c = Σ w δ̂ ψ_c``, less its noise ``4 wᵀ (G ∘ G) w`` (``G = Ψᵀ Ψ``: ``δ̂ δ̂ᵀ``
+    holds ``δ δᵀ + G``), at least 0. ``per_pair``: :func:`_per_pair`; ``weight``: the states'
+    ``w / (1 − h)``."""
+    psi, difference = _pair_influences(per_pair, k)
     w2 = np.r_[weight, weight]
-    coefficient = w2 * np.r_[(mean[0] - mean[1])[:, 0], (sd[0] - sd[1])[:, 0]]
+    coefficient = w2 * difference
     gram = psi.T @ psi
     return max(4 * float(((psi @ coefficient)**2).sum() - w2 @ (gram * gram) @ w2), 0.0)
+
+
+def _kappa_pairs(per_pair: np.ndarray, k: int, excess: np.ndarray, weight: np.ndarray,
+                 leverage: np.ndarray) -> float | None:
+    """``κ`` from the pairs' influences across states (their covariance kept): the deviation
+    spread as the calibrated squares with the observed differences' signs, ``f``, and ``κ =
+    4 Σ_c (ψ_c · (w' ∘ f))² / Σ w f²`` (``w' = w / (1 − h)``); None where no square is
+    positive."""
+    psi, difference = _pair_influences(per_pair, k)
+    square = (np.maximum(excess, 0.0) / (1 - leverage)).ravel()  # (2 · states): mean, sd
+    total = float((np.r_[weight, weight] * square).sum())
+    if total <= 0:
+        return None
+    shape = np.sign(difference) * np.sqrt(square)
+    coefficient = np.r_[weight, weight] / np.r_[1 - leverage, 1 - leverage] * shape
+    return 4 * float(((psi @ coefficient)**2).sum()) / total
 
 
 def _calibrated(parts, valid, weight, leverage, rng, pairs_variance: float = 0.0
@@ -297,11 +340,8 @@ def _calibrated(parts, valid, weight, leverage, rng, pairs_variance: float = 0.0
     under the same law), and that law plus a normal linear term: ``4 Σ w² T c`` (``T`` a part's
     calibrated square, ``c`` its assignments' mean: the variance of ``2 δ e`` where ``δ ≠ 0``,
     per state), or ``pairs_variance`` (:func:`_pairs_linear_variance`, across states)."""
-    excess, null = calibrated_excess(parts, valid)
+    excess, null, law = _noise_law(parts, valid, weight, leverage)
     estimate = float((weight * excess.sum(axis=0) / (1 - leverage)).sum())
-    w_k = weight[:, None] * valid
-    law = (w_k * (parts[..., 1:] - null[..., None]).sum(axis=0) / (1 - leverage)[:, None]
-           ).sum(axis=0) / np.maximum(w_k.sum(axis=0), 1e-300)
     linear = max(4 * float((weight**2 * (excess / (1 - leverage) * null).sum(axis=0)).sum()),
                  0.0)
     normal = rng.standard_normal(10 * len(law))
@@ -314,6 +354,61 @@ def _calibrated(parts, valid, weight, leverage, rng, pairs_variance: float = 0.0
             tail = (1 - level) / 2
             out[f"{name}_{level}_low"] = estimate - float(np.quantile(values, 1 - tail))
             out[f"{name}_{level}_high"] = estimate - float(np.quantile(values, tail))
+    return out
+
+
+def _noise_law(parts, valid, weight, leverage) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`calibrated_excess` of the (mean, sd) parts and the assignments' law of the
+    calibrated estimate (each assignment taken as the observed one)."""
+    excess, null = calibrated_excess(parts, valid)
+    w_k = weight[:, None] * valid
+    law = (w_k * (parts[..., 1:] - null[..., None]).sum(axis=0) / (1 - leverage)[:, None]
+           ).sum(axis=0) / np.maximum(w_k.sum(axis=0), 1e-300)
+    return excess, null, law
+
+
+def _linear_per_theta(excess, null, weight, leverage) -> float:
+    """``κ``: the variance of the linear term ``Σ 2 w δ e`` per unit of ``θ`` when the
+    deviation is spread over the states and parts as the calibrated squares (clipped at 0;
+    as the noise where none is positive): ``4 Σ w² f c`` with ``Σ w f = 1``."""
+    shape = np.maximum(excess, 0.0) / (1 - leverage)
+    if (weight * shape.sum(axis=0)).sum() <= 0:
+        shape = null.copy()
+    total = float((weight * shape.sum(axis=0)).sum())
+    return 4 * float((weight**2 * (shape * null).sum(axis=0)).sum()) / max(total, 1e-300)
+
+
+def inverted_bounds(estimate: float, law: np.ndarray, kappa: float, normal: np.ndarray,
+                    cls: bool = False) -> dict[str, float]:
+    """Test inversion at ``θ₀``: the estimate's law there taken as ``θ₀ + N + √(κ θ₀) Z`` (``N``
+    the assignments' law of the noise, ``Z`` the fixed normal draws, 10 per assignment); the
+    bounds where the observed estimate is at its upper / lower ``(1 − level) / 2`` tail, on
+    the squared scale (the lower bound at least 0). ``cls``: the upper bound by CLs (Read
+    2002): ``θ₀`` excluded only where ``P_θ₀(T ≤ t) / P_0(T ≤ t)`` is at most the tail, so that
+    an estimate below all that the noise gives cannot exclude deviations the data cannot
+    tell from 0 (each probability counted with one added draw)."""
+    noise, z = np.repeat(law, len(normal) // len(law)), normal
+
+    def above(theta):  # P(estimate under θ₀ ≥ observed)
+        return float((theta + noise + np.sqrt(kappa * max(theta, 0.0)) * z >= estimate).mean())
+
+    def below(theta):  # P(estimate under θ₀ ≤ observed), one draw added
+        hits = (theta + noise + np.sqrt(kappa * max(theta, 0.0)) * z <= estimate).sum()
+        return float((hits + 1) / (len(z) + 1))
+
+    def excluded(theta):  # 1 − CLs: increasing in θ₀ like ``above``
+        return 1 - below(theta) / below(0.0)
+
+    top = 20 * abs(estimate) + 20 * float(np.abs(law).max()) + 1e-12
+    out = {}
+    for level in (0.90, 0.95):
+        tail = (1 - level) / 2
+        out[f"inv_{level}_low"] = 0.0 if above(0.0) >= tail else _root(above, top, tail)
+        if cls:
+            out[f"inv_{level}_high"] = _root(excluded, top, 1 - tail)
+        else:
+            out[f"inv_{level}_high"] = 0.0 if above(0.0) >= 1 - tail else _root(
+                above, top, 1 - tail)
     return out
 
 
@@ -335,7 +430,8 @@ def permutation_summary(kind: str, rows: list, truth: dict) -> dict:
             cell[f"{method}_se"] = float(v.std(ddof=1) / np.sqrt(len(v)))
             cell[f"{method}_sd"] = float(v.std(ddof=1))
         for interval in ("law", "law_linear", "law_pairs", "v_law", "v_law_linear",
-                         "v_law_pairs", "u_law", "u_law_linear", "u_law_pairs"):
+                         "v_law_pairs", "u_law", "u_law_linear", "u_law_pairs", "u_inv", "c_inv",
+                         "g_inv", "uc_inv", "gc_inv"):
             for level in (0.90, 0.95):
                 low = np.array([r[name][f"{interval}_{level}_low"] for r in rows])
                 high = np.array([r[name][f"{interval}_{level}_high"] for r in rows])
@@ -355,6 +451,7 @@ def main(argv=None):
     parser.add_argument("--reps", type=int, default=80)
     parser.add_argument("--runs", type=int, default=40)
     parser.add_argument("--permutations", type=int, default=199)
+    parser.add_argument("--seed0", type=int, default=0, help="the first replication's seed")
     parser.add_argument("--bracketed", required=True, metavar="TRUTH_JSON",
                         help="a deviation_noise_probe.py --truth output")
     parser.add_argument("--out", default="deviation_calibrated_probe.json")
@@ -362,7 +459,7 @@ def main(argv=None):
     truths, table = bracketed(args.bracketed), {}
     for kind in args.kinds.split(","):
         rows: list = []
-        replications(permutation_recording(rows), kind, args.reps, args.runs, 0, 2,
+        replications(permutation_recording(rows), kind, args.reps, args.runs, args.seed0, 2,
                      permutations=args.permutations)
         table[kind] = permutation_summary(kind, rows, truths.get(kind, {}))
     Path(args.out).write_text(json.dumps({"args": vars(args), "table": table}, indent=1))
