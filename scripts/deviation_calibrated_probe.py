@@ -30,7 +30,9 @@ corrected / the calibrated estimate: at each candidate ``θ₀`` the estimate's 
 grows with the candidate (the deviation spread over the states as the calibrated squares), so
 the upper bound's width is set by the deviation it tests, not by the estimate. ``g_inv``: the
 same with ``κ`` from the pairs' influences across states (:func:`_kappa_pairs`); ``uc_inv`` and
-``gc_inv``: those two with the upper bound by CLs (:func:`inverted_bounds`).
+``gc_inv``: those two with the upper bound by CLs (:func:`inverted_bounds`). ``r_inv``: ``κ``
+as the pairs' linear variance less its noise (``law_pairs``'s) over the corrected estimate, the
+per-state ``κ`` where either is not positive.
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/deviation_calibrated_probe.py \
         --reps 200 --bracketed benchmarks/results/deviation_noise_probe_truth.json \
@@ -101,12 +103,16 @@ def permutation_recording(into: list):
             kappa = _linear_per_theta(excess_k, null_k, weight, leverage)
             kappa_pairs = _kappa_pairs(per_pair, k, excess_k, weight, leverage)
             by_pairs = kappa if kappa_pairs is None else kappa_pairs
+            corrected = row[f.feature]["permutation_kurtosis_units"]
+            # the linear term's variance estimated at the truth, its noise removed, per unit θ
+            ratio = linear / corrected if linear > 0 and corrected > 0 else kappa
             for prefix, estimate, factor, cls in (
                     ("u_", "permutation_kurtosis_units", kappa, False),
                     ("c_", "permutation_leverage", kappa, False),
                     ("g_", "permutation_kurtosis_units", by_pairs, False),
                     ("uc_", "permutation_kurtosis_units", kappa, True),
-                    ("gc_", "permutation_kurtosis_units", by_pairs, True)):
+                    ("gc_", "permutation_kurtosis_units", by_pairs, True),
+                    ("r_", "permutation_kurtosis_units", ratio, False)):
                 row[f.feature] |= {prefix + name: value for name, value in inverted_bounds(
                     row[f.feature][estimate], law_k, factor, np.random.default_rng(
                         10_000 + len(into)).standard_normal(10 * len(law_k)), cls).items()}
@@ -431,7 +437,7 @@ def permutation_summary(kind: str, rows: list, truth: dict) -> dict:
             cell[f"{method}_sd"] = float(v.std(ddof=1))
         for interval in ("law", "law_linear", "law_pairs", "v_law", "v_law_linear",
                          "v_law_pairs", "u_law", "u_law_linear", "u_law_pairs", "u_inv", "c_inv",
-                         "g_inv", "uc_inv", "gc_inv"):
+                         "g_inv", "uc_inv", "gc_inv", "r_inv"):
             for level in (0.90, 0.95):
                 low = np.array([r[name][f"{interval}_{level}_low"] for r in rows])
                 high = np.array([r[name][f"{interval}_{level}_high"] for r in rows])
