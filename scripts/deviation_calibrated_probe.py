@@ -32,7 +32,8 @@ the upper bound's width is set by the deviation it tests, not by the estimate. `
 same with ``κ`` from the pairs' influences across states (:func:`_kappa_pairs`); ``uc_inv`` and
 ``gc_inv``: those two with the upper bound by CLs (:func:`inverted_bounds`). ``r_inv``: ``κ``
 as the pairs' linear variance less its noise (``law_pairs``'s) over the corrected estimate, the
-per-state ``κ`` where either is not positive.
+per-state ``κ`` where either is not positive; ``rp16_inv`` / ``rp50_inv``: ``r_inv`` with a
+power-constrained upper bound at 16 % / 50 % power (:func:`inverted_bounds`).
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/deviation_calibrated_probe.py \
         --reps 200 --bracketed benchmarks/results/deviation_noise_probe_truth.json \
@@ -116,6 +117,11 @@ def permutation_recording(into: list):
                 row[f.feature] |= {prefix + name: value for name, value in inverted_bounds(
                     row[f.feature][estimate], law_k, factor, np.random.default_rng(
                         10_000 + len(into)).standard_normal(10 * len(law_k)), cls).items()}
+            for prefix, power in (("rp16_", 0.16), ("rp50_", 0.5)):
+                row[f.feature] |= {prefix + name: value for name, value in inverted_bounds(
+                    corrected, law_k, ratio, np.random.default_rng(
+                        10_000 + len(into)).standard_normal(10 * len(law_k)),
+                    power=power).items()}
         into.append(row)
         return out
     return wrapped
@@ -385,14 +391,16 @@ def _linear_per_theta(excess, null, weight, leverage) -> float:
 
 
 def inverted_bounds(estimate: float, law: np.ndarray, kappa: float, normal: np.ndarray,
-                    cls: bool = False) -> dict[str, float]:
+                    cls: bool = False, power: float = 0.0) -> dict[str, float]:
     """Test inversion at ``θ₀``: the estimate's law there taken as ``θ₀ + N + √(κ θ₀) Z`` (``N``
     the assignments' law of the noise, ``Z`` the fixed normal draws, 10 per assignment); the
     bounds where the observed estimate is at its upper / lower ``(1 − level) / 2`` tail, on
     the squared scale (the lower bound at least 0). ``cls``: the upper bound by CLs (Read
     2002): ``θ₀`` excluded only where ``P_θ₀(T ≤ t) / P_0(T ≤ t)`` is at most the tail, so that
     an estimate below all that the noise gives cannot exclude deviations the data cannot
-    tell from 0 (each probability counted with one added draw)."""
+    tell from 0 (each probability counted with one added draw). ``power``: a power-constrained
+    upper bound (Cowan, Cranmer, Gross & Vitells 2011): at least the smallest ``θ₀`` that the
+    test excludes with probability ``power`` when the deviation is 0."""
     noise, z = np.repeat(law, len(normal) // len(law)), normal
 
     def above(theta):  # P(estimate under θ₀ ≥ observed)
@@ -405,6 +413,10 @@ def inverted_bounds(estimate: float, law: np.ndarray, kappa: float, normal: np.n
     def excluded(theta):  # 1 − CLs: increasing in θ₀ like ``above``
         return 1 - below(theta) / below(0.0)
 
+    def power_at_zero(theta, tail):  # P_0(the test at θ₀ excludes θ₀)
+        cut = np.quantile(theta + noise + np.sqrt(kappa * max(theta, 0.0)) * z, tail)
+        return float((noise < cut).mean())
+
     top = 20 * abs(estimate) + 20 * float(np.abs(law).max()) + 1e-12
     out = {}
     for level in (0.90, 0.95):
@@ -415,6 +427,9 @@ def inverted_bounds(estimate: float, law: np.ndarray, kappa: float, normal: np.n
         else:
             out[f"inv_{level}_high"] = 0.0 if above(0.0) >= 1 - tail else _root(
                 above, top, 1 - tail)
+        if power > 0:
+            out[f"inv_{level}_high"] = max(out[f"inv_{level}_high"], _root(
+                lambda theta, tail=tail: power_at_zero(theta, tail), top, power))
     return out
 
 
@@ -437,7 +452,8 @@ def permutation_summary(kind: str, rows: list, truth: dict) -> dict:
             cell[f"{method}_sd"] = float(v.std(ddof=1))
         for interval in ("law", "law_linear", "law_pairs", "v_law", "v_law_linear",
                          "v_law_pairs", "u_law", "u_law_linear", "u_law_pairs", "u_inv", "c_inv",
-                         "g_inv", "uc_inv", "gc_inv", "r_inv"):
+                         "g_inv", "uc_inv", "gc_inv", "r_inv",
+                         "rp16_inv", "rp50_inv"):
             for level in (0.90, 0.95):
                 low = np.array([r[name][f"{interval}_{level}_low"] for r in rows])
                 high = np.array([r[name][f"{interval}_{level}_high"] for r in rows])
