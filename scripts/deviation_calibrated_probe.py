@@ -100,31 +100,40 @@ def permutation_recording(into: list):
                 - row[f.feature]["permutation_leverage"]
             row[f.feature] |= {f"u_{name}": value + shift for name, value in row[f.feature].items()
                                if name.startswith("law")}
-            excess_k, null_k, law_k = _noise_law(parts[:2, k], valid, weight, leverage)
-            kappa = _linear_per_theta(excess_k, null_k, weight, leverage)
-            kappa_pairs = _kappa_pairs(per_pair, k, excess_k, weight, leverage)
-            by_pairs = kappa if kappa_pairs is None else kappa_pairs
-            corrected = row[f.feature]["permutation_kurtosis_units"]
-            # the linear term's variance estimated at the truth, its noise removed, per unit θ
-            ratio = linear / corrected if linear > 0 and corrected > 0 else kappa
-            for prefix, estimate, factor, cls in (
-                    ("u_", "permutation_kurtosis_units", kappa, False),
-                    ("c_", "permutation_leverage", kappa, False),
-                    ("g_", "permutation_kurtosis_units", by_pairs, False),
-                    ("uc_", "permutation_kurtosis_units", kappa, True),
-                    ("gc_", "permutation_kurtosis_units", by_pairs, True),
-                    ("r_", "permutation_kurtosis_units", ratio, False)):
-                row[f.feature] |= {prefix + name: value for name, value in inverted_bounds(
-                    row[f.feature][estimate], law_k, factor, np.random.default_rng(
-                        10_000 + len(into)).standard_normal(10 * len(law_k)), cls).items()}
-            for prefix, power in (("rp16_", 0.16), ("rp50_", 0.5)):
-                row[f.feature] |= {prefix + name: value for name, value in inverted_bounds(
-                    corrected, law_k, ratio, np.random.default_rng(
-                        10_000 + len(into)).standard_normal(10 * len(law_k)),
-                    power=power).items()}
+            row[f.feature] |= _inverted_fields(
+                row[f.feature], _noise_law(parts[:2, k], valid, weight, leverage), weight,
+                leverage, (per_pair, k), linear, np.random.default_rng(10_000 + len(into)))
         into.append(row)
         return out
     return wrapped
+
+
+def _inverted_fields(row: dict, noise_law, weight, leverage, pairs: tuple, linear: float,
+                     rng) -> dict[str, float]:
+    """The inverted intervals' bounds (module docs: ``u_inv`` ... ``rp50_inv``) of one response,
+    from its ``row`` of estimates, :func:`_noise_law`'s output, the pairs' sums and response
+    index (:func:`_kappa_pairs`) and the pairs' linear variance less its noise."""
+    excess, null, law = noise_law
+    kappa = _linear_per_theta(excess, null, weight, leverage)
+    kappa_pairs = _kappa_pairs(*pairs, excess, weight, leverage)
+    by_pairs = kappa if kappa_pairs is None else kappa_pairs
+    corrected = row["permutation_kurtosis_units"]
+    # the linear term's variance estimated at the truth, its noise removed, per unit θ
+    ratio = linear / corrected if linear > 0 and corrected > 0 else kappa
+    normal = rng.standard_normal(10 * len(law))
+    out = {}
+    for prefix, estimate, factor, cls, power in (
+            ("u_", corrected, kappa, False, 0.0),
+            ("c_", row["permutation_leverage"], kappa, False, 0.0),
+            ("g_", corrected, by_pairs, False, 0.0),
+            ("uc_", corrected, kappa, True, 0.0),
+            ("gc_", corrected, by_pairs, True, 0.0),
+            ("r_", corrected, ratio, False, 0.0),
+            ("rp16_", corrected, ratio, False, 0.16),
+            ("rp50_", corrected, ratio, False, 0.5)):
+        out |= {prefix + name: value for name, value in inverted_bounds(
+            estimate, law, factor, normal, cls, power).items()}
+    return out
 
 
 @dataclass(frozen=True)
