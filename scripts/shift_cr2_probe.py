@@ -37,6 +37,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(ROOT / "scripts"))
 import response_coverage  # noqa: E402
+from deviation_calibrated_probe import _per_pair  # noqa: E402
 
 import response_designs  # noqa: E402
 from simcred.compare import conditional, effect  # noqa: E402
@@ -53,11 +54,8 @@ def influences(entries: Entries, keep: np.ndarray, j: int) -> dict[str, np.ndarr
     the shift itself."""
     take = keep[entries.state]
     state = (np.cumsum(keep) - 1)[entries.state[take]]
-    side, cluster = entries.side[take], entries.cluster[take]
-    shape = (2, int(keep.sum()), entries.n_clusters)
-    n, s = np.zeros(shape), np.zeros(shape)
-    np.add.at(n, (side, state, cluster), entries.count[take])
-    np.add.at(s, (side, state, cluster), entries.first[take, j])
+    sums = _per_pair(entries, take, state)  # (1 + 2J, 2, states, pairs)
+    n, s = sums[0], sums[1 + j]
     totals = entries.totals().T  # (2, clusters) over all states
     n_gs, s_gs, n_g = n.sum(axis=2), s.sum(axis=2), totals.sum(axis=1)
     mean = s_gs / n_gs
