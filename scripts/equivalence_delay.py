@@ -37,6 +37,7 @@ import math
 import subprocess
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -66,15 +67,18 @@ def replicate(kind: str, seeds: range, args, margin: float) -> dict[str, np.ndar
     """Per replication: the feature's estimate, one-sided upper and lower 95 % bounds, 95 %
     interval, permutation p-value and the API's equivalence verdict at ``margin``."""
     rows = {k: [] for k in ("estimate", "upper", "lower", "low", "high", "pvalue",
-                            "equivalent_api")}
+                            "equivalent_api", "detectable", "upper_bootstrap", "floor80")}
     options = OPTIONS | {"bins": args.bins, "permutations": args.permutations}
     for r, seed in enumerate(seeds):
         d = defect(np.random.default_rng(seed), kind, runs=args.runs)
         f = effects(d, seed, args.bootstrap, margin={FEATURE: margin}, **options)[FEATURE]
         assert f.equivalent == bool(f.upper < margin), (seed, f)
-        for key in ("estimate", "upper", "lower", "low", "high", "pvalue"):
+        for key in ("estimate", "upper", "lower", "low", "high", "pvalue", "detectable"):
             rows[key].append(getattr(f, key))
         rows["equivalent_api"].append(f.equivalent)
+        rows["upper_bootstrap"].append(replace(f, null=np.empty(0)).bounds(ALPHA)[1])
+        high, low80 = np.quantile(f.null, [1 - ALPHA, 0.2]) if len(f.null) else (0.0, 0.0)
+        rows["floor80"].append(float(np.sqrt(max(high - low80, 0.0))))
         if r + 1 in (5, 50) or (r + 1) % 200 == 0:
             print(f"  {kind}: {r + 1} replications", flush=True)
     return {k: np.asarray(v, dtype=float) for k, v in rows.items()}
@@ -89,6 +93,13 @@ def summary(rows: dict[str, np.ndarray], margins: dict[str, float], true: float 
         k = int((upper < delta).sum())
         out["equivalent"][label] = {"margin": delta, "count": k, "share": k / n,
                                     "wilson95": wilson(k, n)}
+    out["equivalent_bootstrap_bound_only"] = {
+        label: int((rows["upper_bootstrap"] < delta).sum()) for label, delta in margins.items()}
+    out["floor_raises_bound_share"] = float(np.mean(upper > rows["upper_bootstrap"]))
+    out["floor80_above_bootstrap_bound_share"] = float(
+        np.mean(rows["floor80"] > rows["upper_bootstrap"]))
+    out["detectable_quantiles"] = dict(zip(map(str, QUANTILES), np.quantile(
+        rows["detectable"], QUANTILES).tolist(), strict=True))
     out["upper_mean"] = float(np.mean(upper))
     out["upper_quantiles"] = dict(zip(map(str, QUANTILES),
                                       np.quantile(upper, QUANTILES).tolist(), strict=True))
@@ -101,7 +112,8 @@ def summary(rows: dict[str, np.ndarray], margins: dict[str, float], true: float 
         out["coverage95"] = float(np.mean((rows["low"] <= true) & (true <= rows["high"])))
         out["upper_below_truth"] = float(np.mean(upper < true))
     out["per_replication"] = {k: np.round(rows[k], 6).tolist()
-                              for k in ("estimate", "upper", "pvalue")}
+                              for k in ("estimate", "upper", "pvalue", "upper_bootstrap",
+                                        "detectable")}
     return out
 
 
@@ -150,12 +162,16 @@ def main(argv=None):
     parser.add_argument("--margins", default="0.012,0.025,0.05,0.075,0.1,0.15",
                         help="δ [m/s²] besides the true deviation")
     parser.add_argument("--seed0", type=int, default=0)
+    parser.add_argument("--truth-from", metavar="JSON",
+                        help="take the truths from an earlier run's output (same design)")
     parser.add_argument("--out", default=str(ROOT / "benchmarks/results/equivalence_delay.json"))
     args = parser.parse_args(argv)
     options = OPTIONS | {"bins": args.bins}
     start = time.time()
-    truths = {}
+    truths = json.loads(Path(args.truth_from).read_text())["truth"] if args.truth_from else {}
     for kind, draws in (("delay", args.truth_draws), ("none", args.control_truth_draws)):
+        if kind in truths:
+            continue
         t = truth(kind, draws, args.truth_runs, **options)
         truths[kind] = {name: {"deviation": v[0], "deviation_se": v[1], "shift": v[2],
                                "shift_se": v[3]} for name, v in t.items()}

@@ -62,7 +62,7 @@ def truth(kind, draws, runs, **options):
     return out
 
 
-def coverage(kind, true, reps, runs, bootstrap, seed0=0, true_shift=None):
+def coverage(kind, true, reps, runs, bootstrap, seed0=0, true_shift=None, permutations=19):
     true_shift = true_shift or {}
     counts = {name: {"cover": {lv: 0 for lv in LEVELS}, "low_above": {lv: 0 for lv in LEVELS},
                      "high_below": {lv: 0 for lv in LEVELS}, "width95": 0.0, "equivalent": 0,
@@ -71,7 +71,8 @@ def coverage(kind, true, reps, runs, bootstrap, seed0=0, true_shift=None):
                      "shift_high_below": {lv: 0 for lv in LEVELS}} for name in true}
     for rep in range(seed0, seed0 + reps):
         d = defect(np.random.default_rng(rep), kind, runs=runs)
-        found = effects(d, rep, bootstrap, margin={n: t for n, t in true.items() if t > 1e-9})
+        found = effects(d, rep, bootstrap, margin={n: t for n, t in true.items() if t > 1e-9},
+                        permutations=permutations)
         for name, f in found.items():
             c, t = counts[name], true[name]
             for lv in LEVELS:
@@ -129,14 +130,22 @@ def main(argv=None):
     parser.add_argument("--seed0", type=int, default=0, help="first replication's seed")
     parser.add_argument("--null-sizes", default="")
     parser.add_argument("--null-reps", type=int, default=50)
+    parser.add_argument("--permutations", type=int, default=19,
+                        help="the effect's permutation null (sets the upper bounds' floor)")
+    parser.add_argument("--truth-from", metavar="JSON",
+                        help="take the truths from an earlier run's output (same designs)")
     parser.add_argument("--out", default="coverage.json")
     args = parser.parse_args(argv)
+    known = json.loads(Path(args.truth_from).read_text())["table"] if args.truth_from else {}
     table = {}
     for kind in filter(None, args.kinds.split(",")):
         start = time.time()
-        true = truth(kind, args.truth_draws, args.truth_runs)
+        true = {n: (t["truth"], t["truth_se"], t["true_shift"], t["true_shift_se"])
+                for n, t in known[kind].items()} if kind in known \
+            else truth(kind, args.truth_draws, args.truth_runs)
         cov = coverage(kind, {n: t[0] for n, t in true.items()}, args.reps, args.runs,
-                       args.bootstrap, args.seed0, {n: t[2] for n, t in true.items()})
+                       args.bootstrap, args.seed0, {n: t[2] for n, t in true.items()},
+                       args.permutations)
         table[kind] = {name: {"truth": true[name][0], "truth_se": true[name][1],
                               "true_shift": true[name][2], "true_shift_se": true[name][3],
                               **cov[name]} for name in true}

@@ -10,6 +10,7 @@ the delay defect against the truth measured by scripts/response_coverage.py.
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -195,6 +196,42 @@ def test_bounds_written_out():
     assert noisy.bounds(0.1)[0] == pytest.approx(max(phi_low**2 - c, 0.0) ** 0.5)
     assert noisy.bounds(0.1)[1] == pytest.approx((0.01 - (q_low - 0.09)) ** 0.5)
     assert np.isnan(FeatureEffect("x", "", *[np.nan] * 9).bounds(0.05)[0])
+
+
+def test_power_floor_written_out():
+    """The upper bound is never below the deviation detected with 50 % power, to first order
+    ``q_{1−a} − q_{0.5}`` of the plug-in's permutation null; the lower bound does not move."""
+    squared_reps = np.array([-0.01, 0.0, 0.02, 0.04, 0.05, 0.09, 0.2])
+    roots = np.sign(squared_reps) * np.abs(squared_reps) ** 0.5
+    bare = FeatureEffect("x", "1/s", 0.1, 0.3, 0, 0, 0, 0, 0, 0, 0, squared=0.01,
+                         replicates=roots)
+    null = np.linspace(0.0, 0.5, 11)
+    floored = replace(bare, null=null)
+    floor = np.quantile(null, 0.9) - np.quantile(null, 0.5)
+    assert floored.power_floor(0.1) == pytest.approx(floor)
+    assert floored.bounds(0.1)[1] == pytest.approx(max(bare.bounds(0.1)[1], floor ** 0.5))
+    assert floored.bounds(0.1)[1] > bare.bounds(0.1)[1]  # this floor binds
+    assert floored.bounds(0.1)[0] == bare.bounds(0.1)[0]
+    assert bare.power_floor(0.1) == 0.0  # no null, no floor
+
+
+def test_compare_reports_the_floor_and_decides_on_it():
+    """Through compare: ``detectable`` is the floor at α, every upper bound is at or above it,
+    equivalence is decided on the floored bound, and the null is not written to JSON."""
+    import response_designs as designs
+
+    d = designs.defect(np.random.default_rng(3), "none", runs=20)
+    result = compare(d.a, d.b, features=list(d.features), test="response", pair_by="run_id",
+                     bins=4, permutations=99, seed=3, bootstrap=100, margin=0.5, alpha=0.05)
+    for f in result.response.effect.features:
+        if not np.isfinite(f.estimate):
+            continue
+        assert len(f.null) == 99
+        assert f.detectable == pytest.approx(f.power_floor(0.05) ** 0.5)
+        assert f.upper >= f.detectable and f.high >= f.power_floor(0.025) ** 0.5
+        assert f.equivalent == bool(f.upper < 0.5)
+    written = json.loads(result.to_json())["response"]["effect"]["features"]
+    assert all("detectable" in f and "null" not in f for f in written)
 
 
 def test_entry_rule_needs_two_units_of_each_side():

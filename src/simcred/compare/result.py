@@ -284,9 +284,10 @@ def _test_dict(result: MMDTestResult) -> dict[str, Any]:
 
 
 def _without_replicates(response: dict[str, Any]) -> dict[str, Any]:
-    """The response analysis without the bootstrap replicates (kept in memory for bounds at
-    other levels, not written)."""
+    """The response analysis without the bootstrap replicates and the permutation null (kept
+    in memory for bounds at other levels, not written)."""
     effect = response["effect"]
-    features = [{k: v for k, v in f.items() if k not in ("replicates", "shift_replicates")}
+    features = [{k: v for k, v in f.items() if k not in ("replicates", "shift_replicates",
+                                                          "null")}
                 for f in effect["features"]]
     return {**response, "effect": {**effect, "features": features}}
