@@ -73,8 +73,9 @@ def replicate(kind: str, seeds: range, args, margin: float) -> dict[str, np.ndar
         d = defect(np.random.default_rng(seed), kind, runs=args.runs)
         f = effects(d, seed, args.bootstrap, margin={FEATURE: margin}, **options)[FEATURE]
         assert f.equivalent == bool(f.upper < margin), (seed, f)
-        for key in ("estimate", "upper", "lower", "low", "high", "pvalue", "detectable"):
+        for key in ("estimate", "upper", "lower", "low", "high", "pvalue"):
             rows[key].append(getattr(f, key))
+        rows["detectable"].append(f.floor)  # the bound's floor: 50 % power to first order
         rows["equivalent_api"].append(f.equivalent)
         rows["upper_bootstrap"].append(replace(f, null=np.empty(0)).bounds(ALPHA)[1])
         high, low80 = np.quantile(f.null, [1 - ALPHA, 0.2]) if len(f.null) else (0.0, 0.0)

@@ -216,7 +216,7 @@ def test_power_floor_written_out():
 
 
 def test_compare_reports_the_floor_and_decides_on_it():
-    """Through compare: ``detectable`` is the floor at α, every upper bound is at or above it,
+    """Through compare: ``floor`` is the power floor at α, every upper bound is at or above it,
     equivalence is decided on the floored bound, and the null is not written to JSON."""
     import response_designs as designs
 
@@ -227,11 +227,11 @@ def test_compare_reports_the_floor_and_decides_on_it():
         if not np.isfinite(f.estimate):
             continue
         assert len(f.null) == 99
-        assert f.detectable == pytest.approx(f.power_floor(0.05) ** 0.5)
-        assert f.upper >= f.detectable and f.high >= f.power_floor(0.025) ** 0.5
+        assert f.floor == pytest.approx(f.power_floor(0.05) ** 0.5)
+        assert f.upper >= f.floor and f.high >= f.power_floor(0.025) ** 0.5
         assert f.equivalent == bool(f.upper < 0.5)
     written = json.loads(result.to_json())["response"]["effect"]["features"]
-    assert all("detectable" in f and "null" not in f for f in written)
+    assert all("floor" in f and "null" not in f for f in written)
 
 
 def test_entry_rule_needs_two_units_of_each_side():

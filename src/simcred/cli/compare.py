@@ -309,8 +309,7 @@ def _response_rows(table: Table, result) -> None:
              else f"; NOT shown equivalent within {f.margin:g}")
         value = "not estimable (see the warning)" if effect.states == 0 else \
             (f"{f.estimate:.3g} ({100 * effect.level:.0f} % CI {f.low:.3g}–{f.high:.3g}; "
-             f"detectable: shift {f.mde:.3g} at 80 % power, deviation {f.detectable:.3g} at "
-             "50 %)")
+             f"detectable shift {f.mde:.3g}; upper bounds' floor {f.floor:.3g})")
         table.add_row(f"deviation of d{f.feature}/dt [{f.unit}]", value + equivalence)
     for test in analysis.scenario:
         table.add_row(f"{test.name} law (not part of the verdict)",

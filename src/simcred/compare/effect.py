@@ -46,22 +46,21 @@ side visit it (its variances need two) and the shift where at least one does: dr
 shift the states a replicate happens to draw one unit of made its bootstrap spread 1.3× its
 sampling spread (coverage 95.5–97 % at 90 %, calibration.md).
 
-**Power constraint** [9]. An upper bound is never below ``detectable``, the deviation that the
-permutation test of any deviation (``pvalue`` below) detects with 50 % power (``FLOOR_POWER``) at
-the bound's level: ``√(q_{1−a}(θ̂⁰) − q_{0.5}(θ̂⁰))`` from the plug-in's permutation null
-``θ̂⁰``, to first order (the plug-in under a deviation ``θ`` taken as ``θ`` plus a draw of the
-null; the cross term, symmetric, leaves the median where it is). Without it a draw in which the
-noise happens to cancel a deviation puts the bound below deviations the data could not see: with
-20 car-following episodes a 0.5 s reaction delay (deviation 0.055 m/s²) had a bound of 0.048
-(estimate 0) in 1 of 1,000 draws; with the floor in 0 of 1,000. The floor only raises bounds, so
-equivalence keeps its level and the interval's coverage can only grow (calibration.md measures
-by how much, what it costs in power to show equivalence, and the test's real power at
-``detectable``, which the first-order reading overstates). 50 %, Cowan et al.'s median choice,
-was fixed before any measurement: the floor acts on draws whose noise fell below its median.
+**Power constraint** [9]. An upper bound is never below ``floor``, the deviation that the
+permutation test of any deviation (``pvalue`` below) detects with 50 % power (``FLOOR_POWER``)
+at the bound's level to first order, ``√(q_{1−a}(θ̂⁰) − q_{0.5}(θ̂⁰))`` from the plug-in's
+permutation null ``θ̂⁰`` (the plug-in under a deviation ``θ`` read as ``θ`` plus a draw of that
+null). Without it a draw whose noise happens to cancel a deviation puts the bound below
+deviations the data cannot see: with 20 car-following episodes a 0.5 s reaction delay (deviation
+0.055 m/s²) had a bound below 0.05 in 1 of 1,000 draws, with the floor in none. The floor only
+raises bounds, so equivalence keeps its level and coverage can only grow. The first-order
+reading overstates the test's power: at 40 pairs, where the delay's deviation equals the median
+floor, the test detects it in 17 %, not 50 % (calibration.md, with what the floor costs in
+power to show equivalence). 50 %, Cowan et al.'s median choice, was fixed before measuring.
 
 **Equivalence** [6], [7], [8]. H0: ``E_j ≥ δ_j`` for some declared margin; H1: ``E_j < δ_j``
 for all. Rejected (equivalence shown) when every one-sided upper ``1 − α`` bound
-``max(√(θ̃ − (q_α(θ̃*) − θ̂)), detectable)`` lies below its margin: an intersection–union test,
+``max(√(θ̃ − (q_α(θ̃*) − θ̂)), floor)`` lies below its margin: an intersection–union test,
 level α without adjustment. Little data gives wide bounds and "not shown equivalent", never
 "equivalent".
 
@@ -131,8 +130,8 @@ class FeatureEffect:
     ``low``/``high``: bootstrap interval (:meth:`bounds` at ``(1 − level)/2``);
     ``upper``/``lower``: one-sided ``1 − α`` bounds (``upper`` is the equivalence test's);
     ``shift``: signed mean bias with its interval; ``mde``: detectable uniform shift;
-    ``pvalue``: permutation p-value of any deviation; ``detectable``: the deviation that test
-    detects with 50 % power at α, the floor of the upper bounds (``null``: its permutation null
+    ``pvalue``: permutation p-value of any deviation; ``floor``: the upper bounds' floor at α,
+    the deviation that test detects with 50 % power to first order (``null``: its permutation null
     of ``θ̂``, sorted, not written to JSON). ``replicates``: the bootstrap replicates
     ``θ̃*`` in the feature's unit, as signed roots ``sign(θ̃*)·√|θ̃*|`` (not written to JSON),
     from which :meth:`bounds` gives one-sided bounds at any other level.
@@ -158,7 +157,7 @@ class FeatureEffect:
                                    compare=False)
     shift_replicates: np.ndarray = field(default_factory=lambda: np.empty(0), repr=False,
                                          compare=False)
-    detectable: float = float("nan")
+    floor: float = float("nan")
     null: np.ndarray = field(default_factory=lambda: np.empty(0), repr=False, compare=False)
 
     def bounds(self, alpha: float) -> tuple[float, float]:
@@ -278,7 +277,7 @@ def _with_null(effect: FeatureEffect, pvalue: float, null: np.ndarray, alpha: fl
     effect = replace(effect, pvalue=pvalue, null=null)
     high, upper = effect.bounds((1 - level) / 2)[1], effect.bounds(alpha)[1]
     return replace(effect, high=high, upper=upper,
-                   detectable=float(np.sqrt(effect.power_floor(alpha))),
+                   floor=float(np.sqrt(effect.power_floor(alpha))),
                    equivalent=None if effect.margin is None else bool(upper < effect.margin))
 
 

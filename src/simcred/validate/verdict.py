@@ -58,8 +58,9 @@ def error_rates(result: Validation) -> dict[str, Any]:
                            f"{alpha / max(cells, 1):.4g} (Bonferroni over the {cells} cells)",
         "overall": f"the chosen candidate is wrongly valid with probability at most {alpha:g} "
                    "times the number of candidates that are not within tolerance",
-        "bounds": "cluster-bootstrap (basic) bounds over the design's units: approximate; their "
-                  "coverage is measured in docs/calibration.md",
+        "bounds": "cluster-bootstrap (basic) bounds over the design's units, upper bounds never "
+                  "below the deviation the cell's permutation test detects with 50 % power (to "
+                  "first order): approximate; their coverage is measured in docs/calibration.md",
     }
 
 
