@@ -54,7 +54,7 @@ null). Without it a draw whose noise happens to cancel a deviation puts the boun
 deviations the data cannot see: with 20 car-following episodes a 0.5 s reaction delay (deviation
 0.055 m/s²) had a bound below 0.05 in 1 of 1,000 draws, with the floor in none. The floor only
 raises bounds, so equivalence keeps its level and coverage can only grow. The first-order
-reading overstates the test's power: at 40 pairs, where the delay's deviation equals the median
+reading overstates the test's power: at 40 pairs, where the delay's deviation is near the median
 floor, the test detects it in 17 %, not 50 % (calibration.md, with what the floor costs in
 power to show equivalence). 50 %, Cowan et al.'s median choice, was fixed before measuring.
 
