@@ -33,7 +33,10 @@ same with ``κ`` from the pairs' influences across states (:func:`_kappa_pairs`)
 ``gc_inv``: those two with the upper bound by CLs (:func:`inverted_bounds`). ``r_inv``: ``κ``
 as the pairs' linear variance less its noise (``law_pairs``'s) over the corrected estimate, the
 per-state ``κ`` where either is not positive; ``rp16_inv`` / ``rp50_inv``: ``r_inv`` with a
-power-constrained upper bound at 16 % / 50 % power (:func:`inverted_bounds`).
+power-constrained upper bound at 16 % / 50 % power (:func:`inverted_bounds`); ``rf_inv``
+(session 25): ``r_inv`` with the shipped bound's floor instead (:func:`_floored`);
+``floor_median`` / ``floor_above_truth``: that floor's median (squared, at α = 0.05) and the
+share of draws in which it is above the squared truth.
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/deviation_calibrated_probe.py \
         --reps 200 --bracketed benchmarks/results/deviation_noise_probe_truth.json \
@@ -103,6 +106,7 @@ def permutation_recording(into: list):
             row[f.feature] |= _inverted_fields(
                 row[f.feature], _noise_law(parts[:2, k], valid, weight, leverage), weight,
                 leverage, (per_pair, k), linear, np.random.default_rng(10_000 + len(into)))
+            row[f.feature] |= _floored(row[f.feature], "r_inv", f)
         into.append(row)
         return out
     return wrapped
@@ -133,6 +137,17 @@ def _inverted_fields(row: dict, noise_law, weight, leverage, pairs: tuple, linea
             ("rp50_", corrected, ratio, False, 0.5)):
         out |= {prefix + name: value for name, value in inverted_bounds(
             estimate, law, factor, normal, cls, power).items()}
+    return out
+
+
+def _floored(row: dict, interval: str, shipped) -> dict[str, float]:
+    """``rf_inv`` (session 25): ``interval``'s bounds with the upper end never below the
+    shipped effect's power floor at the same tail (effect.py, "Power constraint")."""
+    out = {"floor": shipped.power_floor(0.05)}
+    for level in (0.90, 0.95):
+        out[f"rf_inv_{level}_low"] = row[f"{interval}_{level}_low"]
+        out[f"rf_inv_{level}_high"] = max(row[f"{interval}_{level}_high"],
+                                          shipped.power_floor((1 - level) / 2))
     return out
 
 
@@ -459,10 +474,13 @@ def permutation_summary(kind: str, rows: list, truth: dict) -> dict:
             cell[method] = float(v.mean())
             cell[f"{method}_se"] = float(v.std(ddof=1) / np.sqrt(len(v)))
             cell[f"{method}_sd"] = float(v.std(ddof=1))
+        floor = np.array([r[name]["floor"] for r in rows])
+        cell["floor_median"] = float(np.median(floor))
+        cell["floor_above_truth"] = float(np.mean(floor > t2))
         for interval in ("law", "law_linear", "law_pairs", "v_law", "v_law_linear",
                          "v_law_pairs", "u_law", "u_law_linear", "u_law_pairs", "u_inv", "c_inv",
                          "g_inv", "uc_inv", "gc_inv", "r_inv",
-                         "rp16_inv", "rp50_inv"):
+                         "rp16_inv", "rp50_inv", "rf_inv"):
             for level in (0.90, 0.95):
                 low = np.array([r[name][f"{interval}_{level}_low"] for r in rows])
                 high = np.array([r[name][f"{interval}_{level}_high"] for r in rows])

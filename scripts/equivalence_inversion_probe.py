@@ -33,7 +33,7 @@ from response_designs import defect  # noqa: E402
 from simcred.compare import conditional  # noqa: E402
 
 #: The inverted intervals of scripts/deviation_calibrated_probe.py compared with the shipped one.
-INTERVALS = ("u_inv", "g_inv", "uc_inv", "gc_inv", "r_inv", "rp16_inv", "rp50_inv")
+INTERVALS = ("u_inv", "g_inv", "uc_inv", "gc_inv", "r_inv", "rp16_inv", "rp50_inv", "rf_inv")
 
 
 def upper_bounds(kind: str, seeds: range, args) -> dict[str, np.ndarray]:
