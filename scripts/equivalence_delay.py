@@ -25,6 +25,11 @@ bound (the API's own verdict at ``margin`` is checked against ``upper < margin``
    the share of permutation p-values of the deviation below 0.05; coverage of the 95 % interval.
 3. The same-law control (kind ``none``, seeds ``100000 + seed0 + r``) at the same size: share
    equivalent at the same δ and the upper bound's law (what margin 20 episodes can show at all).
+4. Session 25, on the same draws: the bound without its power floor (``upper_bootstrap``,
+   ``equivalent_bootstrap_bound_only``), the floor itself (``detectable``: the effect's
+   ``floor``, 50 % power to first order), the share of draws it raised and the share in which an
+   80 %-power floor would be above the bootstrap bound. ``--truth-from`` reuses the truths of an
+   earlier output.
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/equivalence_delay.py
 """
