@@ -258,27 +258,12 @@ def response_effects(data: Transitions, design: Design, replicates: int, alpha: 
     every = sums.deviation(np.hstack([np.ones((len(weights), 1)), weights]))  # observed first
     observed = {name: value[:, :1] for name, value in every.items()}
     boot = {name: value[:, 1:] for name, value in every.items()}
-    features = _feature_effects(data.response, observed, boot, alpha, level, dict(margins),
-                                units)
-    if assignments is not None:
-        null = _permuted_plugin(entries, keep, assignments)
-        pvalues = exceedance_pvalues(null.T, null[:, 0])
-        features = tuple(_with_null(f, float(p), np.sort(n[1:]), alpha, level)
-                         for f, p, n in zip(features, pvalues, null, strict=True))
+    null = None if assignments is None else _permuted_plugin(entries, keep, assignments)
+    features = _feature_effects(data.response, observed, boot, null, alpha, level,
+                                dict(margins), units)
     verdicts = [f.equivalent for f in features if f.equivalent is not None]
     return EffectSummary(level, replicates, int(keep.sum()), features,
                          all(verdicts) if verdicts else None)
-
-
-def _with_null(effect: FeatureEffect, pvalue: float, null: np.ndarray, alpha: float,
-               level: float) -> FeatureEffect:
-    """``effect`` with its permutation p-value and null, the bounds raised to the power
-    floor where they fall below it, and the equivalence verdict on the raised bound."""
-    effect = replace(effect, pvalue=pvalue, null=null)
-    high, upper = effect.bounds((1 - level) / 2)[1], effect.bounds(alpha)[1]
-    return replace(effect, high=high, upper=upper,
-                   floor=float(np.sqrt(effect.power_floor(alpha))),
-                   equivalent=None if effect.margin is None else bool(upper < effect.margin))
 
 
 def _not_estimable(name: str, unit: str, margin: float | None) -> FeatureEffect:
@@ -345,10 +330,14 @@ def _signed_root(x: np.ndarray) -> np.ndarray:
     return np.sign(x) * np.sqrt(np.abs(x))
 
 
-def _feature_effects(names, observed, boot, alpha, level, margins, units
+def _feature_effects(names, observed, boot, null, alpha, level, margins, units
                      ) -> tuple[FeatureEffect, ...]:
+    """Each feature's effect; given the plug-in's permutation ``null`` (features, P + 1;
+    column 0 observed) also its p-value and the bounds' power floor."""
     tail = (1 - level) / 2
     z = norm.ppf(1 - alpha / 2) + norm.ppf(POWER)
+    pvalues = [float("nan")] * len(names) if null is None \
+        else exceedance_pvalues(null.T, null[:, 0])
     out = []
     for j, name in enumerate(names):
         plugin, squared = observed["plugin"][j, 0], observed["squared"][j, 0]
@@ -361,7 +350,10 @@ def _feature_effects(names, observed, boot, alpha, level, margins, units
             float(z * boot_shift.std(ddof=1)) if len(boot_shift) > 1 else float("nan"),
             margin, None, squared=float(squared),
             replicates=np.sort(_signed_root(boot["squared"][j])),
-            shift_replicates=np.sort(boot_shift))
+            shift_replicates=np.sort(boot_shift), pvalue=float(pvalues[j]),
+            null=np.empty(0) if null is None else np.sort(null[j, 1:]))
+        if null is not None:
+            effect = replace(effect, floor=float(np.sqrt(effect.power_floor(alpha))))
         low, high = effect.bounds(tail)
         lower, upper = effect.bounds(alpha)
         shift_low, shift_high = effect.shift_bounds(tail)
