@@ -442,3 +442,38 @@ def test_the_cell_decision_rule(lower, upper, pvalue, status):
     assert found.value == status, reason
     if status == "inconclusive" and lower > 0.1:
         assert "does not reject the same law at 0.0167 (p = 0.02)" in reason
+
+
+def test_a_floor_at_the_tolerance_says_more_units_are_needed():
+    """When the upper bound's power floor reaches the tolerance, no draw of these data could make
+    the cell valid; the reason says so. Below it, the plain "straddle" reason."""
+    from simcred.regions.engine import CellRule, FeatureBounds, _decide
+
+    rule = CellRule(0.05, 3, None, "source_run")
+    for floor, said in ((0.12, True), (0.08, False)):
+        bounds = (FeatureBounds("x", "1/s", 0.1, 0.07, 0.05, 0.6, 0.05, 0.6, 0.1, 0.5, floor),)
+        found, reason = _decide(bounds, rule)
+        assert found.value == "inconclusive"
+        assert ("power floor 0.12 (more units needed)" in reason) is said, reason
+        assert "straddle the tolerance 0.1" in reason
+
+
+def test_each_cell_reports_the_floor_its_upper_bound_is_held_at(tmp_path):
+    """Every judged cell's ``floor`` is √ of its comparison's power floor at α, the upper bound is
+    never below it, and the domain's JSON carries it."""
+    import math
+
+    path = write_universe(tmp_path, test_case={"conditions": "5 <= v < 20",
+                                               "tolerance": {"x": 0.5}})
+    spec, base = read_validation(path)
+    result = validate(spec, read_inputs(spec, base))
+    judged = [c for c in result.domains["sim"].cells if c.comparison is not None]
+    assert judged
+    for cell in judged:
+        effects = {f.feature: f for f in cell.comparison.response.effect.features}
+        alpha = cell.comparison.options.alpha
+        for b in cell.bounds:
+            expected = math.sqrt(effects[b.feature].power_floor(alpha))
+            assert b.floor == pytest.approx(expected, rel=1e-12, abs=1e-15)
+            assert b.upper >= b.floor
+        assert all("upper_floor" in d for d in cell.to_dict()["deviation"])

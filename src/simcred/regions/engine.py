@@ -63,7 +63,9 @@ DECIDED = (CellStatus.VALID, CellStatus.NOT_VALID, CellStatus.INCONCLUSIVE, Cell
 class FeatureBounds:
     """One feature's deviation in one cell: the estimate, the one-sided bounds a decision uses
     (``upper`` at ``1 − α``, ``lower`` at ``1 − α/K``), the two-sided 95 % interval, the smallest
-    uniform shift the data could detect (80 % power) and the deviation's permutation p-value;
+    uniform shift the data could detect (80 % power), the deviation's permutation p-value and
+    ``floor``, the power floor of the upper bound at ``α`` (``upper`` is never below it; a cell
+    whose floor reaches its tolerance cannot be shown valid with these data);
     ``tolerance`` None: reported, not judged."""
 
     feature: str
@@ -76,6 +78,7 @@ class FeatureBounds:
     high: float
     detectable: float
     pvalue: float
+    floor: float = float("nan")
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -115,7 +118,7 @@ def _bounds_dict(b: FeatureBounds) -> dict[str, Any]:
     return {"feature": b.feature, "unit": b.unit, "tolerance": b.tolerance,
             "estimate": b.estimate, "lower": b.lower, "upper": b.upper,
             "interval_95": [b.low, b.high], "detectable_shift": b.detectable,
-            "deviation_pvalue": b.pvalue}
+            "deviation_pvalue": b.pvalue, "upper_floor": b.floor}
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -297,8 +300,9 @@ def _feature_bounds(effect: FeatureEffect, tolerance: float | None, rule: CellRu
                     ) -> FeatureBounds:
     lower = effect.bounds(rule.alpha / rule.family)[0]
     upper = effect.bounds(rule.alpha)[1]
+    floor = float(np.sqrt(effect.power_floor(rule.alpha))) if np.isfinite(upper) else float("nan")
     return FeatureBounds(effect.feature, effect.unit, tolerance, effect.estimate, lower, upper,
-                         effect.low, effect.high, effect.mde, effect.pvalue)
+                         effect.low, effect.high, effect.mde, effect.pvalue, floor)
 
 
 def _decide(bounds: Sequence[FeatureBounds], rule: CellRule) -> tuple[CellStatus, str]:
@@ -338,8 +342,13 @@ def _undecided(b: FeatureBounds, level: float) -> str:
         return (f"{b.feature}: {b.estimate:.3g} {b.unit}, bounds {b.lower:.3g}–{b.upper:.3g} "
                 f"above the tolerance {b.tolerance:g}, but the deviation's permutation test "
                 f"does not reject the same law at {level:.3g} (p = {b.pvalue:.3g})")
-    return (f"{b.feature}: {b.estimate:.3g} {b.unit}, bounds {b.lower:.3g}–{b.upper:.3g} "
-            f"straddle the tolerance {b.tolerance:g}")
+    straddle = (f"{b.feature}: {b.estimate:.3g} {b.unit}, bounds {b.lower:.3g}–{b.upper:.3g} "
+                f"straddle the tolerance {b.tolerance:g}")
+    if b.tolerance is not None and b.floor >= b.tolerance:
+        return (f"{straddle}; these data cannot show it within the tolerance: the upper bound "
+                f"is never below the deviation test's power floor {b.floor:.3g} (more units "
+                "needed)")
+    return straddle
 
 
 def matched(reference: TraceSet, candidate: TraceSet, rule: CellRule

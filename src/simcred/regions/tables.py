@@ -3,7 +3,8 @@
 Columns: ``candidate``, ``cell``, ``label`` (``10 ≤ v < 15``), per condition variable
 ``<var>.low`` / ``<var>.high``, ``status``, ``reason``, the units and samples on each side,
 ``pvalue`` (the difference test), and per judged feature ``<feature>.estimate``, ``.lower``,
-``.upper``, ``.tolerance`` (the deviation, its one-sided bounds and the tolerance).
+``.upper``, ``.floor``, ``.tolerance`` (the deviation, its one-sided bounds, the upper bound's
+power floor and the tolerance).
 """
 
 from __future__ import annotations
@@ -39,7 +40,7 @@ def domains_frame(domains: Iterable[Domain]) -> pd.DataFrame:
                        pvalue=math.nan if cell.pvalue is None else cell.pvalue)
             for b in cell.bounds:
                 row[f"{b.feature}.estimate"], row[f"{b.feature}.lower"] = b.estimate, b.lower
-                row[f"{b.feature}.upper"] = b.upper
+                row[f"{b.feature}.upper"], row[f"{b.feature}.floor"] = b.upper, b.floor
                 row[f"{b.feature}.tolerance"] = math.nan if b.tolerance is None else b.tolerance
             rows.append(row)
     return pd.DataFrame(rows)
