@@ -306,7 +306,9 @@ def _response_rows(table: Table, result) -> None:
     for f in effect.features:
         equivalence = "" if f.margin is None else \
             (f"; equivalent within {f.margin:g}" if f.equivalent
-             else f"; NOT shown equivalent within {f.margin:g}")
+             else f"; NOT shown equivalent within {f.margin:g}"
+             + (" (these data cannot show it: the floor is above it)"
+                if f.floor >= f.margin else ""))
         value = "not estimable (see the warning)" if effect.states == 0 else \
             (f"{f.estimate:.3g} ({100 * effect.level:.0f} % CI {f.low:.3g}–{f.high:.3g}; "
              f"detectable shift {f.mde:.3g}; upper bounds' floor {f.floor:.3g})")
