@@ -43,6 +43,18 @@ def test_report_text(report):
     assert "permutation floor" in rules_out and "over the 3 cells" in rules_out
 
 
+def test_cell_table_shows_each_upper_bound_s_floor(report):
+    """Every judged feature's decision bounds carry the floor of the verdict's JSON."""
+    import json
+    document = json.loads((report.parent / "verdict.json").read_text())
+    html = report.read_text()
+    floors = [d["upper_floor"] for c in document["domains"]["sim"]["cells"]
+              for d in c["deviation"] if d["upper_floor"] is not None]
+    assert floors
+    for floor in floors:
+        assert f"(floor {floor:.3g})" in html
+
+
 def test_verdict_states_its_error_rates(report):
     import json
     document = json.loads((report.parent / "verdict.json").read_text())
