@@ -50,6 +50,7 @@ LIMITS = {limit.name: limit for limit in (
     Limit("bins", 10_000, "bins per feature"),
     Limit("variations", 1_000_000, "variations of a scenario"),
     Limit("workers", 256, "Dask worker processes"),
+    Limit("threads", 64, "threads of one comparison (at most the cores it may use)"),
     Limit("episodes", 1_000_000, "episodes of a study"),
     Limit("scene_values", 100_000_000, "values (frames × objects × signals) of a levelX scene "
           "run"),

@@ -101,6 +101,7 @@ from simcred.compare.runs import (
 from simcred.compare.scratch import std_columns
 from simcred.compare.side_counts import SideCounts, is_paired
 from simcred.compare.state_sums import StatePairs, SumTarget, pair_chunks
+from simcred.compare.threads import in_threads
 from simcred.compare.transitions import Transitions
 from simcred.compare.unit_sums import DenseSides
 from simcred.compare.unit_variance import UnitSquares
@@ -227,7 +228,8 @@ def kernel_sums(data: Transitions, n_units: int, rng: np.random.Generator) -> Ke
         moment_map = _Moments.of(residual, noisy, scratch)
         moments = SumTarget(pairs, 1 + moment_map.width, n_units, None)
     first_pair = np.r_[0, np.cumsum(np.bincount(pairs.block, minlength=n_blocks))]
-    for b in range(n_blocks):
+
+    def block_sums(b: int) -> None:
         p0, p1 = int(first_pair[b]), int(first_pair[b + 1])
         count = np.diff(pairs.starts[p0:p1 + 1]).astype(np.float64)[:, None]
         for target in (kernel, moments) if moments is not None else (kernel,):
@@ -242,6 +244,8 @@ def kernel_sums(data: Transitions, n_units: int, rng: np.random.Generator) -> Ke
             if moments is not None:
                 values = moment_map(residual[lo:hi])
                 moments.put(b, 1, first, last, indicator.astype(np.float64, copy=False) @ values)
+
+    in_threads(block_sums, range(n_blocks))
     return KernelSums(kernel.counts(), tuple(feature_map.bandwidth),
                       None if moments is None else moments.counts(), noisy,
                       () if moment_map is None else moment_map.pairs)

@@ -28,6 +28,7 @@ cross-fitted over folds of the units were tried and dropped (docs/calibration.md
 from __future__ import annotations
 
 import itertools
+import threading
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -35,6 +36,7 @@ import numpy as np
 import scipy.linalg
 
 from simcred.compare.scratch import std_columns
+from simcred.compare.threads import in_threads
 from simcred.errors import OptionError
 
 #: Pooled transitions per fitted coefficient before a state gets its linear adjustment.
@@ -154,11 +156,16 @@ def _gather(flat: np.ndarray, base: np.ndarray, offset: int, index: np.ndarray,
 
 
 def _reorder(rows: np.ndarray, order: np.ndarray) -> None:
-    """``rows[:, order]`` in place, row by row through one reused row."""
-    column = np.empty(rows.shape[1], rows.dtype)
-    for row in rows:
-        np.take(row, order, out=column, mode="clip")
-        row[:] = column
+    """``rows[:, order]`` in place, row by row through one reused row per thread."""
+    spare = threading.local()
+
+    def reorder(r: int) -> None:
+        if not hasattr(spare, "row"):
+            spare.row = np.empty(rows.shape[1], rows.dtype)
+        np.take(rows[r], order, out=spare.row, mode="clip")
+        rows[r] = spare.row
+
+    in_threads(reorder, range(rows.shape[0]))
 
 
 def state_means(state: np.ndarray, values: np.ndarray) -> np.ndarray:
@@ -222,8 +229,12 @@ def per_state_residual(state: np.ndarray, covariates: np.ndarray, rate: np.ndarr
     ``out`` where given (``rate``'s shape)."""
     residual = np.empty_like(rate) if out is None else out
     bounds = np.r_[0, np.flatnonzero(np.diff(state)) + 1, len(state)]
-    for lo, hi in zip(bounds[:-1], bounds[1:], strict=True):
+
+    def fit(s: int) -> None:
+        lo, hi = bounds[s], bounds[s + 1]
         residual[lo:hi] = rate[lo:hi] - _fitted(covariates[lo:hi], rate[lo:hi])
+
+    in_threads(fit, range(len(bounds) - 1))
     return residual
 
 
@@ -238,17 +249,23 @@ def _fitted(x: np.ndarray, y: np.ndarray, cubic: bool = False) -> np.ndarray:
     if len(parts) == 1:
         design = basis.design(x)
         return design @ _least_squares(design, y)
+    def products(i: int) -> tuple[np.ndarray, np.ndarray]:
+        design = basis.design(x[parts[i]])
+        return design.T @ design, design.T @ y[parts[i]]
+
     gram, moment = 0.0, 0.0
-    for part in parts:
-        design = basis.design(x[part])
-        gram, moment = gram + design.T @ design, moment + design.T @ y[part]
+    for part_gram, part_moment in in_threads(products, range(len(parts))):
+        gram, moment = gram + part_gram, moment + part_moment  # in order: the same sums
     coefficients = _normal_equations(gram, moment)
     if coefficients is None:
         design = basis.design(x)
         return design @ np.linalg.lstsq(design, y, rcond=None)[0]
     out = np.empty_like(y)
-    for part in parts:
-        out[part] = basis.design(x[part]) @ coefficients
+
+    def fitted(i: int) -> None:
+        out[parts[i]] = basis.design(x[parts[i]]) @ coefficients
+
+    in_threads(fitted, range(len(parts)))
     return out
 
 

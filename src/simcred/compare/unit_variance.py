@@ -36,6 +36,7 @@ import scipy.sparse as sp
 from simcred.compare.run_counts import RunCounts
 from simcred.compare.runs import batch_size
 from simcred.compare.side_counts import SideCounts, is_paired
+from simcred.compare.threads import in_threads
 from simcred.compare.unit_sums import DenseSides
 
 #: Every sum of the integer squares stays below this, so float64 holds it exactly.
@@ -59,8 +60,8 @@ class UnitSquares:
         whole matrix's size)."""
         width = 1 + n_features * dims
         n_blocks, n_units = len(sums.blocks), sums.matrix.shape[1]
-        blocks = [_block_squares(sums.matrix[b * width:(b + 1) * width], n_features, dims)
-                  for b in range(n_blocks)]
+        blocks = in_threads(lambda b: _block_squares(sums.matrix[b * width:(b + 1) * width],
+                                                     n_features, dims), range(n_blocks))
         raw = np.array([q.sum(axis=1) for _, q in blocks]).reshape(n_blocks, n_features)
         total = raw.sum(axis=0)
         scale = np.where(total > 0, TOTAL / np.where(total > 0, total, 1.0), 1.0)
