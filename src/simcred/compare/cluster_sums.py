@@ -18,6 +18,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from simcred.compare.design import Design, DesignKind
+from simcred.compare.threads import in_threads
 from simcred.compare.transitions import Transitions
 from simcred.compare.unit_sums import ProductColumns, unit_matrix
 
@@ -138,9 +139,8 @@ class ClusterSums:
         w, w_shift = (normalised(np.where(keep, 0.5 * (count[0] / total[0]
                                                          + count[1] / total[1]), 0.0))
                       for keep in (usable, present))
-        out = []
-        with np.errstate(invalid="ignore", divide="ignore"):
-            for j in range(self.features):
+        def feature(j: int) -> StateComponents:
+            with np.errstate(invalid="ignore", divide="ignore"):
                 a, b = [_side_moments(get, count[k], inflate[k], k, j, second_order)
                         for k in (0, 1)]
                 var_mean = a["var_mean"] + b["var_mean"]
@@ -150,13 +150,14 @@ class ClusterSums:
                     var_mean = var_mean - 2 * cov_mean
                     rho = np.clip(cov_var / np.sqrt(a["var_v"] * b["var_v"]), -1.0, 1.0)
                     var_sd = var_sd - 2 * np.nan_to_num(rho) * np.sqrt(a["var_sd"] * b["var_sd"])
-                out.append(StateComponents(
-                    w, w_shift, np.where(usable, a["mean"] - b["mean"], 0.0),
-                    np.where(usable, a["sd"] - b["sd"], 0.0),
-                    np.where(usable, np.maximum(var_mean, 0.0), 0.0),
-                    np.where(usable, np.maximum(var_sd, 0.0), 0.0),
-                    np.where(present, a["mean"] - b["mean"], 0.0)))
-        return out
+            return StateComponents(
+                w, w_shift, np.where(usable, a["mean"] - b["mean"], 0.0),
+                np.where(usable, a["sd"] - b["sd"], 0.0),
+                np.where(usable, np.maximum(var_mean, 0.0), 0.0),
+                np.where(usable, np.maximum(var_sd, 0.0), 0.0),
+                np.where(present, a["mean"] - b["mean"], 0.0))
+
+        return in_threads(feature, range(self.features))
 
     def weighted(self, weights: np.ndarray) -> tuple[Callable, list, list]:
         """The replicates' sums: a getter of one named (states, replicates) sum, each side's

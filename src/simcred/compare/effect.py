@@ -106,6 +106,7 @@ from simcred.compare.cluster_sums import MIN_SHARE, MIN_UNITS, ClusterSums, Entr
 from simcred.compare.design import Design
 from simcred.compare.runs import exceedance_pvalues
 from simcred.compare.side_counts import is_paired
+from simcred.compare.threads import in_threads
 from simcred.compare.transitions import Transitions
 from simcred.compare.unit_sums import side_sums, unit_matrix
 from simcred.errors import OptionError
@@ -276,34 +277,55 @@ def _not_estimable(name: str, unit: str, margin: float | None) -> FeatureEffect:
 
 def _permuted_plugin(entries: Entries, keep: np.ndarray, assignments: np.ndarray
                      ) -> np.ndarray:
-    """(features, P + 1) plug-in squared deviation of every assignment (states fixed)."""
+    """(features, P + 1) plug-in squared deviation of every assignment (states fixed); the
+    batches in threads (each its own columns)."""
     j = entries.first.shape[1]
     out = np.zeros((j, assignments.shape[0]))
-    for start, sides, total in assignment_sides(entries, keep, assignments):
-        out[:, start:start + len(total[0])] = _plugin(sides, total, j)
+    sides = AssignmentSides(entries, keep, assignments)
+
+    def one_batch(start: int) -> None:
+        side, total = sides.batch(start)
+        out[:, start:start + len(total[0])] = _plugin(side, total, j)
+
+    in_threads(one_batch, sides.starts)
     return out
 
 
-def assignment_sides(entries: Entries, keep: np.ndarray, assignments: np.ndarray,
-                     batch: int = 256) -> Iterator[tuple[int, list, list]]:
-    """Per batch of assignments (the entering states ``keep`` fixed): the index of its first
-    row, each side's (1 + 2J, states, k) sums (count, then the sums of the residual and of its
-    square) and each side's transitions (k,)."""
-    take = keep[entries.state]
-    state = (np.cumsum(keep) - 1)[entries.state[take]]
-    unit = entries.unit[take]
-    n_states, n_units = int(keep.sum()), assignments.shape[1]
-    values = np.hstack([entries.count[take, None], entries.first[take], entries.second[take]])
-    width = values.shape[1]
-    matrix = unit_matrix([(unit, state, values)], n_units, n_states)
-    totals = np.bincount(entries.unit, weights=entries.count, minlength=n_units)
-    pooled = np.asarray(matrix.sum(axis=1)).reshape(width, n_states, 1)
-    product = side_sums(matrix, is_paired(assignments))
-    for start in range(0, assignments.shape[0], batch):
-        rows = assignments[start:start + batch]
-        a = product(rows).reshape(width, n_states, -1)
-        total_a = rows @ totals
-        yield start, [a, pooled - a], [total_a, totals.sum() - total_a]
+def assignment_sides(entries: Entries, keep: np.ndarray, assignments: np.ndarray
+                     ) -> Iterator[tuple[int, list, list]]:
+    """:meth:`AssignmentSides.batch` of every batch, in order, with the index of its first row."""
+    sides = AssignmentSides(entries, keep, assignments)
+    for start in sides.starts:
+        yield start, *sides.batch(start)
+
+
+class AssignmentSides:
+    """Each side's sums of the entering states ``keep`` under batches of assignments."""
+
+    BATCH = 256
+
+    def __init__(self, entries: Entries, keep: np.ndarray, assignments: np.ndarray) -> None:
+        take = keep[entries.state]
+        state = (np.cumsum(keep) - 1)[entries.state[take]]
+        unit = entries.unit[take]
+        n_states, n_units = int(keep.sum()), assignments.shape[1]
+        values = np.hstack([entries.count[take, None], entries.first[take],
+                            entries.second[take]])
+        self.width, self.n_states = values.shape[1], n_states
+        matrix = unit_matrix([(unit, state, values)], n_units, n_states)
+        self.totals = np.bincount(entries.unit, weights=entries.count, minlength=n_units)
+        self.pooled = np.asarray(matrix.sum(axis=1)).reshape(self.width, n_states, 1)
+        self.product = side_sums(matrix, is_paired(assignments))
+        self.assignments = assignments
+        self.starts = range(0, assignments.shape[0], self.BATCH)
+
+    def batch(self, start: int) -> tuple[list, list]:
+        """Each side's (1 + 2J, states, k) sums (count, then the sums of the residual and of its
+        square) and each side's transitions (k,) for the assignments from row ``start``."""
+        rows = self.assignments[start:start + self.BATCH]
+        a = self.product(rows).reshape(self.width, self.n_states, -1)
+        total_a = rows @ self.totals
+        return [a, self.pooled - a], [total_a, self.totals.sum() - total_a]
 
 
 def plugin_terms(sides, total, j: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

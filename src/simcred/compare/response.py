@@ -373,32 +373,53 @@ def assignment_statistics(sums: RunCounts, assignments: np.ndarray, n_features: 
     totals = np.asarray(sums.matrix.sum(axis=1, dtype=np.float64)).ravel()
     share = totals[0::width] / max(totals[0::width].sum(), 1.0)
     weights = contrasts(share, profile) * share  # (K, blocks)
-    per_state = np.empty((len(assignments), len(sums.blocks), n_features))
-    pooled = np.zeros((len(weights), n_features * dims, len(assignments)))
-    spread = np.zeros((len(weights), n_features, len(assignments)))
-    batch = batch_size(*sums.matrix.shape)
+    out = _AssignmentSums(product, squares, assignments, totals, weights, n_features, dims,
+                          batch_size(*sums.matrix.shape))
     for first, last, lo, hi in product.chunks:
-        rows = product.rows(lo, hi)
-        for start in range(0, len(assignments), batch):
-            here = slice(start, start + batch)
-            side_a = product.product(rows, assignments[here])
-            value, diff, m, n = _statistic(side_a.reshape(last - first, width, -1),
-                                           totals[lo:hi].reshape(last - first, width),
-                                           n_features, dims)
-            square_a, square_b = squares(first, last, here)
-            with np.errstate(invalid="ignore", divide="ignore"):
-                variance = np.where(((m < 1) | (n < 1))[:, None, :], 0.0,
-                                    square_a / m[:, None, :]**2 + square_b / n[:, None, :]**2)
-            weight = weights[:, first:last]
-            per_state[here, first:last] = value.transpose(2, 0, 1)
-            pooled[:, :, here] += np.einsum("ks,sdb->kdb", weight, diff)
-            spread[:, :, here] += np.einsum("ks,sjb->kjb", weight**2, variance)
+        out.add_chunk(first, last, lo, hi)
+    per_state, pooled, spread = out.per_state, out.pooled, out.spread
     observed = sums.matrix[0::width] @ assignments[0].astype(np.float64)
     with np.errstate(invalid="ignore", divide="ignore"):
         studentised = ((pooled.reshape(len(weights), n_features, dims, -1) ** 2).sum(axis=2)
                        / spread).reshape(len(weights) * n_features, -1).T
     return (per_state.reshape(len(assignments), -1), studentised,
             observed.astype(np.int64), (totals[0::width] - observed).astype(np.int64))
+
+
+class _AssignmentSums:
+    """The per-state statistics of every assignment and the pooled sums of their differences
+    and variances, filled chunk of states by chunk; within a chunk the batches of assignments
+    run in threads (each batch its own columns: the same sums in the same order)."""
+
+    def __init__(self, product, squares, assignments: np.ndarray, totals: np.ndarray,
+                 weights: np.ndarray, n_features: int, dims: int, batch: int) -> None:
+        self.product, self.squares, self.assignments = product, squares, assignments
+        self.totals, self.weights, self.batch = totals, weights, batch
+        self.n_features, self.dims, self.width = n_features, dims, 1 + n_features * dims
+        n_blocks = len(totals) // self.width
+        self.per_state = np.empty((len(assignments), n_blocks, n_features))
+        self.pooled = np.zeros((len(weights), n_features * dims, len(assignments)))
+        self.spread = np.zeros((len(weights), n_features, len(assignments)))
+
+    def add_chunk(self, first: int, last: int, lo: int, hi: int) -> None:
+        rows = self.product.rows(lo, hi)
+        in_threads(lambda start: self._add_batch(rows, first, last, lo, hi, start),
+                   range(0, len(self.assignments), self.batch))
+
+    def _add_batch(self, rows, first: int, last: int, lo: int, hi: int, start: int) -> None:
+        here, width = slice(start, start + self.batch), self.width
+        side_a = self.product.product(rows, self.assignments[here])
+        value, diff, m, n = _statistic(side_a.reshape(last - first, width, -1),
+                                       self.totals[lo:hi].reshape(last - first, width),
+                                       self.n_features, self.dims)
+        square_a, square_b = self.squares(first, last, here)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            variance = np.where(((m < 1) | (n < 1))[:, None, :], 0.0,
+                                square_a / m[:, None, :]**2 + square_b / n[:, None, :]**2)
+        weight = self.weights[:, first:last]
+        self.per_state[here, first:last] = value.transpose(2, 0, 1)
+        self.pooled[:, :, here] += np.einsum("ks,sdb->kdb", weight, diff)
+        self.spread[:, :, here] += np.einsum("ks,sjb->kjb", weight**2, variance)
 
 
 def _statistic(side_a: np.ndarray, totals: np.ndarray, n_features: int, dims: int

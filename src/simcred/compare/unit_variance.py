@@ -88,9 +88,12 @@ class UnitSquares:
         batch = batch_size(*self.matrix.shape)
         for _, _, lo, hi in product.chunks:
             rows = product.rows(lo, hi)
-            for start in range(0, len(assignments), batch):
+
+            def one_batch(start: int, rows=rows, lo=lo, hi=hi) -> None:
                 here = slice(start, start + batch)
                 side_a[lo:hi, here] = product.product(rows, assignments[here])
+
+            in_threads(one_batch, range(0, len(assignments), batch))
         return SideSquares(side_a.reshape(n_blocks, self.n_features, -1), self)
 
 
