@@ -50,6 +50,7 @@ from simcred.compare.runs import (
     exceedance_pvalues,
     run_level_test,
 )
+from simcred.compare.threads import beside
 from simcred.compare.transitions import transitions
 from simcred.compare.unit_sums import unique_inverse
 from simcred.seeds import stream
@@ -103,14 +104,15 @@ def response_comparison(parts, design: Design, space: StateSpace, options: Compa
 
     ``parts``: per set ``(values, time, offsets, codes)`` as :func:`transitions` takes them.
     """
-    data = transitions(parts, design.unit_of_run, options.features, options.inputs,
-                       options.history)
     assignments = design.assignments(options.permutations, stream(options.seed, ASSIGN_KEY))
-    outcome = response_test(data, design.n_units, assignments,
-                            stream(options.seed, RESPONSE_KEY))
-    start, scenario = scenario_tests(parts, design, space, options, assignments)
-    if design.kind is DesignKind.PAIRS:
-        outcome = with_paired_runs(outcome, parts, design, options, assignments)
+    with beside(_scenario_and_runs, parts, design, space, options, assignments) as side:
+        data = transitions(parts, design.unit_of_run, options.features, options.inputs,
+                           options.history)
+        outcome = response_test(data, design.n_units, assignments,
+                                stream(options.seed, RESPONSE_KEY))
+        (start, scenario), runs = side.result()
+    if runs is not None:
+        outcome = with_paired_runs(outcome, runs)
     rate_units = {name: rate_unit(units.get(name)) for name in data.response}
     effect = response_effects(data, design, options.bootstrap, options.alpha, INTERVAL_LEVEL,
                               options.margin, rate_units, stream(options.seed, EFFECT_KEY),
@@ -123,14 +125,28 @@ def response_comparison(parts, design: Design, space: StateSpace, options: Compa
     return _comparison(outcome, start, space, options, inputs, analysis)
 
 
-def with_paired_runs(outcome: ResponseOutcome, parts, design: Design,
-                     options: ComparisonOptions, assignments: np.ndarray) -> ResponseOutcome:
-    """The chain verdict of a paired design: the state-conditional statistic and the pairs'
-    run summaries (:mod:`simcred.compare.paired_runs`), combined by Tippett's rule over the
-    same assignments (exact under the pair flips)."""
+def _scenario_and_runs(parts, design: Design, space: StateSpace, options: ComparisonOptions,
+                       assignments: np.ndarray):
+    """What does not depend on the transitions: the scenario tests and, for pairs, the pairs'
+    run-summary statistic of every assignment (None otherwise)."""
+    runs = paired_run_statistics(parts, design, options, assignments) \
+        if design.kind is DesignKind.PAIRS else None
+    return scenario_tests(parts, design, space, options, assignments), runs
+
+
+def paired_run_statistics(parts, design: Design, options: ComparisonOptions,
+                          assignments: np.ndarray) -> np.ndarray:
+    """The pairs' run-summary statistic (:mod:`simcred.compare.paired_runs`) of every
+    assignment (row 0 observed)."""
     response = [options.features.index(n) for n in options.features if n not in options.inputs]
     per_run = np.vstack([run_summaries(p[0][:, response], p[2]) for p in parts])
-    runs = paired_statistics(unit_means(per_run, parts, design), design.units_a, assignments)
+    return paired_statistics(unit_means(per_run, parts, design), design.units_a, assignments)
+
+
+def with_paired_runs(outcome: ResponseOutcome, runs: np.ndarray) -> ResponseOutcome:
+    """The chain verdict of a paired design: the state-conditional statistic and the pairs'
+    run summaries ``runs`` (:func:`paired_run_statistics`), combined by Tippett's rule over the
+    same assignments (exact under the pair flips)."""
     chain = tippett(outcome.chain_null, runs)
     pvalue = float(exceedance_pvalues(chain[:, None], chain[:1])[0])
     return dataclasses.replace(outcome, chain_statistic=float(chain[0]), chain_pvalue=pvalue,

@@ -11,9 +11,10 @@ already).
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Iterable
-from concurrent.futures import ThreadPoolExecutor
-from typing import TypeVar
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
+from contextlib import contextmanager
+from typing import Any, TypeVar
 
 from simcred.limits import LIMITS
 
@@ -39,3 +40,16 @@ def in_threads(work: Callable[[int], T], pieces: Iterable[int]) -> list[T]:
         return [work(piece) for piece in pieces]
     with ThreadPoolExecutor(threads) as pool:
         return list(pool.map(work, pieces))
+
+
+@contextmanager
+def beside(work: Callable[..., T], *args: Any) -> Iterator[Future]:
+    """``work(*args)`` in a second thread while the ``with`` block runs (on one thread: before
+    the block); the block reads it with ``.result()``."""
+    if thread_count() <= 1:
+        done: Future = Future()
+        done.set_result(work(*args))
+        yield done
+        return
+    with ThreadPoolExecutor(1) as pool:
+        yield pool.submit(work, *args)
