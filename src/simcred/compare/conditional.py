@@ -26,6 +26,7 @@ from simcred.compare.discretize import StateSpace
 from simcred.compare.effect import (
     ENTRY,
     EffectSummary,
+    effect_null,
     rate_unit,
     response_effects,
 )
@@ -108,15 +109,17 @@ def response_comparison(parts, design: Design, space: StateSpace, options: Compa
     with beside(_scenario_and_runs, parts, design, space, options, assignments) as side:
         data = transitions(parts, design.unit_of_run, options.features, options.inputs,
                            options.history)
-        outcome = response_test(data, design.n_units, assignments,
-                                stream(options.seed, RESPONSE_KEY))
+        with beside(effect_null, data, design, assignments) as null:
+            outcome = response_test(data, design.n_units, assignments,
+                                    stream(options.seed, RESPONSE_KEY))
+            prepared = null.result()
         (start, scenario), runs = side.result()
     if runs is not None:
         outcome = with_paired_runs(outcome, runs)
     rate_units = {name: rate_unit(units.get(name)) for name in data.response}
     effect = response_effects(data, design, options.bootstrap, options.alpha, INTERVAL_LEVEL,
                               options.margin, rate_units, stream(options.seed, EFFECT_KEY),
-                              assignments)
+                              assignments, prepared=prepared)
     analysis = ResponseAnalysis(
         DesignInfo(design.kind.value, design.key, design.units_a,
                    design.n_units - design.units_a, design.smallest_pvalue),

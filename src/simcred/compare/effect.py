@@ -240,14 +240,38 @@ def check_margins(margin: Mapping[str, float] | float | None, response: tuple[st
     return tuple(out)
 
 
+@dataclass(frozen=True, slots=True, eq=False)
+class EffectNull:
+    """The effect's states and the plug-in deviation of every assignment (None: no
+    assignments, or no state enters): what :func:`response_effects` needs from the design's
+    assignments, computable beside the response test."""
+
+    entries: Entries
+    keep: np.ndarray
+    null: np.ndarray | None
+
+
+def effect_null(data: Transitions, design: Design, assignments: np.ndarray | None
+                ) -> EffectNull:
+    """The entering states and, given ``assignments`` (row 0 observed), the plug-in squared
+    deviation of every assignment (features, P + 1)."""
+    entries = Entries.of(data, design)
+    keep = entries.entering()
+    null = None if assignments is None or not keep.any() \
+        else _permuted_plugin(entries, keep, assignments)
+    return EffectNull(entries, keep, null)
+
+
 def response_effects(data: Transitions, design: Design, replicates: int, alpha: float,
                      level: float, margins: tuple[tuple[str, float], ...],
                      units: Mapping[str, str], rng: np.random.Generator,
-                     assignments: np.ndarray | None = None) -> EffectSummary:
+                     assignments: np.ndarray | None = None,
+                     prepared: EffectNull | None = None) -> EffectSummary:
     """Response deviations with cluster-bootstrap intervals, equivalence, detectable effect and,
-    given the design's ``assignments`` (row 0 observed), the deviation's permutation p-value."""
-    entries = Entries.of(data, design)
-    keep = entries.entering()
+    given the design's ``assignments`` (row 0 observed), the deviation's permutation p-value
+    (``prepared``: :func:`effect_null` of the same arguments, computed already)."""
+    found = prepared if prepared is not None else effect_null(data, design, assignments)
+    entries, keep = found.entries, found.keep
     weights = design.resamples(replicates, rng)
     if not keep.any():  # nothing to estimate from: say so, never "no deviation"
         return EffectSummary(level, replicates, 0, tuple(
@@ -259,8 +283,7 @@ def response_effects(data: Transitions, design: Design, replicates: int, alpha: 
     every = sums.deviation(np.hstack([np.ones((len(weights), 1)), weights]))  # observed first
     observed = {name: value[:, :1] for name, value in every.items()}
     boot = {name: value[:, 1:] for name, value in every.items()}
-    null = None if assignments is None else _permuted_plugin(entries, keep, assignments)
-    features = _feature_effects(data.response, observed, boot, null, alpha, level,
+    features = _feature_effects(data.response, observed, boot, found.null, alpha, level,
                                 dict(margins), units)
     verdicts = [f.equivalent for f in features if f.equivalent is not None]
     return EffectSummary(level, replicates, int(keep.sum()), features,
