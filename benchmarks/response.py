@@ -21,13 +21,20 @@ ratio swings with the reference's own wall time; the target is judged on the wal
 quiet run); peak RSS is the child process's maximum. ``--profile CASE`` runs one case under
 cProfile and prints the top functions by cumulative time.
 
-Usage: python benchmarks/response.py [--small] [--repeats K] [--profile CASE]
+``--alternate K`` instead runs the cases in turn, K rounds, in ONE process on the same data (a
+case name ending in ``:serial`` runs with ``SIMCRED_MAX_THREADS=1``, the comparison on one
+thread but for BLAS's own; one uncounted round on small sets first): each round's ratio to that
+round's runs test, so that a drift of the machine's speed moves both (medians and ranges
+printed; results/response_alternating.json). Peak memory is not per case there.
+
+Usage: python benchmarks/response.py [--small] [--repeats K] [--profile CASE] [--alternate K]
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import resource
 import subprocess
 import sys
@@ -119,6 +126,44 @@ def in_process(case: str, runs: int, steps: int) -> dict:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
+def alternate(cases: list[str], rounds: int, runs: int, steps: int) -> None:
+    """``--alternate``: every case in turn, ``rounds`` times, in this process (module docs)."""
+    warm = trace_sets(500, 50)  # imports and first calls, not counted
+    a, b = trace_sets(runs, steps)
+    a.digest(), b.digest()
+    times: dict[str, list[tuple[float, float]]] = {case: [] for case in cases}
+    for round_ in range(-1, rounds):
+        for case in cases:
+            name, serial = case.removesuffix(":serial"), case.endswith(":serial")
+            os.environ.pop("SIMCRED_MAX_THREADS", None)
+            if serial:
+                os.environ["SIMCRED_MAX_THREADS"] = "1"
+            wall, cpu = time.perf_counter(), time.process_time()
+            compare(*(warm if round_ < 0 else (a, b)), features=["x", "y"], bins=BINS,
+                    permutations=PERMUTATIONS, seed=SEED, **CASES[name][0])
+            if round_ >= 0:
+                times[case].append((time.perf_counter() - wall, time.process_time() - cpu))
+    os.environ.pop("SIMCRED_MAX_THREADS", None)
+    table = Table(title=f"alternating, {rounds} rounds: ratio to the same round's runs test")
+    for column in ("case", "wall s (median)", "wall ratio median (min–max)", "CPU ratio median"):
+        table.add_column(column)
+    rows = []
+    for case in cases:
+        ratios = [t[0] / r[0] for t, r in zip(times[case], times["runs"], strict=True)]
+        cpu = [t[1] / r[1] for t, r in zip(times[case], times["runs"], strict=True)]
+        rows.append({"case": case, "wall_s": [t[0] for t in times[case]],
+                     "cpu_s": [t[1] for t in times[case]], "ratios": ratios,
+                     "median_ratio": float(np.median(ratios)),
+                     "median_cpu_ratio": float(np.median(cpu))})
+        table.add_row(case, f"{np.median([t[0] for t in times[case]]):.2f}",
+                      f"{np.median(ratios):.2f} ({min(ratios):.2f}–{max(ratios):.2f})",
+                      f"{np.median(cpu):.2f}")
+    Console(width=150).print(table)
+    save_results(ROOT / "benchmarks" / "results" / "response_alternating.json",
+                 {"machine": machine(), "tree": tree_state(), "rounds": rounds,
+                  "size": f"2 × {runs:,} runs × {steps} steps", "cases": rows})
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--small", action="store_true", help="2,000 runs × 50 steps (smoke run)")
@@ -128,6 +173,8 @@ def main() -> None:
                         help=f"comma-separated subset of {list(CASES)} (runs is always measured)")
     parser.add_argument("--profile", choices=list(CASES),
                         help="profile one case under cProfile instead of the table")
+    parser.add_argument("--alternate", type=int, metavar="K",
+                        help="K rounds of the cases in turn in one process (module docs)")
     parser.add_argument("--child", nargs=3, help=argparse.SUPPRESS)
     args = parser.parse_args()
     runs, steps = (2_000, 50) if args.small else (20_000, 200)
@@ -138,8 +185,11 @@ def main() -> None:
     if args.profile:
         _child(args.profile, runs, steps, profile=True)
         return
-    repeats = args.repeats or (2 if args.small else 1)
     cases = ["runs"] + [c for c in args.cases.split(",") if c != "runs"]
+    if args.alternate:
+        alternate(cases, args.alternate, runs, steps)
+        return
+    repeats = args.repeats or (2 if args.small else 1)
     rows = []
     for case in cases:
         measured = [in_process(case, runs, steps) for _ in range(repeats)]
