@@ -16,6 +16,8 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import contextmanager
 from typing import Any, TypeVar
 
+import numpy as np
+
 from simcred.limits import LIMITS
 
 T = TypeVar("T")
@@ -31,15 +33,24 @@ def thread_count() -> int:
     return min(cores, LIMITS["threads"].value)
 
 
+#: Tasks per thread that :func:`in_threads` cuts the pieces into (consecutive runs of pieces:
+#: thousands of small states cost one task each otherwise).
+TASKS_PER_THREAD = 16
+
+
 def in_threads(work: Callable[[int], T], pieces: Iterable[int]) -> list[T]:
-    """``[work(piece) for piece in pieces]``, on :func:`thread_count` threads (in order on one);
-    the first exception is raised."""
+    """``[work(piece) for piece in pieces]``, on :func:`thread_count` threads (in order on one),
+    as at most :data:`TASKS_PER_THREAD` tasks a thread of consecutive pieces; the first
+    exception is raised."""
     pieces = list(pieces)
     threads = min(thread_count(), len(pieces))
     if threads <= 1:
         return [work(piece) for piece in pieces]
+    cuts = np.linspace(0, len(pieces), min(len(pieces), TASKS_PER_THREAD * threads) + 1)
+    runs = [pieces[int(lo):int(hi)] for lo, hi in zip(cuts[:-1], cuts[1:], strict=True)]
     with ThreadPoolExecutor(threads) as pool:
-        return list(pool.map(work, pieces))
+        done = list(pool.map(lambda run: [work(piece) for piece in run], runs))
+    return [result for run in done for result in run]
 
 
 @contextmanager

@@ -249,6 +249,7 @@ def _fitted(x: np.ndarray, y: np.ndarray, cubic: bool = False) -> np.ndarray:
     if len(parts) == 1:
         design = basis.design(x)
         return design @ _least_squares(design, y)
+
     def products(i: int) -> tuple[np.ndarray, np.ndarray]:
         design = basis.design(x[parts[i]])
         return design.T @ design, design.T @ y[parts[i]]
