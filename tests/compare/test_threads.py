@@ -3,18 +3,13 @@ order, the first error raised, and the thread count the environment allows."""
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 
+import response_designs as designs
+from helpers import ar_set
 from simcred.compare import compare, threads
 from simcred.errors import OptionError
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
-import response_designs as designs  # noqa: E402
-from compare import trait_set  # noqa: E402
 
 
 def test_results_in_order_and_first_error_raised(monkeypatch):
@@ -51,7 +46,7 @@ def test_the_same_json_on_one_or_several_threads(monkeypatch, case):
     the serial run; ``large`` has a global fit of several parts."""
     rng = np.random.default_rng(11)
     if case == "large":
-        a, b = trait_set(rng, 1500, 200, 2), trait_set(rng, 1500, 200, 2, 0.05)
+        a, b = ar_set(rng, 1500, 0.5, length=200), ar_set(rng, 1500, 0.45, length=200)
         options = dict(pair_by="run_id", bins=6)
     else:
         d = {"paired": lambda: designs.defect(rng, "delay", runs=20),
