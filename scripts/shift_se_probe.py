@@ -10,9 +10,12 @@ overlapping windows of 50 recorded tracks. ``--no-fit``: the shift of the raw re
 its pooled mean) instead of the response after the pooled global cubic fit, which every sample
 estimates anew but the bootstrap holds fixed. ``--full B``: instead, per replication the spread of
 the shift over ``B`` resamples of the pairs each compared anew (new pooled edges and states).
-``--smooth B``: also the spread of a Bayesian bootstrap over ``B`` replicates (every pair
-weighted by an Exp(1) draw, so no state loses its visitors in a replicate). ``--pairs``: the
-pairs per replication (default 40).
+``--population-edges``: every sample's states on fixed edges, the pooled equal-frequency edges of
+one draw of 1,500 pairs of the same design, instead of the sample's own (the bootstrap holds
+the sample's edges fixed; this asks whether the adaptive edges are what makes the sampling
+spread smaller than the bootstrap's). ``--smooth B``: also the spread of a Bayesian bootstrap
+over ``B`` replicates (every pair weighted by an Exp(1) draw, so no state loses its visitors in
+a replicate). ``--pairs``: the pairs per replication (default 40).
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/shift_se_probe.py --reps 200 \\
         --out benchmarks/results/shift_se_probe.json
@@ -35,6 +38,7 @@ import response_coverage  # noqa: E402
 import response_designs  # noqa: E402
 from simcred.compare import conditional, effect, transitions  # noqa: E402
 from simcred.compare.cluster_sums import ClusterSums, Entries  # noqa: E402
+from simcred.compare.discretize import StateSpace  # noqa: E402
 from simcred.traces import TraceSet  # noqa: E402
 
 RESPONSES = ("dv", "a")  # gap and v are kinematic consequences here (shift ~1e-15)
@@ -76,7 +80,8 @@ def synthetic_leaders(rng, runs, samples=response_designs.EPISODE, mask=None):
     for t in range(1, samples):
         a[:, t] = 0.8 * a[:, t - 1] + rng.normal(0.0, 0.4, runs)
     vl = np.maximum(start[:, None] + np.cumsum(a, axis=1) * 0.5, 0.0)
-    return {"track": np.arange(runs), "start": np.zeros(runs, dtype=int), "v_leader": vl,
+    track = np.arange(runs) % len(response_designs.tracks().info)  # metadata only
+    return {"track": track, "start": np.zeros(runs, dtype=int), "v_leader": vl,
             "gap0": 2.0 + 1.5 * vl[:, 0], "v0": vl[:, 0], "mean_speed": vl.mean(axis=1),
             "file": np.array(["synthetic"] * runs)}
 
@@ -110,6 +115,23 @@ def full_resampling(d, seed: int, resamples: int) -> dict[str, tuple[float, floa
     return {n: (observed[n], float(np.std([x[n] for x in draws], ddof=1))) for n in RESPONSES}
 
 
+SAMPLE_EDGES = StateSpace.__dict__["pooled"].__func__
+
+
+def population_edges(kind: str, pairs: int = 1500) -> None:
+    """Fix every later comparison's state edges at those of one draw of ``pairs`` pairs of
+    ``kind`` (``--population-edges``; the first comparison after this call records them)."""
+    fixed: dict = {}
+
+    def recorded(cls, parts, bins, features):
+        space = SAMPLE_EDGES(cls, parts, bins, features)
+        edges = fixed.setdefault(tuple(features), space.edges)
+        return StateSpace(space.features, edges, space.bounds)
+    StateSpace.pooled = classmethod(recorded)
+    response_coverage.effects(response_designs.defect(np.random.default_rng(10**6), kind,
+                                                      runs=pairs), 0, 2)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--kinds", default="delay,variance,clip")
@@ -117,6 +139,7 @@ def main() -> None:
     parser.add_argument("--synthetic-leaders", action="store_true")
     parser.add_argument("--full", type=int, default=0, metavar="B")
     parser.add_argument("--no-fit", action="store_true")
+    parser.add_argument("--population-edges", action="store_true")
     parser.add_argument("--smooth", type=int, default=0, metavar="B",
                         help="also a Bayesian bootstrap's spread over B replicates")
     parser.add_argument("--pairs", type=int, default=40)
@@ -130,6 +153,8 @@ def main() -> None:
     result = {}
     for kind in args.kinds.split(","):
         found: list = []
+        if args.population_edges:
+            population_edges(kind)
         conditional.response_effects = shipped if args.full else recording(found, args.smooth)
         for rep in range(args.reps):
             d = response_designs.defect(np.random.default_rng(rep), kind, runs=args.pairs)
@@ -154,6 +179,7 @@ def main() -> None:
                                         "full_resamples": args.full,
                                         "synthetic_leaders": args.synthetic_leaders,
                                         "no_fit": args.no_fit,
+                                        "population_edges": args.population_edges,
                                         "cells": result}, indent=1) + "\n")
 
 

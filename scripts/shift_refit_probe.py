@@ -1,0 +1,132 @@
+"""The shift's bootstrap with the global fit estimated anew in every replicate (issue 21).
+
+The shipped cluster bootstrap holds the pooled global cubic fit of the sample fixed: every
+replicate takes the sample's residuals. Every real sample fits its own, and a regression
+adjustment estimated on the sample can absorb part of that sample's between-pair variation
+(scripts/shift_se_probe.py: at 160 pairs the clip design's excess bootstrap width goes with
+synthetic leaders or without the fit). This probe refits the global fit in every replicate by
+weighted least squares (each transition weighted by its cluster's multiplicity), recomputes the
+residuals' sums over the sample's entering states and the replicate's shift, and reports each
+bootstrap's standard deviation (refitted and fixed, the same replicate weights) over the shift's
+sampling standard deviation over ``--reps`` replications of ``--pairs`` pairs; for the designs
+of response_coverage_s14.json also each bootstrap's basic interval's coverage of the true shift.
+
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/shift_refit_probe.py --kinds clip_fixed \\
+        --pairs 160 --reps 150 --out benchmarks/results/shift_refit_probe_160.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(ROOT / "scripts"))
+import response_coverage  # noqa: E402
+
+import response_designs  # noqa: E402
+from simcred.compare import conditional, effect, transitions  # noqa: E402
+from simcred.compare.cluster_sums import ClusterSums, Entries  # noqa: E402
+
+RESPONSES = ("dv", "a")
+LEVELS = (0.90, 0.95)
+TRUTHS = ROOT / "benchmarks/results/response_coverage_s14.json"
+
+
+def basic(observed: float, star: np.ndarray, level: float) -> tuple[float, float]:
+    """The basic bootstrap interval (as the shipped ``shift_bounds``)."""
+    a = (1 - level) / 2
+    high, low = np.quantile(star, [a, 1 - a])
+    return 2 * observed - low, 2 * observed - high
+
+
+def refitted_shifts(data, design, x: np.ndarray, y: np.ndarray, weights: np.ndarray
+                    ) -> np.ndarray:
+    """(features, replicates) shift of each replicate with the global fit weighted by it."""
+    entries = Entries.of(data, design)
+    keep = entries.entering()
+    basis = transitions._Basis.of(x, True)
+    if basis is None:
+        raise SystemExit("the global fit is a mean here: nothing to refit")
+    design_matrix = basis.design(x)
+    cluster_of_row = data.unit % design.units_a if entries.pairs else data.unit
+    out = np.empty((len(data.response), weights.shape[1]))
+    for r in range(weights.shape[1]):
+        root = np.sqrt(weights[cluster_of_row, r])[:, None]
+        beta = np.linalg.lstsq(design_matrix * root, y * root, rcond=None)[0]
+        level = np.asfortranarray(y - design_matrix @ beta)
+        replicate = Entries.of(dataclasses.replace(data, level=level), design)
+        out[:, r] = ClusterSums.of(replicate, keep).deviation(weights[:, r:r + 1])["shift"][:, 0]
+    return out
+
+
+def measure(kind: str, reps: int, pairs: int, replicates: int) -> list[dict]:
+    """Per replication: per response (shift, refitted bootstrap sd, fixed-fit bootstrap sd)."""
+    shipped_fit, shipped = transitions.global_residual, effect.response_effects
+    held: dict = {}
+    rows: list = []
+
+    def keeping(covariates, rate):
+        held["x"], held["y"] = np.array(covariates), np.array(rate)
+        return shipped_fit(covariates, rate)
+
+    def both(data, design, *a, **k):
+        entries = Entries.of(data, design)
+        n = entries.n_clusters
+        weights = design.resamples(replicates, np.random.default_rng(len(rows)))[:n]
+        fixed = ClusterSums.of(entries, entries.entering()).deviation(
+            np.hstack([np.ones((n, 1)), weights]))["shift"]
+        refit = refitted_shifts(data, design, held["x"], held["y"], weights)
+        rows.append({name: (fixed[j, 0], refit[j].std(ddof=1), fixed[j, 1:].std(ddof=1),
+                            *(basic(fixed[j, 0], star, lv) for star in (refit[j], fixed[j, 1:])
+                              for lv in LEVELS))
+                     for j, name in enumerate(data.response) if name in RESPONSES})
+        return shipped(data, design, *a, **k)
+    transitions.global_residual, conditional.response_effects = keeping, both
+    for rep in range(reps):
+        response_coverage.effects(response_designs.defect(np.random.default_rng(rep), kind,
+                                                          runs=pairs), rep, 2)
+    transitions.global_residual, conditional.response_effects = shipped_fit, shipped
+    return rows
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--kinds", default="clip_fixed,delay")
+    parser.add_argument("--reps", type=int, default=150)
+    parser.add_argument("--pairs", type=int, default=160)
+    parser.add_argument("--replicates", type=int, default=200)
+    parser.add_argument("--out", type=Path)
+    args = parser.parse_args()
+    result, truths = {}, json.loads(TRUTHS.read_text())["table"]
+    for kind in args.kinds.split(","):
+        rows = measure(kind, args.reps, args.pairs, args.replicates)
+        for name in RESPONSES:
+            x = np.array([r[name][:3] for r in rows])
+            spread = x[:, 0].std(ddof=1)
+            cell = result[f"{kind}/{name}"] = {
+                "sampling_sd": float(spread),
+                "refitted_bootstrap_over_sampling": float(x[:, 1].mean() / spread),
+                "fixed_fit_bootstrap_over_sampling": float(x[:, 2].mean() / spread)}
+            if kind in truths:
+                true = truths[kind][name]["true_shift"]
+                for k, label in enumerate(("refitted", "fixed_fit")):
+                    for i, lv in enumerate(LEVELS):
+                        cell[f"{label}_coverage_{lv}"] = float(np.mean(
+                            [lo <= true <= hi for lo, hi in (r[name][3 + 2 * k + i]
+                                                             for r in rows)]))
+            print(kind, name, {k: round(v, 4) for k, v in cell.items()}, flush=True)
+    if args.out:
+        args.out.write_text(json.dumps({"reps": args.reps, "pairs": args.pairs,
+                                        "replicates": args.replicates, "cells": result},
+                                       indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()
