@@ -9,7 +9,10 @@ weighted least squares (each transition weighted by its cluster's multiplicity),
 residuals' sums over the sample's entering states and the replicate's shift, and reports each
 bootstrap's standard deviation (refitted and fixed, the same replicate weights) over the shift's
 sampling standard deviation over ``--reps`` replications of ``--pairs`` pairs; for the designs
-of response_coverage_s14.json also each bootstrap's basic interval's coverage of the true shift.
+of response_coverage_s14.json also each bootstrap's basic interval's coverage of the true shift,
+and that of the refitted replicates moved to the fixed-fit replicates' median (the refit's
+spread with the fixed fit's centring); and each bootstrap's median less the estimate, over the
+sampling spread (mean over the replications).
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/shift_refit_probe.py --kinds clip_fixed \\
         --pairs 160 --reps 150 --out benchmarks/results/shift_refit_probe_160.json
@@ -83,9 +86,14 @@ def measure(kind: str, reps: int, pairs: int, replicates: int) -> list[dict]:
         fixed = ClusterSums.of(entries, entries.entering()).deviation(
             np.hstack([np.ones((n, 1)), weights]))["shift"]
         refit = refitted_shifts(data, design, held["x"], held["y"], weights)
+        recentred = refit - np.median(refit, axis=1, keepdims=True) \
+            + np.median(fixed[:, 1:], axis=1, keepdims=True)
         rows.append({name: (fixed[j, 0], refit[j].std(ddof=1), fixed[j, 1:].std(ddof=1),
-                            *(basic(fixed[j, 0], star, lv) for star in (refit[j], fixed[j, 1:])
-                              for lv in LEVELS))
+                            *(basic(fixed[j, 0], star, lv)
+                              for star in (refit[j], fixed[j, 1:], recentred[j])
+                              for lv in LEVELS),
+                            np.median(refit[j]) - fixed[j, 0],
+                            np.median(fixed[j, 1:]) - fixed[j, 0])
                      for j, name in enumerate(data.response) if name in RESPONSES})
         return shipped(data, design, *a, **k)
     transitions.global_residual, conditional.response_effects = keeping, both
@@ -113,10 +121,14 @@ def main() -> None:
             cell = result[f"{kind}/{name}"] = {
                 "sampling_sd": float(spread),
                 "refitted_bootstrap_over_sampling": float(x[:, 1].mean() / spread),
-                "fixed_fit_bootstrap_over_sampling": float(x[:, 2].mean() / spread)}
+                "fixed_fit_bootstrap_over_sampling": float(x[:, 2].mean() / spread),
+                "refitted_median_offset_over_sampling": float(
+                    np.mean([r[name][-2] for r in rows]) / spread),
+                "fixed_fit_median_offset_over_sampling": float(
+                    np.mean([r[name][-1] for r in rows]) / spread)}
             if kind in truths:
                 true = truths[kind][name]["true_shift"]
-                for k, label in enumerate(("refitted", "fixed_fit")):
+                for k, label in enumerate(("refitted", "fixed_fit", "refitted_recentred")):
                     for i, lv in enumerate(LEVELS):
                         cell[f"{label}_coverage_{lv}"] = float(np.mean(
                             [lo <= true <= hi for lo, hi in (r[name][3 + 2 * k + i]
