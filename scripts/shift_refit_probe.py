@@ -32,6 +32,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(ROOT / "scripts"))
 import response_coverage  # noqa: E402
+from shift_double_bootstrap_probe import bounds  # noqa: E402 (the basic interval)
 
 import response_designs  # noqa: E402
 from simcred.compare import conditional, effect, transitions  # noqa: E402
@@ -40,13 +41,6 @@ from simcred.compare.cluster_sums import ClusterSums, Entries  # noqa: E402
 RESPONSES = ("dv", "a")
 LEVELS = (0.90, 0.95)
 TRUTHS = ROOT / "benchmarks/results/response_coverage_s14.json"
-
-
-def basic(observed: float, star: np.ndarray, level: float) -> tuple[float, float]:
-    """The basic bootstrap interval (as the shipped ``shift_bounds``)."""
-    a = (1 - level) / 2
-    high, low = np.quantile(star, [a, 1 - a])
-    return 2 * observed - low, 2 * observed - high
 
 
 def refitted_shifts(data, design, x: np.ndarray, y: np.ndarray, weights: np.ndarray
@@ -89,7 +83,7 @@ def measure(kind: str, reps: int, pairs: int, replicates: int) -> list[dict]:
         recentred = refit - np.median(refit, axis=1, keepdims=True) \
             + np.median(fixed[:, 1:], axis=1, keepdims=True)
         rows.append({name: (fixed[j, 0], refit[j].std(ddof=1), fixed[j, 1:].std(ddof=1),
-                            *(basic(fixed[j, 0], star, lv)
+                            *(bounds(fixed[j, 0], star, None, (1 - lv) / 2)
                               for star in (refit[j], fixed[j, 1:], recentred[j])
                               for lv in LEVELS),
                             np.median(refit[j]) - fixed[j, 0],
