@@ -597,13 +597,13 @@ def test_least_squares_equals_svd_solution(seed):
     """The normal equations where well conditioned, an SVD where not (a covariate with two
     values makes its square collinear with the constant): the fitted values of
     ``np.linalg.lstsq`` either way."""
-    from simcred.compare.transitions import _Basis, _least_squares
+    from simcred.compare.transitions import Basis, _least_squares
 
     rng = np.random.default_rng(seed)
     x = np.column_stack([rng.normal(size=3000), rng.standard_t(3, size=3000),
                          rng.integers(0, 2, 3000) if seed % 2 else rng.normal(size=3000)])
     y = rng.normal(size=(3000, 2)) + x[:, :1] ** 2
-    design = _Basis.of(x, cubic=True).design(x)
+    design = Basis.of(x, cubic=True).design(x)
     expected = design @ np.linalg.lstsq(design, y, rcond=None)[0]
     assert np.allclose(design @ _least_squares(design, y), expected, rtol=0, atol=1e-9)
 
@@ -619,7 +619,7 @@ def test_fit_in_row_chunks_equals_svd_solution(monkeypatch, seed):
     x = np.column_stack([rng.normal(size=3001), rng.standard_t(3, size=3001),
                          rng.integers(0, 2, 3001) if seed % 2 else rng.normal(size=3001)])
     y = np.asfortranarray(rng.normal(size=(3001, 2)) + x[:, :1] ** 2)
-    design = transitions._Basis.of(x, cubic=True).design(x)
+    design = transitions.Basis.of(x, cubic=True).design(x)
     expected = design @ np.linalg.lstsq(design, y, rcond=None)[0]
     monkeypatch.setattr(transitions, "FIT_ROWS", 256)  # 12 chunks, the last one short
     got = transitions._fitted(np.asfortranarray(x), y, cubic=True)

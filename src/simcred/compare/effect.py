@@ -41,10 +41,13 @@ was chosen among 0.5–4 on the known-truth designs, calibration.md). Well above
 ``φ`` is the deviation itself, whose law is near normal (the squared scale's skew would put the
 lower bound far too low, "beyond the margin" would lose its power); within the noise it is
 nearly the squared scale. The shift's interval is the basic bootstrap interval of its
-replicates. In a replicate a state enters ``θ̃*`` where at least ``MIN_UNITS`` drawn units of each
-side visit it (its variances need two) and the shift where at least one does: dropping from the
-shift the states a replicate happens to draw one unit of made its bootstrap spread 1.3× its
-sampling spread (coverage 95.5–97 % at 90 %, calibration.md).
+replicates, each with the global fit refitted to first order (the fit's influence on the shift,
+:mod:`simcred.compare.fit_influence`: holding the sample's fit fixed made the clip design's
+bootstrap 1.12–1.21× its sampling spread). In a replicate a state enters ``θ̃*`` where at
+least ``MIN_UNITS`` drawn units of each side visit it (its variances need two) and the shift
+where at least one does: dropping from the shift the states a replicate happens to draw one
+unit of made its bootstrap spread 1.3× its sampling spread (coverage 95.5–97 % at 90 %,
+calibration.md).
 
 **Power constraint** [9]. An upper bound is never below ``floor``, the deviation that the
 permutation test of any deviation (``pvalue`` below) detects with 50 % power (``FLOOR_POWER``)
@@ -104,6 +107,7 @@ from scipy.stats import norm
 
 from simcred.compare.cluster_sums import MIN_SHARE, MIN_UNITS, ClusterSums, Entries, normalised
 from simcred.compare.design import Design
+from simcred.compare.fit_influence import shift_fit_influence
 from simcred.compare.runs import exceedance_pvalues
 from simcred.compare.side_counts import is_paired
 from simcred.compare.threads import in_threads
@@ -249,17 +253,18 @@ class EffectNull:
     entries: Entries
     keep: np.ndarray
     null: np.ndarray | None
+    fit_influence: np.ndarray | None = None  # (clusters, features): fit_influence.py
 
 
 def effect_null(data: Transitions, design: Design, assignments: np.ndarray | None
                 ) -> EffectNull:
-    """The entering states and, given ``assignments`` (row 0 observed), the plug-in squared
-    deviation of every assignment (features, P + 1)."""
+    """The entering states, the global fit's influence on the shift and, given ``assignments``
+    (row 0 observed), the plug-in squared deviation of every assignment (features, P + 1)."""
     entries = Entries.of(data, design)
     keep = entries.entering()
     null = None if assignments is None or not keep.any() \
         else _permuted_plugin(entries, keep, assignments)
-    return EffectNull(entries, keep, null)
+    return EffectNull(entries, keep, null, shift_fit_influence(data, entries, keep))
 
 
 def response_effects(data: Transitions, design: Design, replicates: int, alpha: float,
@@ -281,6 +286,8 @@ def response_effects(data: Transitions, design: Design, replicates: int, alpha: 
     if entries.pairs:
         weights = weights[:design.units_a]  # a pair's members are drawn together
     every = sums.deviation(np.hstack([np.ones((len(weights), 1)), weights]))  # observed first
+    if found.fit_influence is not None:  # each replicate refitted (fit_influence.py)
+        every["shift"][:, 1:] -= found.fit_influence.T @ weights
     observed = {name: value[:, :1] for name, value in every.items()}
     boot = {name: value[:, 1:] for name, value in every.items()}
     features = _feature_effects(data.response, observed, boot, found.null, alpha, level,

@@ -57,7 +57,9 @@ class Transitions:
     and per-state fits: the chain test's); ``level``: the response after the global fit only
     (the effect's; None: not computed, ``residual`` serves); ``profile``: (distinct states, J)
     per state the pooled mean of the global fit, i.e. how the model responds there on average
-    (label-free; the response test's profile contrasts; None: not computed).
+    (label-free; the response test's profile contrasts; None: not computed); ``covariates``:
+    (n, columns) what the global fit was fitted on (the effect's fit influence,
+    :mod:`simcred.compare.fit_influence`; None: not kept, the effect holds the fit fixed).
     """
 
     state: np.ndarray
@@ -67,6 +69,7 @@ class Transitions:
     spread: np.ndarray | None = None  # pooled standard deviation of the raw response rates
     level: np.ndarray | None = None
     profile: np.ndarray | None = None
+    covariates: np.ndarray | None = None
 
     @property
     def effect_residual(self) -> np.ndarray:
@@ -114,7 +117,7 @@ def transitions(parts: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray, np.nda
     level = global_residual(covariates, rate)
     residual = per_state_residual(state, covariates, level, out=scratch)
     return Transitions(state, unit, residual, response, spread, level,
-                       state_means(state, np.subtract(rate, level, out=rate)))
+                       state_means(state, np.subtract(rate, level, out=rate)), covariates)
 
 
 def _sorted_columns(values: Sequence[np.ndarray], where: Sequence[tuple[np.ndarray, np.ndarray]],
@@ -239,10 +242,10 @@ def per_state_residual(state: np.ndarray, covariates: np.ndarray, rate: np.ndarr
 
 
 def _fitted(x: np.ndarray, y: np.ndarray, cubic: bool = False) -> np.ndarray:
-    """Least-squares polynomial fit of ``y`` on ``x`` (:class:`_Basis`; the mean where too few
+    """Least-squares polynomial fit of ``y`` on ``x`` (:class:`Basis`; the mean where too few
     rows for a linear fit). The design matrix is built :data:`FIT_ROWS` rows at a time (the
     global fit's would be 10 columns × every transition), whole only for the SVD."""
-    basis = _Basis.of(x, cubic)
+    basis = Basis.of(x, cubic)
     if basis is None:
         return np.broadcast_to(y.mean(axis=0), y.shape)
     parts = [slice(lo, lo + FIT_ROWS) for lo in range(0, len(x), FIT_ROWS)]
@@ -295,7 +298,7 @@ def _normal_equations(gram: np.ndarray, moment: np.ndarray) -> np.ndarray | None
 
 
 @dataclass(frozen=True, slots=True, eq=False)
-class _Basis:
+class Basis:
     """``[1, z, z_i z_j (, z_i z_j z_k)]`` of covariates ``z`` standardised on the fit's rows
     (quadratic and cubic terms only with ``PER_COEFFICIENT`` rows per coefficient)."""
 
@@ -305,7 +308,7 @@ class _Basis:
     terms: tuple[tuple[int, ...], ...]
 
     @classmethod
-    def of(cls, x: np.ndarray, cubic: bool = False) -> _Basis | None:
+    def of(cls, x: np.ndarray, cubic: bool = False) -> Basis | None:
         """The basis for fit rows ``x``, or None when even a linear fit has too few rows."""
         centre, scale = x.mean(axis=0), x.std(axis=0)
         varying = scale > 0
