@@ -89,7 +89,7 @@ def main() -> None:
     parser.add_argument("--out", type=Path)
     args = parser.parse_args()
     response_designs.draw_leaders = shift_se_probe.synthetic_leaders
-    transitions.global_residual = shift_se_probe.centred
+    transitions.global_fit = shift_se_probe.centred
     result = {}
     for kind in args.kinds.split(","):
         rows, n_fixed = measure(kind, args.reps, args.pairs)

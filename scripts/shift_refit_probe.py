@@ -93,13 +93,13 @@ def influence_shifts(sums: ClusterSums, n: int, weights: np.ndarray, eps: float 
 def measure(kind: str, reps: int, pairs: int, replicates: int, first_seed: int = 0,
             exact: bool = True) -> list[dict]:
     """Per replication: per response (shift, refitted bootstrap sd, fixed-fit bootstrap sd)."""
-    shipped_fit, shipped = transitions.global_residual, effect.response_effects
+    shipped_fit, shipped = transitions.global_fit, effect.response_effects
     held: dict = {}
     rows: list = []
 
-    def keeping(covariates, rate):
+    def keeping(covariates, rate, *segments):
         held["x"], held["y"] = np.array(covariates), np.array(rate)
-        return shipped_fit(covariates, rate)
+        return shipped_fit(covariates, rate, *segments)
 
     def both(data, design, *a, **k):
         entries = Entries.of(data, design)
@@ -126,11 +126,11 @@ def measure(kind: str, reps: int, pairs: int, replicates: int, first_seed: int =
                             linear[j].std(ddof=1))
                      for j, name in enumerate(data.response) if name in RESPONSES})
         return shipped(data, design, *a, **k)
-    transitions.global_residual, conditional.response_effects = keeping, both
+    transitions.global_fit, conditional.response_effects = keeping, both
     for rep in range(first_seed, first_seed + reps):
         response_coverage.effects(response_designs.defect(np.random.default_rng(rep), kind,
                                                           runs=pairs), rep, 2)
-    transitions.global_residual, conditional.response_effects = shipped_fit, shipped
+    transitions.global_fit, conditional.response_effects = shipped_fit, shipped
     return rows
 
 

@@ -86,10 +86,11 @@ def synthetic_leaders(rng, runs, samples=response_designs.EPISODE, mask=None):
             "file": np.array(["synthetic"] * runs)}
 
 
-def centred(covariates: np.ndarray, rate: np.ndarray) -> np.ndarray:
+def centred(covariates: np.ndarray, rate: np.ndarray, *_) -> tuple[np.ndarray, None]:
     """``--no-fit``: the response less its pooled mean instead of its global cubic fit (the
-    shift of a state is then the raw difference of the two sides' mean responses)."""
-    return np.asfortranarray(rate - rate.mean(axis=0))
+    shift of a state is then the raw difference of the two sides' mean responses; no fit for
+    the bootstrap to refit), in place of :func:`transitions.global_fit`."""
+    return np.asfortranarray(rate - rate.mean(axis=0)), None
 
 
 def full_resampling(d, seed: int, resamples: int) -> dict[str, tuple[float, float]]:
@@ -148,7 +149,7 @@ def main() -> None:
     if args.synthetic_leaders:
         response_designs.draw_leaders = synthetic_leaders
     if args.no_fit:
-        transitions.global_residual = centred
+        transitions.global_fit = centred
     shipped = conditional.response_effects
     result = {}
     for kind in args.kinds.split(","):

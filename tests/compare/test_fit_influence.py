@@ -16,7 +16,7 @@ import pytest
 from simcred.compare.cluster_sums import ClusterSums, Entries
 from simcred.compare.design import Design, DesignKind, runs_design
 from simcred.compare.fit_influence import shift_fit_influence
-from simcred.compare.transitions import Basis, Transitions, global_residual
+from simcred.compare.transitions import Basis, Transitions, global_fit
 
 
 def _paired(units_a: int) -> Design:
@@ -38,9 +38,9 @@ def _data(seed: int, units: int, per_unit: int = 40) -> tuple[Transitions, np.nd
     y = y + rng.normal(size=(n, 2)) + rng.normal(size=(units, 2))[unit] + 0.2 * side_b[:, None]
     order = np.lexsort((unit, state))
     x, y = np.asfortranarray(x[order]), np.asfortranarray(y[order])
-    level = global_residual(x, y.copy(order="F"))
-    return Transitions(state[order], unit[order], level, ("p", "q"), level=level,
-                       covariates=x), y
+    state, unit = state[order], unit[order]
+    level, fit = global_fit(x, y.copy(order="F"), state, unit >= units // 2)
+    return Transitions(state, unit, level, ("p", "q"), level=level, fit=fit), y
 
 
 def _exact_shift(data: Transitions, y: np.ndarray, design: Design, weights: np.ndarray
@@ -48,7 +48,7 @@ def _exact_shift(data: Transitions, y: np.ndarray, design: Design, weights: np.n
     """(features,) the shift of the replicate ``weights`` with the global fit refitted by
     weighted least squares (each transition weighted by its cluster's weight)."""
     entries = Entries.of(data, design)
-    x = Basis.of(data.covariates, cubic=True).design(data.covariates)
+    x = Basis.of(data.fit.rows, cubic=True).design(data.fit.rows)
     cluster = data.unit % design.units_a if entries.pairs else data.unit
     root = np.sqrt(weights[cluster])[:, None]
     fitted = x @ np.linalg.lstsq(x * root, y * root, rcond=None)[0]
@@ -83,7 +83,7 @@ def test_influence_sums_to_zero_and_is_absent_without_covariates():
     a = shift_fit_influence(data, entries, entries.entering())
     assert np.abs(a).max() > 1e-3  # the fit does take part of the difference here
     np.testing.assert_allclose(a.sum(axis=0), 0.0, atol=1e-10)
-    assert shift_fit_influence(replace(data, covariates=None), entries,
+    assert shift_fit_influence(replace(data, fit=None), entries,
                                entries.entering()) is None
 
 
@@ -101,3 +101,23 @@ def test_linearised_replicates_spread_as_the_exact_refit():
     sd_exact, sd_linear = exact.std(axis=1), linear.std(axis=1)
     np.testing.assert_allclose(sd_linear, sd_exact, rtol=0.05)
     assert (np.abs(sd_linear - sd_exact) <= np.abs(fixed.std(axis=1) - sd_exact)).all()
+
+
+@pytest.mark.parametrize("chunk", [256, 2**18])
+def test_global_fit_keeps_its_gram_and_per_state_side_sums(monkeypatch, chunk):
+    """The fit's Gram matrix and per-(state, side) sums of its design rows, summed over row
+    chunks, are those of the whole design written out."""
+    from simcred.compare import transitions
+
+    monkeypatch.setattr(transitions, "FIT_ROWS", chunk)
+    data, y = _data(3, 12)
+    x = Basis.of(data.fit.rows, cubic=True).design(data.fit.rows)
+    level, fit = global_fit(data.fit.rows, y.copy(order="F"), data.state, data.unit >= 6)
+    np.testing.assert_allclose(fit.gram, x.T @ x, rtol=1e-12, atol=1e-9)
+    states = np.unique(data.state)
+    for s, code in enumerate(states):
+        for side in (0, 1):
+            rows = (data.state == code) & ((data.unit >= 6) == side)
+            np.testing.assert_allclose(fit.column_sums[s, side], x[rows].sum(axis=0),
+                                       rtol=1e-12, atol=1e-9)
+    np.testing.assert_allclose(level, data.level, atol=1e-9)

@@ -253,18 +253,17 @@ class EffectNull:
     entries: Entries
     keep: np.ndarray
     null: np.ndarray | None
-    fit_influence: np.ndarray | None = None  # (clusters, features): fit_influence.py
 
 
 def effect_null(data: Transitions, design: Design, assignments: np.ndarray | None
                 ) -> EffectNull:
-    """The entering states, the global fit's influence on the shift and, given ``assignments``
-    (row 0 observed), the plug-in squared deviation of every assignment (features, P + 1)."""
+    """The entering states and, given ``assignments`` (row 0 observed), the plug-in squared
+    deviation of every assignment (features, P + 1)."""
     entries = Entries.of(data, design)
     keep = entries.entering()
     null = None if assignments is None or not keep.any() \
         else _permuted_plugin(entries, keep, assignments)
-    return EffectNull(entries, keep, null, shift_fit_influence(data, entries, keep))
+    return EffectNull(entries, keep, null)
 
 
 def response_effects(data: Transitions, design: Design, replicates: int, alpha: float,
@@ -286,8 +285,9 @@ def response_effects(data: Transitions, design: Design, replicates: int, alpha: 
     if entries.pairs:
         weights = weights[:design.units_a]  # a pair's members are drawn together
     every = sums.deviation(np.hstack([np.ones((len(weights), 1)), weights]))  # observed first
-    if found.fit_influence is not None:  # each replicate refitted (fit_influence.py)
-        every["shift"][:, 1:] -= found.fit_influence.T @ weights
+    influence = shift_fit_influence(data, entries, keep)
+    if influence is not None:  # each replicate refitted (fit_influence.py)
+        every["shift"][:, 1:] -= influence.T @ weights
     observed = {name: value[:, :1] for name, value in every.items()}
     boot = {name: value[:, 1:] for name, value in every.items()}
     features = _feature_effects(data.response, observed, boot, found.null, alpha, level,

@@ -16,7 +16,10 @@ shift is linear in the residuals, so the refitted replicate is ``shift_r(r) − 
     shift_r ≈ shift_r(fixed fit) − Σ_c w_rc a_c,   a_c = v' X_c' r_c,   v = G⁻¹ D
 
 — the estimating-function bootstrap of the fit (Hu & Kalbfleisch 2000), one (clusters ×
-features) matrix and one product with the replicates' weights. ``v`` is the regression of the
+features) matrix and one product with the replicates' weights. ``D = X'c`` and ``G`` come from
+the fit itself (:class:`~simcred.compare.transitions.GlobalFit`: its Gram matrix and per
+(state, side) sums of its design rows, summed in the fit's own passes), so ``a`` costs one
+more pass over the design rows. ``v`` is the regression of the
 shift's per-transition coefficients ``c_t = ±w_s / N_side,s`` on the fit's columns, so ``X_t v``
 is the part of the shift's influence the fit can absorb. ``Σ_c a_c = 0`` (the normal
 equations), so the correction changes the replicates' spread, not their centre. The exact
@@ -35,35 +38,25 @@ import numpy as np
 
 from simcred.compare.cluster_sums import Entries, normalised
 from simcred.compare.threads import in_threads
-from simcred.compare.transitions import FIT_ROWS, Basis, Transitions
+from simcred.compare.transitions import FIT_ROWS, Transitions
 
 
 def shift_fit_influence(data: Transitions, entries: Entries, keep: np.ndarray
                         ) -> np.ndarray | None:
-    """(clusters, features) ``a_c`` of the module docs; None when the fit's covariates were not
-    kept (the bootstrap then holds the fit fixed)."""
-    if data.covariates is None or not keep.any():
+    """(clusters, features) ``a_c`` of the module docs; None when the fit was not kept (the
+    bootstrap then holds the fit fixed)."""
+    fit = data.fit
+    if fit is None or not keep.any():
         return None
-    x, level = data.covariates, data.effect_residual
-    design = _design_rows(x)
-    count = entries.count.astype(np.int64)
-    coefficient = np.repeat(_shift_coefficients(entries, keep)[entries.state, entries.side],
-                            count)
-    cluster = np.repeat(entries.cluster, count)
-    parts = [slice(lo, lo + FIT_ROWS) for lo in range(0, len(x), FIT_ROWS)]
-
-    def products(i: int) -> tuple[np.ndarray, np.ndarray]:
-        rows = design(x[parts[i]])
-        return rows.T @ rows, rows.T @ coefficient[parts[i]]
-
-    gram, moment = 0.0, 0.0
-    for part_gram, part_moment in in_threads(products, range(len(parts))):
-        gram, moment = gram + part_gram, moment + part_moment  # in order: the same sums
-    v = np.linalg.lstsq(gram, moment, rcond=None)[0]
+    level = data.effect_residual
+    moment = np.einsum("sk,skp->p", _shift_coefficients(entries, keep), fit.column_sums)
+    v = np.linalg.lstsq(fit.gram, moment, rcond=None)[0]  # D = X'c from the fit's sums
+    cluster = np.repeat(entries.cluster, entries.count.astype(np.int64))
+    parts = [slice(lo, lo + FIT_ROWS) for lo in range(0, len(level), FIT_ROWS)]
 
     def influence(i: int) -> np.ndarray:
         part = parts[i]
-        absorbed = design(x[part]) @ v
+        absorbed = fit.design(fit.rows[part]) @ v
         return np.stack([np.bincount(cluster[part], weights=absorbed * level[part, j],
                                      minlength=entries.n_clusters)
                          for j in range(level.shape[1])], axis=1)
@@ -72,15 +65,6 @@ def shift_fit_influence(data: Transitions, entries: Entries, keep: np.ndarray
     for piece in in_threads(influence, range(len(parts))):
         out += piece  # in order: the same sums
     return out
-
-
-def _design_rows(x: np.ndarray):
-    """The global fit's design matrix of rows ``x`` (its intercept alone where the fit is a
-    mean; transitions.py)."""
-    basis = Basis.of(x, cubic=True)
-    if basis is None:
-        return lambda rows: np.ones((len(rows), 1))
-    return basis.design
 
 
 def _shift_coefficients(entries: Entries, keep: np.ndarray) -> np.ndarray:

@@ -57,9 +57,9 @@ class Transitions:
     and per-state fits: the chain test's); ``level``: the response after the global fit only
     (the effect's; None: not computed, ``residual`` serves); ``profile``: (distinct states, J)
     per state the pooled mean of the global fit, i.e. how the model responds there on average
-    (label-free; the response test's profile contrasts; None: not computed); ``covariates``:
-    (n, columns) what the global fit was fitted on (the effect's fit influence,
-    :mod:`simcred.compare.fit_influence`; None: not kept, the effect holds the fit fixed).
+    (label-free; the response test's profile contrasts; None: not computed); ``fit``: the
+    global fit as the effect's fit influence needs it (:class:`GlobalFit`; None: not kept, the
+    effect's bootstrap holds the fit fixed).
     """
 
     state: np.ndarray
@@ -69,7 +69,7 @@ class Transitions:
     spread: np.ndarray | None = None  # pooled standard deviation of the raw response rates
     level: np.ndarray | None = None
     profile: np.ndarray | None = None
-    covariates: np.ndarray | None = None
+    fit: GlobalFit | None = None
 
     @property
     def effect_residual(self) -> np.ndarray:
@@ -114,10 +114,12 @@ def transitions(parts: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray, np.nda
                                        out_j, in_j)
     scratch = np.empty_like(rate)  # the spread's squared deviations, then the residual
     spread = std_columns(rate, scratch)
-    level = global_residual(covariates, rate)
+    runs_a = first_run[1]
+    units_a = int(np.asarray(unit_of_run)[:runs_a].max()) + 1 if runs_a else 0
+    level, fit = global_fit(covariates, rate, state, unit >= units_a)
     residual = per_state_residual(state, covariates, level, out=scratch)
     return Transitions(state, unit, residual, response, spread, level,
-                       state_means(state, np.subtract(rate, level, out=rate)), covariates)
+                       state_means(state, np.subtract(rate, level, out=rate)), fit)
 
 
 def _sorted_columns(values: Sequence[np.ndarray], where: Sequence[tuple[np.ndarray, np.ndarray]],
@@ -217,6 +219,36 @@ def adjusted(state: np.ndarray, covariates: np.ndarray, rate: np.ndarray) -> np.
     return per_state_residual(state, covariates, global_residual(covariates, rate))
 
 
+@dataclass(frozen=True, slots=True, eq=False)
+class GlobalFit:
+    """The pooled global fit as :mod:`simcred.compare.fit_influence` needs it: the covariates it
+    was fitted on (``rows``), its basis (None: the fit is the mean), the Gram matrix ``X'X`` of
+    its design rows and, per distinct state (sorted) and side, the sums of those rows."""
+
+    rows: np.ndarray
+    basis: Basis | None
+    gram: np.ndarray
+    column_sums: np.ndarray  # (states, 2, columns)
+
+    def design(self, x: np.ndarray) -> np.ndarray:
+        """The design rows of covariates ``x``."""
+        return np.ones((len(x), 1)) if self.basis is None else self.basis.design(x)
+
+
+def global_fit(covariates: np.ndarray, rate: np.ndarray, state: np.ndarray, side: np.ndarray
+               ) -> tuple[np.ndarray, GlobalFit]:
+    """``rate`` less its pooled global cubic fit (column-major; :func:`global_residual`), and the
+    fit (``state`` sorted, ``side`` True for B's transitions)."""
+    segment = 2 * np.cumsum(np.r_[False, state[1:] != state[:-1]]) + side
+    n_segments = 2 * (int(segment[-1]) // 2 + 1) if len(segment) else 2
+    fitted, basis, gram, sums = _fit(covariates, rate, True, segment, n_segments)
+    if fitted.flags.writeable and fitted.flags.f_contiguous:
+        residual = np.subtract(rate, fitted, out=fitted)  # in place: one fresh array fewer
+    else:
+        residual = np.asfortranarray(rate - fitted)
+    return residual, GlobalFit(covariates, basis, gram, sums.reshape(n_segments // 2, 2, -1))
+
+
 def global_residual(covariates: np.ndarray, rate: np.ndarray) -> np.ndarray:
     """``rate`` less its pooled global cubic fit (column-major)."""
     fitted = _fitted(covariates, rate, cubic=True)
@@ -243,44 +275,62 @@ def per_state_residual(state: np.ndarray, covariates: np.ndarray, rate: np.ndarr
 
 def _fitted(x: np.ndarray, y: np.ndarray, cubic: bool = False) -> np.ndarray:
     """Least-squares polynomial fit of ``y`` on ``x`` (:class:`Basis`; the mean where too few
-    rows for a linear fit). The design matrix is built :data:`FIT_ROWS` rows at a time (the
-    global fit's would be 10 columns × every transition), whole only for the SVD."""
+    rows for a linear fit)."""
+    return _fit(x, y, cubic)[0]
+
+
+def _fit(x: np.ndarray, y: np.ndarray, cubic: bool, segment: np.ndarray | None = None,
+         n_segments: int = 0) -> tuple[np.ndarray, Basis | None, np.ndarray, np.ndarray]:
+    """:func:`_fitted` with its basis, its Gram matrix and, given a ``segment`` per row, the
+    (segments, columns) sums of the design rows. The coefficients come from the normal
+    equations where they are well conditioned (one Gram product, 10-20x faster than an SVD on
+    millions of rows), else by SVD (collinear terms, e.g. the square of a covariate with two
+    values). The design matrix is built :data:`FIT_ROWS` rows at a time (the global fit's would
+    be 10 columns × every transition), whole only for the SVD."""
     basis = Basis.of(x, cubic)
-    if basis is None:
-        return np.broadcast_to(y.mean(axis=0), y.shape)
-    parts = [slice(lo, lo + FIT_ROWS) for lo in range(0, len(x), FIT_ROWS)]
-    if len(parts) == 1:
-        design = basis.design(x)
-        return design @ _least_squares(design, y)
+
+    def design(rows: np.ndarray) -> np.ndarray:
+        return np.ones((len(rows), 1)) if basis is None else basis.design(rows)
+
+    parts = [slice(lo, lo + FIT_ROWS) for lo in range(0, len(x), FIT_ROWS)] or [slice(0, 0)]
+    whole = design(x) if len(parts) == 1 else None  # one chunk: its design built once
+
+    def rows_of(i: int) -> np.ndarray:
+        return whole if whole is not None else design(x[parts[i]])
 
     def products(i: int) -> tuple[np.ndarray, np.ndarray]:
-        design = basis.design(x[parts[i]])
-        return design.T @ design, design.T @ y[parts[i]]
+        rows = rows_of(i)
+        return rows.T @ rows, rows.T @ y[parts[i]]
 
     gram, moment = 0.0, 0.0
     for part_gram, part_moment in in_threads(products, range(len(parts))):
         gram, moment = gram + part_gram, moment + part_moment  # in order: the same sums
     coefficients = _normal_equations(gram, moment)
     if coefficients is None:
-        design = basis.design(x)
-        return design @ np.linalg.lstsq(design, y, rcond=None)[0]
+        coefficients = np.linalg.lstsq(design(x), y, rcond=None)[0]
     out = np.empty_like(y)
 
-    def fitted(i: int) -> None:
-        out[parts[i]] = basis.design(x[parts[i]]) @ coefficients
+    def fitted(i: int) -> np.ndarray | None:
+        rows = rows_of(i)
+        out[parts[i]] = rows @ coefficients
+        return None if segment is None else _segment_sums(rows, segment[parts[i]], n_segments)
 
-    in_threads(fitted, range(len(parts)))
+    sums = np.zeros((n_segments, len(gram)))
+    for piece in in_threads(fitted, range(len(parts))):
+        if piece is not None:
+            sums += piece  # in order: the same sums
+    return out, basis, gram, sums
+
+
+def _segment_sums(rows: np.ndarray, segment: np.ndarray, n_segments: int) -> np.ndarray:
+    """(segments, columns) sums of ``rows`` per ``segment`` (sorted: each a run of rows)."""
+    starts = np.flatnonzero(np.r_[True, segment[1:] != segment[:-1]]) if len(segment) else \
+        np.zeros(0, dtype=np.int64)
+    out = np.zeros((n_segments, rows.shape[1]))
+    if len(starts):
+        block = np.stack([np.add.reduceat(column, starts) for column in rows.T], axis=1)
+        np.add.at(out, segment[starts], block)
     return out
-
-
-def _least_squares(design: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Least-squares coefficients: by the normal equations where they are well conditioned
-    (one Gram product, 10-20x faster than an SVD on millions of rows), else by SVD (collinear
-    terms, e.g. the square of a covariate with two values)."""
-    coefficients = _normal_equations(design.T @ design, design.T @ y)
-    if coefficients is None:
-        return np.linalg.lstsq(design, y, rcond=None)[0]
-    return coefficients
 
 
 def _normal_equations(gram: np.ndarray, moment: np.ndarray) -> np.ndarray | None:
