@@ -288,10 +288,12 @@ def _fit(x: np.ndarray, y: np.ndarray, cubic: bool, segment: np.ndarray | None =
     values). The design matrix is built :data:`FIT_ROWS` rows at a time (the global fit's would
     be 10 columns × every transition), whole only for the SVD."""
     basis = Basis.of(x, cubic)
-
-    def design(rows: np.ndarray) -> np.ndarray:
-        return np.ones((len(rows), 1)) if basis is None else basis.design(rows)
-
+    if basis is None:  # the mean: no design to build
+        ones = np.ones((len(x), 1))
+        sums = np.zeros((n_segments, 1)) if segment is None else \
+            _segment_sums(ones, segment, n_segments)
+        return np.broadcast_to(y.mean(axis=0), y.shape), None, ones.T @ ones, sums
+    design = basis.design
     parts = [slice(lo, lo + FIT_ROWS) for lo in range(0, len(x), FIT_ROWS)] or [slice(0, 0)]
     whole = design(x) if len(parts) == 1 else None  # one chunk: its design built once
 
@@ -307,7 +309,8 @@ def _fit(x: np.ndarray, y: np.ndarray, cubic: bool, segment: np.ndarray | None =
         gram, moment = gram + part_gram, moment + part_moment  # in order: the same sums
     coefficients = _normal_equations(gram, moment)
     if coefficients is None:
-        coefficients = np.linalg.lstsq(design(x), y, rcond=None)[0]
+        coefficients = np.linalg.lstsq(whole if whole is not None else design(x), y,
+                                       rcond=None)[0]
     out = np.empty_like(y)
 
     def fitted(i: int) -> np.ndarray | None:
