@@ -19,9 +19,9 @@ shift is linear in the residuals, so the refitted replicate is ``shift_r(r) − 
 features) matrix and one product with the replicates' weights. ``D = X'c`` and ``G`` come from
 the fit itself (:class:`~simcred.compare.transitions.GlobalFit`: its Gram matrix and per
 (state, side) sums of its design rows, summed in the fit's own passes), so ``a`` costs one
-more pass over the design rows. ``v`` is the regression of the
-shift's per-transition coefficients ``c_t = ±w_s / N_side,s`` on the fit's columns, so ``X_t v``
-is the part of the shift's influence the fit can absorb. ``Σ_c a_c = 0`` (the normal
+more pass over the design rows. ``v`` is the regression of the shift's per-transition
+coefficients ``c_t = ±w_s / N_side,s`` on the fit's columns, so ``X_t v`` is the part of the
+shift's influence the fit can absorb. ``Σ_c a_c = 0`` (the normal
 equations), so the correction changes the replicates' spread, not their centre. The exact
 refit moves the centre too, by second-order terms (the replicate's ``shift_r(X) − D`` times its
 coefficient change) whose bootstrap mean estimates a bias that measured about 0 and whose
