@@ -242,16 +242,17 @@ def global_fit(covariates: np.ndarray, rate: np.ndarray, state: np.ndarray, side
     segment = 2 * np.cumsum(np.r_[False, state[1:] != state[:-1]]) + side
     n_segments = 2 * (int(segment[-1]) // 2 + 1) if len(segment) else 2
     fitted, basis, gram, sums = _fit(covariates, rate, True, segment, n_segments)
-    if fitted.flags.writeable and fitted.flags.f_contiguous:
-        residual = np.subtract(rate, fitted, out=fitted)  # in place: one fresh array fewer
-    else:
-        residual = np.asfortranarray(rate - fitted)
-    return residual, GlobalFit(covariates, basis, gram, sums.reshape(n_segments // 2, 2, -1))
+    return _less(rate, fitted), GlobalFit(covariates, basis, gram,
+                                          sums.reshape(n_segments // 2, 2, -1))
 
 
 def global_residual(covariates: np.ndarray, rate: np.ndarray) -> np.ndarray:
     """``rate`` less its pooled global cubic fit (column-major)."""
-    fitted = _fitted(covariates, rate, cubic=True)
+    return _less(rate, _fitted(covariates, rate, cubic=True))
+
+
+def _less(rate: np.ndarray, fitted: np.ndarray) -> np.ndarray:
+    """``rate − fitted``, column-major, written into ``fitted`` where it can be."""
     if fitted.flags.writeable and fitted.flags.f_contiguous:
         return np.subtract(rate, fitted, out=fitted)  # in place: one fresh array fewer
     return np.asfortranarray(rate - fitted)
