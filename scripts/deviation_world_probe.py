@@ -70,7 +70,9 @@ def moved(data, design, entries: Entries, keep: np.ndarray) -> np.ndarray:
     return np.asfortranarray(level)
 
 
-def measure(kind: str, reps: int, pairs: int) -> list[dict]:
+def measure(kind: str, reps: int, pairs: int) -> list[tuple[dict, dict]]:
+    """Per replication: per response (θ̃, world replicates' sd, world plug-in, world bounds),
+    and the shipped effects."""
     shipped = effect.response_effects
     rows: list = []
 
