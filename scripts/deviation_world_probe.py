@@ -11,7 +11,8 @@ plug-in 2.5× the estimate.) Per replication (``--pairs`` pairs of a
 defect design, seeds from 0) it reports the shipped interval and the world's basic interval
 ``[θ̃ − (q_{1−a}(θ̃*) − T), θ̃ − (q_a(θ̃*) − T)]`` (``T`` the world's plug-in, bounds as roots,
 clamped at 0): the replicates' sd over the sampling sd of ``θ̃`` and each interval's coverage of
-the true deviation (response_coverage_s14.json). Exploratory: no power floor, 200 replicates.
+the true deviation (response_coverage_s14.json); and the same with every replicate's noise
+estimate replaced by the sample's (``held_noise``). Exploratory: no power floor, 200 replicates.
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/deviation_world_probe.py --pairs 160 \\
         --reps 200 --out benchmarks/results/deviation_world_probe_160.json
@@ -70,6 +71,28 @@ def moved(data, design, entries: Entries, keep: np.ndarray) -> np.ndarray:
     return np.asfortranarray(level)
 
 
+def held_noise(sums: ClusterSums, weights: np.ndarray) -> np.ndarray:
+    """(features, replicates) ``θ̃*`` with the sample's noise estimate in place of each
+    replicate's own: ``Σ_s w*_s (Δμ*² + Δσ*² − V̂_μ,s − V̂_σ,s)``."""
+    sample = sums.components(np.ones((weights.shape[0], 1)))
+    out = []
+    for c, c0 in zip(sums.components(weights), sample, strict=True):
+        noise = (c0.var_mean + c0.var_sd)
+        out.append((c.w * (c.d_mean**2 + c.d_sd**2 - noise)).sum(axis=0))
+    return np.array(out)
+
+
+def basic(estimate: float, star: np.ndarray, truth: float) -> list[tuple[float, float]]:
+    """The basic interval at each of :data:`LEVELS` on the squared scale, as roots."""
+    out = []
+    for lv in LEVELS:
+        a = (1 - lv) / 2
+        lo = estimate - (np.quantile(star, 1 - a) - truth)
+        hi = estimate - (np.quantile(star, a) - truth)
+        out.append((np.sqrt(max(lo, 0.0)), np.sqrt(max(hi, 0.0))))
+    return out
+
+
 def measure(kind: str, reps: int, pairs: int) -> list[tuple[dict, dict]]:
     """Per replication: per response (θ̃, world replicates' sd, world plug-in, world bounds),
     and the shipped effects."""
@@ -86,19 +109,15 @@ def measure(kind: str, reps: int, pairs: int) -> list[tuple[dict, dict]]:
         weights = design.resamples(200, np.random.default_rng(len(rows)))[:n]
         sums = ClusterSums.of(w_entries, keep)
         every = sums.deviation(np.hstack([np.ones((n, 1)), weights]))
+        held = held_noise(sums, weights)
         row = {}
         for j, name in enumerate(data.response):
             if name not in RESPONSES:
                 continue
             f = next(x for x in out.features if x.feature == name)
             star, truth_w = every["squared"][j, 1:], every["plugin"][j, 0]
-            bounds = []
-            for lv in LEVELS:
-                a = (1 - lv) / 2
-                lo = f.squared - (np.quantile(star, 1 - a) - truth_w)
-                hi = f.squared - (np.quantile(star, a) - truth_w)
-                bounds.append((np.sqrt(max(lo, 0.0)), np.sqrt(max(hi, 0.0))))
-            row[name] = (f.squared, star.std(ddof=1), truth_w, bounds)
+            row[name] = (f.squared, star.std(ddof=1), truth_w, basic(f.squared, star, truth_w),
+                         held[j].std(ddof=1), basic(f.squared, held[j], truth_w))
         rows.append((row, {x.feature: x for x in out.features}))
         return out
 
@@ -128,9 +147,12 @@ def main() -> None:
             cell = cells[f"{kind}/{name}"] = {
                 "world_bootstrap_over_sampling": float(x[:, 1].mean() / spread),
                 "mean_world_plugin_over_mean_estimate": float(x[:, 2].mean() / x[:, 0].mean())}
+            cell["held_noise_bootstrap_over_sampling"] = float(
+                np.mean([r[name][4] for r, _ in rows]) / spread)
             for i, lv in enumerate(LEVELS):
-                cell[f"world_coverage_{lv}"] = float(np.mean(
-                    [r[name][3][i][0] <= true <= r[name][3][i][1] for r, _ in rows]))
+                for label, k in (("world", 3), ("held_noise", 5)):
+                    cell[f"{label}_coverage_{lv}"] = float(np.mean(
+                        [r[name][k][i][0] <= true <= r[name][k][i][1] for r, _ in rows]))
             cell["shipped_coverage_0.95"] = float(np.mean(
                 [f[name].low <= true <= f[name].high for _, f in rows]))
             print(kind, name, {k: round(v, 4) for k, v in cell.items()}, flush=True)
