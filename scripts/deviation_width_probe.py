@@ -27,10 +27,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(ROOT / "scripts"))
 import response_coverage  # noqa: E402
+from shift_refit_probe import RESPONSES  # noqa: E402
 
 import response_designs  # noqa: E402
-
-RESPONSES = ("dv", "a")
 
 
 def measure(kind: str, reps: int, pairs: int, first_seed: int) -> dict[str, np.ndarray]:

@@ -32,14 +32,11 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(ROOT / "scripts"))
 import response_coverage  # noqa: E402
+from shift_refit_probe import LEVELS, RESPONSES, TRUTHS  # noqa: E402
 
 import response_designs  # noqa: E402
 from simcred.compare import conditional, effect  # noqa: E402
 from simcred.compare.cluster_sums import ClusterSums, Entries  # noqa: E402
-
-RESPONSES = ("dv", "a")
-LEVELS = (0.90, 0.95)
-TRUTHS = ROOT / "benchmarks/results/response_coverage_s14.json"
 
 
 def moved(data, design, entries: Entries, keep: np.ndarray) -> np.ndarray:
