@@ -1,4 +1,4 @@
-"""Five intervals of the response deviation built on what its bootstrap gets wrong (issue 21,
+"""Six intervals of the response deviation built on what its bootstrap gets wrong (issue 21,
 interval coverage; session 29). None is shipped (docs/calibration.md, "Session 29").
 
 The bootstrap world's per-state differences are the sample's ``d̂_s = Δ_s + e_s``, so the linear
@@ -23,6 +23,10 @@ interval (``shipped``, the comparison's own 500 replicates):
   Σ w V``); ``boot_inv_floor``: its upper end at least the shipped power floor;
 * ``null_inv_{zero,noise,linear}``: the same inversion with the plug-in's permutation null,
   centred, as the noise law and ``κ`` 0, the noise-shaped one, or as ``boot_inv``'s;
+* ``lev_inv``: the same with session 24's ``r_inv`` ingredients around the shipped estimate:
+  the plug-in under every assignment with each state's squared differences over ``1 − h``,
+  centred, and ``κ`` from the pairs' linear variance with the weights ``w / (1 − h)``, less its
+  noise (``_pairs_linear_variance``), over ``θ̃`` (the noise-shaped ``κ`` where not positive);
 
 each interval's coverage of the true deviation (response_coverage_s14.json) with its misses
 on each side, the replicates' sd over the sampling sd of ``θ̃``, and the variance parts: the
@@ -47,7 +51,12 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(ROOT / "scripts"))
 import response_coverage  # noqa: E402
-from deviation_calibrated_probe import _pair_influences, _per_pair, inverted_bounds  # noqa: E402
+from deviation_calibrated_probe import (  # noqa: E402
+    _pair_influences,
+    _pairs_linear_variance,
+    _per_pair,
+    inverted_bounds,
+)
 from deviation_world_probe import basic  # noqa: E402
 from shift_refit_probe import LEVELS, RESPONSES, TRUTHS  # noqa: E402
 
@@ -56,6 +65,26 @@ from simcred.compare import conditional, effect  # noqa: E402
 from simcred.compare.cluster_sums import MIN_UNITS, ClusterSums, Entries, normalised  # noqa: E402
 
 REPLICATES = 500
+
+
+def leverage_law(data, design, assignments: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``lev_inv``'s noise law per response (J, P): the plug-in under every assignment with
+    each state's squared differences over ``1 − h`` (``h = Σ_c (N_c / N)²`` over the pairs'
+    transitions in the state), centred; and ``h`` per entering state."""
+    entries = Entries.of(data, design)
+    keep = entries.entering()
+    take = keep[entries.state]
+    state = (np.cumsum(keep) - 1)[entries.state[take]]
+    by_pair = np.zeros((int(keep.sum()), entries.n_clusters))
+    np.add.at(by_pair, (state, entries.cluster[take]), entries.count[take])
+    h = ((by_pair / by_pair.sum(axis=1, keepdims=True))**2).sum(axis=1)
+    j = entries.first.shape[1]
+    out = []
+    for _, sides, total in effect.assignment_sides(entries, keep, assignments):
+        w, mean_part, sd_part = effect.plugin_terms(sides, total, j)
+        out.append((w * (mean_part + sd_part) / (1 - h)[:, None]).sum(axis=1))
+    law = np.concatenate(out, axis=-1)[:, 1:]
+    return law - law.mean(axis=1, keepdims=True), h
 
 
 @dataclasses.dataclass(frozen=True)
@@ -67,9 +96,10 @@ class Sample:
     totals: np.ndarray
     weights: np.ndarray
     sums: ClusterSums
+    leverage: tuple[np.ndarray, np.ndarray]
 
     @classmethod
-    def of(cls, data, design, rng) -> Sample:
+    def of(cls, data, design, rng, assignments: np.ndarray) -> Sample:
         entries = Entries.of(data, design)
         keep = entries.entering()
         take = keep[entries.state]
@@ -77,7 +107,7 @@ class Sample:
         return cls(_per_pair(entries, take, (np.cumsum(keep) - 1)[entries.state[take]]),
                    entries.totals(), np.hstack([np.ones((n, 1)),
                                                 design.resamples(REPLICATES, rng)[:n]]),
-                   ClusterSums.of(entries, keep))
+                   ClusterSums.of(entries, keep), leverage_law(data, design, assignments))
 
 
 def linear_parts(per_pair: np.ndarray, k: int, w: np.ndarray) -> tuple[float, float]:
@@ -164,6 +194,10 @@ def intervals(f, sample: Sample, k: int, cross: bool) -> dict:
            "boot_inv": boot_inv,
            "boot_inv_floor": [(lo, max(hi, float(np.sqrt(f.power_floor((1 - lv) / 2)))))
                               for (lo, hi), lv in zip(boot_inv, LEVELS, strict=True)]}
+    law, h = sample.leverage
+    pairs = _pairs_linear_variance(sample.per_pair, w / (1 - h), k)
+    out["lev_inv"] = _roots(_inverted(estimate, law[k], pairs / estimate
+                                      if pairs > 0 and estimate > 0 else noise_kappa))
     centred = f.null - f.null.mean()
     for name, value in (("zero", 0.0), ("noise", noise_kappa), ("linear", kappa)):
         out[f"null_inv_{name}"] = _roots(_inverted(estimate, centred, value))
@@ -182,7 +216,7 @@ def measure(kind: str, args) -> list[dict]:
 
     def both(data, design, *a, **kw):
         out = shipped(data, design, *a, **kw)
-        sample = Sample.of(data, design, np.random.default_rng(len(rows)))
+        sample = Sample.of(data, design, np.random.default_rng(len(rows)), a[6])
         rows.append({f.feature: intervals(f, sample, j, args.cross)
                      for j, f in enumerate(out.features) if f.feature in RESPONSES})
         return out
@@ -208,7 +242,7 @@ def main() -> None:
     args = parser.parse_args()
     truths = json.loads(TRUTHS.read_text())["table"]
     labels = ["shipped", "scaled", "scaled_shipped", "student", "boot_inv", "boot_inv_floor",
-              "null_inv_zero", "null_inv_noise", "null_inv_linear"] + (
+              "null_inv_zero", "null_inv_noise", "null_inv_linear", "lev_inv"] + (
         ["student_cross"] if args.cross else [])
     cells = {}
     for kind in args.kinds.split(","):
