@@ -181,9 +181,7 @@ def assignment_parts(data, design, assignments: np.ndarray) -> AssignmentParts:
     from_a = np.zeros_like(visits)  # A's transitions per state and unit (B's units: 0)
     on_a = entries.side[take] == 0
     from_a[state[on_a], entries.unit[take][on_a]] = count[on_a]
-    by_pair = np.zeros((int(keep.sum()), entries.n_clusters))
-    np.add.at(by_pair, (state, entries.cluster[take]), count)
-    leverage = ((by_pair / by_pair.sum(axis=1, keepdims=True))**2).sum(axis=1)
+    leverage = pair_leverage(entries, keep)
     j = entries.first.shape[1]
     parts, entering, weight, mixing = [], [], None, []
     for start, sides, total in effect.assignment_sides(entries, keep, assignments):
@@ -203,6 +201,15 @@ def assignment_parts(data, design, assignments: np.ndarray) -> AssignmentParts:
     return AssignmentParts(entries, keep, np.concatenate(parts, axis=-1),
                            np.concatenate(entering, axis=-1), weight, leverage,
                            _per_pair(entries, take, state), np.concatenate(mixing, axis=-1))
+
+
+def pair_leverage(entries: Entries, keep: np.ndarray) -> np.ndarray:
+    """Per entering state, ``h = Σ_c (N_c / N)²`` over the pairs' transitions in it."""
+    take = keep[entries.state]
+    by_pair = np.zeros((int(keep.sum()), entries.n_clusters))
+    np.add.at(by_pair, ((np.cumsum(keep) - 1)[entries.state[take]], entries.cluster[take]),
+              entries.count[take])
+    return ((by_pair / by_pair.sum(axis=1, keepdims=True))**2).sum(axis=1)
 
 
 def _higher_sums(data, state: np.ndarray, unit: np.ndarray, take: np.ndarray,

@@ -56,6 +56,7 @@ from deviation_calibrated_probe import (  # noqa: E402
     _pairs_linear_variance,
     _per_pair,
     inverted_bounds,
+    pair_leverage,
 )
 from deviation_world_probe import basic  # noqa: E402
 from shift_refit_probe import LEVELS, RESPONSES, TRUTHS  # noqa: E402
@@ -67,17 +68,12 @@ from simcred.compare.cluster_sums import MIN_UNITS, ClusterSums, Entries, normal
 REPLICATES = 500
 
 
-def leverage_law(data, design, assignments: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def leverage_law(entries: Entries, keep: np.ndarray, assignments: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
     """``lev_inv``'s noise law per response (J, P): the plug-in under every assignment with
     each state's squared differences over ``1 − h`` (``h = Σ_c (N_c / N)²`` over the pairs'
     transitions in the state), centred; and ``h`` per entering state."""
-    entries = Entries.of(data, design)
-    keep = entries.entering()
-    take = keep[entries.state]
-    state = (np.cumsum(keep) - 1)[entries.state[take]]
-    by_pair = np.zeros((int(keep.sum()), entries.n_clusters))
-    np.add.at(by_pair, (state, entries.cluster[take]), entries.count[take])
-    h = ((by_pair / by_pair.sum(axis=1, keepdims=True))**2).sum(axis=1)
+    h = pair_leverage(entries, keep)
     j = entries.first.shape[1]
     out = []
     for _, sides, total in effect.assignment_sides(entries, keep, assignments):
@@ -107,7 +103,7 @@ class Sample:
         return cls(_per_pair(entries, take, (np.cumsum(keep) - 1)[entries.state[take]]),
                    entries.totals(), np.hstack([np.ones((n, 1)),
                                                 design.resamples(REPLICATES, rng)[:n]]),
-                   ClusterSums.of(entries, keep), leverage_law(data, design, assignments))
+                   ClusterSums.of(entries, keep), leverage_law(entries, keep, assignments))
 
 
 def linear_parts(per_pair: np.ndarray, k: int, w: np.ndarray) -> tuple[float, float]:
