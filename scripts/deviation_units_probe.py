@@ -34,15 +34,14 @@ from simcred.compare.cluster_sums import Entries  # noqa: E402
 
 
 def units(data, design) -> dict:
-    """The units of the less visited side per entering state, and their weights."""
+    """The units of the less visited side per entering state (their weighted mean as the
+    shipped ``units_per_state``), and the weight of the states with few."""
     entries = Entries.of(data, design)
     keep = entries.entering()
     fewest = entries.per_state(np.ones(len(entries.count)))[keep].min(axis=1)
-    count = entries.per_state(entries.count)[keep]
-    w = (count / count.sum(axis=0)).mean(axis=1)
-    w = w / w.sum()
+    w = entries.state_weights(keep)
     return {"states": int(keep.sum()), "median_units": float(np.median(fewest)),
-            "weighted_mean_units": float((w * fewest).sum()),
+            "weighted_mean_units": entries.fewest_units(keep),
             "weight_below_4": float(w[fewest < 4].sum()),
             "weight_below_8": float(w[fewest < 8].sum())}
 

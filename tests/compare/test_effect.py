@@ -241,6 +241,53 @@ def test_entry_rule_needs_two_units_of_each_side():
     assert entries.entering().tolist() == [True, False]
 
 
+def test_fewest_units_written_out():
+    """Per entering state the units of the side with fewer, weighted as the deviation weighs the
+    state (the mean of the two sides' shares of their transitions, renormalised)."""
+    cells = {0: {0: [1.0, 2.0], 1: [4.0], 4: [0.0], 2: [0.0, 1.0], 3: [2.0, 3.0, 4.0]},
+             1: {0: [0.0], 1: [1.0, 1.0], 4: [2.0], 2: [3.0], 3: [1.0, 2.0], 5: [0.5],
+                 6: [1.5]}}
+    design = runs_design(3, 4)  # A: units 0, 1, 4 (run ids 0-2); B: 3-6
+    a_units, b_units = {0, 1, 4}, {2, 3, 5, 6}
+    remap = {0: 0, 1: 1, 4: 2, 2: 3, 3: 4, 5: 5, 6: 6}
+    entries = Entries.of(_transitions({s: {remap[u]: x for u, x in c.items()}
+                                       for s, c in cells.items()}), design)
+    keep = entries.entering()
+    assert keep.all()
+    share, fewest = [], []
+    totals = [sum(len(x) for c in cells.values() for u, x in c.items() if u in side)
+              for side in (a_units, b_units)]
+    for c in cells.values():
+        n = [sum(len(x) for u, x in c.items() if u in side) for side in (a_units, b_units)]
+        share.append(0.5 * (n[0] / totals[0] + n[1] / totals[1]))
+        fewest.append(min(sum(u in side for u in c) for side in (a_units, b_units)))
+    assert fewest == [2, 3]
+    expected = sum(w * f for w, f in zip(share, fewest, strict=True)) / sum(share)
+    assert entries.fewest_units(keep) == pytest.approx(expected)
+    assert np.isnan(entries.fewest_units(np.zeros_like(keep)))
+
+
+@pytest.mark.parametrize(("runs", "warned"), [(3, True), (14, False)])
+def test_few_units_per_state_are_said(runs, warned):
+    """Below FEW_UNITS units per state the result says that the deviation's interval is not
+    calibrated there (calibration.md, "Session 30"); the number is in the JSON."""
+    from simcred.traces import TraceSet
+
+    def runs_of(seed):
+        rng = np.random.default_rng(seed)
+        return TraceSet.from_runs([{"t": np.arange(40.0), "x": np.cumsum(rng.normal(size=40))}
+                                   for _ in range(runs)])
+
+    result = compare(runs_of(0), runs_of(1), features=["x"], test="response", bins=2,
+                     permutations=19, seed=1, bootstrap=20)
+    effect = result.response.effect
+    assert effect.states > 0
+    assert (effect.units_per_state < 4) == warned
+    assert any("units per state" in w for w in result.response.warnings) == warned
+    written = json.loads(result.to_json())["response"]["effect"]["units_per_state"]
+    assert written == pytest.approx(effect.units_per_state)
+
+
 def _synthetic(rng, units, per_unit, means, sds):
     """Per state, each unit ``per_unit`` iid normal transitions; means/sds: (states, 2)."""
     state, unit, value = [], [], []

@@ -74,6 +74,20 @@ class Entries:
         visits = self.per_state(np.ones(len(self.count)))
         return ((share >= MIN_SHARE) & (visits >= MIN_UNITS)).all(axis=1)
 
+    def state_weights(self, keep: np.ndarray) -> np.ndarray:
+        """The entering states' weights: the mean of the two sides' shares of their
+        transitions, renormalised over ``keep``."""
+        count = self.per_state(self.count)
+        return normalised((count / np.maximum(count.sum(axis=0), 1.0)).mean(axis=1)[keep])
+
+    def fewest_units(self, keep: np.ndarray) -> float:
+        """The units the entering states ``keep`` rest on: per state the units of the side with
+        fewer, averaged with :meth:`state_weights`; NaN where none enters."""
+        if not keep.any():
+            return float("nan")
+        fewest = self.per_state(np.ones(len(self.count)))[keep].min(axis=1)
+        return float((self.state_weights(keep) * fewest).sum())
+
     def totals(self) -> np.ndarray:
         """(clusters, 2) transitions per cluster and side over all states."""
         return np.bincount(2 * self.cluster + self.side, weights=self.count,

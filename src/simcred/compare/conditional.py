@@ -25,6 +25,7 @@ from simcred.compare.design import Design, DesignKind
 from simcred.compare.discretize import StateSpace
 from simcred.compare.effect import (
     ENTRY,
+    FEW_UNITS,
     EffectSummary,
     effect_null,
     rate_unit,
@@ -256,6 +257,12 @@ def _warnings(design: Design, options: ComparisonOptions, outcome: ResponseOutco
     if effect.states == 0:
         out.append(f"no state {ENTRY}: the deviation "
                    "cannot be estimated (this is not 'no deviation'); use fewer bins or more runs")
+    elif effect.units_per_state < FEW_UNITS:
+        out.append(f"the deviation rests on {effect.units_per_state:.1f} units per state (the "
+                   f"side with fewer, weighted): below {FEW_UNITS} its interval is not calibrated "
+                   "and the estimate of a heavy-tailed response leans high (docs/calibration.md, "
+                   "'Session 30'); decide on its bounds and p-value, or use fewer bins or more "
+                   "runs")
     return tuple(out)
 
 

@@ -124,6 +124,9 @@ STABILISER = 2.0
 POWER = 0.8
 #: Power at which the upper bounds' floor is detected (module docs: "Power constraint").
 FLOOR_POWER = 0.5
+#: Units per state below which a state's noise has no unbiased variance estimate: the width
+#: needs fourth-degree moments, estimable from four units (calibration.md, "Session 30").
+FEW_UNITS = 4
 
 
 @dataclass(frozen=True, slots=True)
@@ -202,13 +205,17 @@ class FeatureEffect:
 @dataclass(frozen=True, slots=True)
 class EffectSummary:
     """Effects of all response features; ``equivalent``: every margin met (None: no margin).
-    ``states``: how many states entered (0: not estimable, every estimate NaN)."""
+    ``states``: how many states entered (0: not estimable, every estimate NaN);
+    ``units_per_state``: the units those states rest on (:meth:`Entries.fewest_units`; below
+    :data:`FEW_UNITS` the interval's width and the standard deviations' bias correction depend
+    on tails that so few units cannot estimate)."""
 
     level: float
     replicates: int
     states: int
     features: tuple[FeatureEffect, ...]
     equivalent: bool | None
+    units_per_state: float = float("nan")
 
 
 _POWERS = {"": "²", "²": "³", "^2": "^3"}
@@ -294,7 +301,7 @@ def response_effects(data: Transitions, design: Design, replicates: int, alpha: 
                                 dict(margins), units)
     verdicts = [f.equivalent for f in features if f.equivalent is not None]
     return EffectSummary(level, replicates, int(keep.sum()), features,
-                         all(verdicts) if verdicts else None)
+                         all(verdicts) if verdicts else None, entries.fewest_units(keep))
 
 
 def _not_estimable(name: str, unit: str, margin: float | None) -> FeatureEffect:
