@@ -61,7 +61,7 @@ def _response_coverage(stem: str, field: str):
         (kind, f): table[kind][f][field] for kind, f in CELLS if kind in table}
 
 
-def _r_inv(stem: str, label: str = "r_inv"):
+def _calibrated_probe(stem: str, label: str):
     """The same of a scripts/deviation_calibrated_probe.py run (``r_inv`` or another field)."""
     found = _load(stem)
     if found is None:
@@ -116,7 +116,7 @@ def collect() -> dict:
                            for size, stems in RESPONSE_COVERAGE.items()}
     for label, session in CALIBRATED:
         intervals[f"{label} (session {session}, probe)"] = {
-            size: [r for r in (_r_inv(s, label) for s in stems) if r]
+            size: [r for r in (_calibrated_probe(s, label) for s in stems) if r]
             for size, stems in R_INV.items()}
     intervals["student_cross (session 29, probe)"] = {
         size: [r for r in map(_student_cross, stems) if r] for size, stems in STUDENT_CROSS.items()}

@@ -38,7 +38,7 @@ def units(data, design) -> dict:
     shipped ``units_per_state``), and the weight of the states with few."""
     entries = Entries.of(data, design)
     keep = entries.entering()
-    fewest = entries.per_state(np.ones(len(entries.count)))[keep].min(axis=1)
+    fewest = entries.visits()[keep].min(axis=1)
     w = entries.state_weights(keep)
     return {"states": int(keep.sum()), "median_units": float(np.median(fewest)),
             "weighted_mean_units": entries.fewest_units(keep),

@@ -67,26 +67,30 @@ class Entries:
         return np.bincount(2 * self.state + self.side, weights=values,
                            minlength=2 * self.n_states).reshape(self.n_states, 2)
 
+    def shares(self) -> np.ndarray:
+        """(states, 2) each side's share of its transitions per state."""
+        count = self.per_state(self.count)
+        return count / np.maximum(count.sum(axis=0), 1.0)
+
+    def visits(self) -> np.ndarray:
+        """(states, 2) units of each side that visit each state."""
+        return self.per_state(np.ones(len(self.count)))
+
     def entering(self) -> np.ndarray:
         """The states that enter the effect (module docs: :data:`ENTRY`)."""
-        count = self.per_state(self.count)
-        share = count / np.maximum(count.sum(axis=0), 1.0)
-        visits = self.per_state(np.ones(len(self.count)))
-        return ((share >= MIN_SHARE) & (visits >= MIN_UNITS)).all(axis=1)
+        return ((self.shares() >= MIN_SHARE) & (self.visits() >= MIN_UNITS)).all(axis=1)
 
     def state_weights(self, keep: np.ndarray) -> np.ndarray:
         """The entering states' weights: the mean of the two sides' shares of their
         transitions, renormalised over ``keep``."""
-        count = self.per_state(self.count)
-        return normalised((count / np.maximum(count.sum(axis=0), 1.0)).mean(axis=1)[keep])
+        return normalised(self.shares().mean(axis=1)[keep])
 
     def fewest_units(self, keep: np.ndarray) -> float:
         """The units the entering states ``keep`` rest on: per state the units of the side with
         fewer, averaged with :meth:`state_weights`; NaN where none enters."""
         if not keep.any():
             return float("nan")
-        fewest = self.per_state(np.ones(len(self.count)))[keep].min(axis=1)
-        return float((self.state_weights(keep) * fewest).sum())
+        return float((self.state_weights(keep) * self.visits()[keep].min(axis=1)).sum())
 
     def totals(self) -> np.ndarray:
         """(clusters, 2) transitions per cluster and side over all states."""
